@@ -1,0 +1,1 @@
+"""Pure estimation maths: filters, least squares, bounds, particle filters (no SimPy)."""

@@ -1,0 +1,1 @@
+"""Node behaviours (protocols) built on aquasim_py."""
