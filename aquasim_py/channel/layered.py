@@ -1,0 +1,675 @@
+"""First-arrival eigenrays through a stack of isogradient layers (piecewise-linear c(z)).
+
+Within a layer c = c_k + g_k (z - z_k) a ray is an arc of a circle (a straight line when
+g_k = 0), so for a Snell invariant p = cos(theta) / c the horizontal range, travel time and
+arc length across any part of a layer are closed form (Ramezani et al., eqs 4-7, 13, 19,
+rewritten without the 1/g factor so that g -> 0 has no cancellation error).
+
+For a pair of depths z_a <= z_b (the shallower point is called A) three ray families join
+them without leaving the water and with at most one turning point:
+
+* D, direct: depth changes monotonically from A to B, 0 <= p <= 1 / max c on [z_a, z_b];
+* L, lower turn: down past B to the turning depth c(z_t) = 1/p, then back up to B;
+* U, upper turn: up from A to the turning depth above it, then down past A to B.
+
+The eigenray invariant solves X_family(p) = horizontal distance. The solver samples each
+family on a grid of the grazing angle phi (p = p_max cos phi, which makes the grazing
+singularities smooth), brackets every sign change and refines it with a vectorized
+Illinois (modified regula falsi) iteration to ~1e-13 relative range, all pairs at once.
+Several eigenrays (caustics) give several roots: the earliest arrival is kept. Rays whose
+turning point would lie above the surface or below the bottom are not direct paths
+(eqs 21-22); the boundary-reflected arrivals come from the same solver applied to the
+profile mirrored about the boundary, between the source and the image of the receiver.
+
+Arrivals with two or more turning points (rays cycling in a sound channel) are not searched:
+in a duct the ray with fewer cycles spends more time in fast water and arrives first, and at
+network ranges (a few km) multi-turn rays exist only for pairs close to a channel axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .rays import Eigenray, PathKind
+from .ssp import Layered
+
+__all__ = [
+    "eigenray",
+    "travel_time",
+    "travel_time_gradient",
+    "straight_line_time",
+    "why_no_path",
+    "reflected_eigenray",
+    "combine_arrivals",
+    "REASON_SHADOW",
+    "REASON_SURFACE",
+    "REASON_BOTTOM",
+    "REASON_OUTSIDE",
+]
+
+Reflections = Literal["none", "fallback", "all"]
+
+REASON_SHADOW = "shadow zone: no direct eigenray"
+REASON_SURFACE = "ray would leave the water at the surface"
+REASON_BOTTOM = "ray would leave the water at the bottom"
+REASON_OUTSIDE = "point outside the water column"
+
+#: extra depth added below the deepest point when a profile without a bottom keeps a
+#: positive gradient: a ray turning deeper than this reaches hundreds of km, far beyond
+#: any acoustic network
+_OPEN_DEPTH_M = 1.0e5
+_GRID = 17  # phi samples per turning family (brackets the roots; caustics need >1 sample)
+_CHUNK = 4096  # pairs per block, bounds the (pairs, samples, layers) work arrays
+_RTOL = 1e-13  # relative tolerance on horizontal range
+_MAXIT = 80
+_FAM_D, _FAM_L, _FAM_U = 0, 1, 2
+
+
+# ----------------------------------------------------------------------------------------
+# the layer stack
+
+
+@dataclass(frozen=True)
+class _Stack:
+    """Breakpoints z (K+1,) from 0 to zmax with speeds c, gradients g and thicknesses h (K,)."""
+
+    z: NDArray[np.float64]
+    c: NDArray[np.float64]
+    g: NDArray[np.float64]
+    h: NDArray[np.float64]
+    bottom: bool  #: the deepest breakpoint is a real sea floor (not just the profile's end)
+
+    @property
+    def zmax(self) -> float:
+        return float(self.z[-1])
+
+    @classmethod
+    def from_points(cls, z: NDArray[np.float64], c: NDArray[np.float64], bottom: bool) -> _Stack:
+        h = np.diff(z)
+        return cls(z=z, c=c, g=np.diff(c) / h, h=h, bottom=bottom)
+
+    def speed(self, zq: NDArray[np.float64]) -> NDArray[np.float64]:
+        k = self.layer(zq)
+        return self.c[k] + self.g[k] * (zq - self.z[k])
+
+    def layer(self, zq: NDArray[np.float64]) -> NDArray[np.intp]:
+        return np.clip(np.searchsorted(self.z, zq, side="right") - 1, 0, self.g.size - 1)
+
+    def mirrored(self, boundary: Literal["surface", "bottom"]) -> _Stack:
+        """The profile unfolded about a boundary: one reflection becomes a direct path."""
+        zm = self.zmax
+        if boundary == "surface":
+            z = np.concatenate([zm - self.z[::-1], zm + self.z[1:]])
+            c = np.concatenate([self.c[::-1], self.c[1:]])
+        else:
+            z = np.concatenate([self.z, 2.0 * zm - self.z[-2::-1]])
+            c = np.concatenate([self.c, self.c[-2::-1]])
+        return _Stack.from_points(z, c, bottom=self.bottom)
+
+
+def _stack(profile: Layered, z_deepest: float) -> _Stack:
+    """The water column [0, zmax] of ``profile`` as layers (bottom, or an open end)."""
+    d, c = profile.depths, profile.speeds
+    if profile.bottom is not None:
+        zmax, bottom = profile.bottom, True
+    else:
+        g_last = (c[-1] - c[-2]) / (d[-1] - d[-2])
+        zmax = max(float(d[-1]), z_deepest)
+        if g_last > 0.0:
+            zmax += _OPEN_DEPTH_M
+        bottom = False
+    keep = d < zmax
+    z = np.concatenate([d[keep], [zmax]])
+    cz = np.concatenate([c[keep], profile.speed(np.array([zmax]))])
+    return _Stack.from_points(z, cz, bottom)
+
+
+# ----------------------------------------------------------------------------------------
+# closed forms inside one layer
+
+
+def _log1p_ratio(u: NDArray[np.float64]) -> NDArray[np.float64]:
+    """log(1 + u) / u, = 1 at u = 0, accurate for tiny u."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.log1p(u) / u
+    return np.where(u == 0.0, 1.0, r)
+
+
+def _asinc(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """arcsin(v) / v, = 1 at v = 0."""
+    v = np.clip(v, -1.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.arcsin(v) / v
+    return np.where(v == 0.0, 1.0, r)
+
+
+def _cos_sin(p: NDArray[np.float64], c: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(cos theta, |sin theta|) = (p c, sqrt(1 - p^2 c^2)) without cancellation near grazing."""
+    s = p * c
+    return s, np.sqrt(np.maximum((1.0 - s) * (1.0 + s), 0.0))
+
+
+def _seg(p, c1, c2, dz, g, full: bool, turn1: bool = False, turn2: bool = False):
+    """Range (and time, arc length) of a monotone ray piece from speed c1 down to c2, dz >= 0.
+
+    Range  X = (sin th1 - sin th2) / (p g) = p (c1 + c2) dz / (sin th1 + sin th2)   (eq 6)
+    Time   T = [ln(c2/c1) + ln((1 + sin th1)/(1 + sin th2))] / g                   (eq 13)
+    Length L = (arcsin(p c2) - arcsin(p c1)) / (p g)                              (eq 19)
+    each written as dz times a bounded factor, so g = 0 (straight line) is exact.
+    ``turn1`` / ``turn2``: that end is a turning point (sin theta = 0 exactly; p c rounds).
+    """
+    w1 = np.where(turn1, 0.0, _cos_sin(p, c1)[1])
+    w2 = np.where(turn2, 0.0, _cos_sin(p, c2)[1])
+    den = w1 + w2
+    pos = dz > 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.where(pos, p * (c1 + c2) * dz / den, 0.0)
+        if not full:
+            return x, None, None
+        q = p * p * (c1 + c2) * dz / (den * (1.0 + w2))
+        t = dz / c1 * _log1p_ratio(g * dz / c1) + q * _log1p_ratio(g * q)
+        den2 = c2 * w1 + c1 * w2
+        lfac = dz * (c1 + c2) / den2
+        arc = lfac * _asinc(p * g * lfac)
+        t = np.where(pos, t, 0.0)
+        arc = np.where(pos, arc, 0.0)
+    return x, t, arc
+
+
+# ----------------------------------------------------------------------------------------
+# ray families
+
+
+@dataclass
+class _Geo:
+    """Per-pair geometry (A = shallower point), arrays broadcastable against phi."""
+
+    za: NDArray[np.float64]
+    zb: NDArray[np.float64]
+    ka: NDArray[np.intp]
+    kb: NDArray[np.intp]
+    ca: NDArray[np.float64]
+    cb: NDArray[np.float64]
+    pmax: NDArray[np.float64]  #: 1 / max c on [za, zb]
+    phi_l: NDArray[np.float64]  #: grazing-angle extent of the lower-turning family (0: none)
+    phi_u: NDArray[np.float64]  #: same for the upper-turning family
+
+    def take(self, idx: NDArray[np.intp]) -> _Geo:
+        return _Geo(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+    def col(self) -> _Geo:
+        return _Geo(*(getattr(self, f)[:, None] for f in self.__dataclass_fields__))
+
+
+def _geometry(st: _Stack, za: NDArray[np.float64], zb: NDArray[np.float64]) -> _Geo:
+    ka, kb = st.layer(za), st.layer(zb)
+    ca = st.c[ka] + st.g[ka] * (za - st.z[ka])
+    cb = st.c[kb] + st.g[kb] * (zb - st.z[kb])
+    zc, cc = st.z[None, :], st.c[None, :]
+    inner = np.where((zc > za[:, None]) & (zc < zb[:, None]), cc, -np.inf).max(axis=1)
+    cmax = np.maximum(np.maximum(ca, cb), inner)
+    below = np.where(zc > zb[:, None], cc, -np.inf).max(axis=1)
+    above = np.where(zc < za[:, None], cc, -np.inf).max(axis=1)
+    with np.errstate(invalid="ignore"):
+        phi_l = np.where(below > cmax, np.arccos(np.clip(cmax / below, -1.0, 1.0)), 0.0)
+        phi_u = np.where(above > cmax, np.arccos(np.clip(cmax / above, -1.0, 1.0)), 0.0)
+    return _Geo(za, zb, ka, kb, ca, cb, 1.0 / cmax, phi_l, phi_u)
+
+
+class _Layers:
+    """Full-layer closed forms for one array of invariants p (shape S), layers on the last axis."""
+
+    def __init__(self, st: _Stack, p: NDArray[np.float64], full: bool) -> None:
+        self.st, self.p, self.full = st, p, full
+        self.pc = p[..., None] * st.c
+        pe = p[..., None]
+        x, t, arc = _seg(pe, st.c[:-1], st.c[1:], st.h, st.g, full)
+        self.x, self.t, self.arc = x, t, arc
+
+    def interval(self, z1, k1, z2, k2, c1=None, c2=None):
+        """Range (time, length) of the monotone piece z1 (layer k1) -> z2 (layer k2), z1 <= z2."""
+        st, p, full = self.st, self.p, self.full
+        same = k1 == k2
+        e1 = np.where(same, z2, st.z[k1 + 1])
+        g1, g2 = st.g[k1], st.g[k2]
+        cs = st.c[k1] + g1 * (z1 - st.z[k1]) if c1 is None else c1
+        ce = st.c[k1] + g1 * (e1 - st.z[k1])
+        cz2 = st.c[k2] + g2 * (z2 - st.z[k2]) if c2 is None else c2
+        if c2 is not None:
+            ce = np.where(same, c2, ce)
+        # a turning end has sin theta = 0 exactly (p * (1/p) need not round to 1)
+        xa, ta, la = _seg(p, cs, ce, e1 - z1, g1, full, turn1=c1 is not None, turn2=same & (c2 is not None))
+        xb, tb, lb = _seg(p, st.c[k2], cz2, np.where(same, 0.0, z2 - st.z[k2]), g2, full, turn2=c2 is not None)
+        kk = np.arange(st.g.size)
+        mid = (kk > k1[..., None]) & (kk < k2[..., None])
+        x = xa + xb + np.where(mid, self.x, 0.0).sum(axis=-1)
+        if not full:
+            return x, None, None
+        t = ta + tb + np.where(mid, self.t, 0.0).sum(axis=-1)
+        arc = la + lb + np.where(mid, self.arc, 0.0).sum(axis=-1)
+        return x, t, arc
+
+
+
+
+def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False):
+    """Range X(phi) (NaN where the family has no ray), and when ``full`` also time, arc
+    length and turning depth, for invariants p = p_max cos(phi)."""
+    p = geo.pmax * np.cos(phi)
+    lay = _Layers(st, p, full)
+    xd, td, ld = lay.interval(geo.za, geo.ka, geo.zb, geo.kb)
+    if fam == _FAM_D:
+        turn = np.full(np.shape(xd), np.nan)
+        return xd, td, ld, turn
+    with np.errstate(divide="ignore"):
+        ip = 1.0 / p
+    blocked = lay.pc >= 1.0
+    nk = st.g.size
+    if fam == _FAM_L:
+        cand = blocked & (st.z > geo.zb[..., None])
+        ok = cand.any(axis=-1)
+        kt = np.clip(np.argmax(cand, axis=-1) - 1, 0, nk - 1)
+        kt = np.maximum(kt, geo.kb)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zt = st.z[kt] + (ip - st.c[kt]) / st.g[kt]
+        zt = np.clip(np.nan_to_num(zt, nan=geo.zb), np.maximum(geo.zb, st.z[kt]), st.z[kt + 1])
+        xe, te, le = lay.interval(geo.zb, geo.kb, zt, kt, c2=ip)
+    else:
+        cand = blocked & (st.z < geo.za[..., None])
+        ok = cand.any(axis=-1)
+        ku = np.clip(nk - np.argmax(cand[..., ::-1], axis=-1), 0, nk - 1)
+        ku = np.minimum(ku, geo.ka)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zt = st.z[ku] + (ip - st.c[ku]) / st.g[ku]
+        zt = np.clip(np.nan_to_num(zt, nan=geo.za), st.z[ku], np.minimum(geo.za, st.z[ku + 1]))
+        xe, te, le = lay.interval(zt, ku, geo.za, geo.ka, c1=ip)
+    x = np.where(ok, xd + 2.0 * xe, np.nan)
+    if not full:
+        return x, None, None, None
+    return x, td + 2.0 * te, ld + 2.0 * le, np.where(ok, zt, np.nan)
+
+
+# ----------------------------------------------------------------------------------------
+# root finding
+
+
+def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi):
+    """Vectorized Illinois iteration on h(phi) = X(phi) - target inside brackets [lo, hi]
+    with h(lo) h(hi) <= 0; returns (phi, |h|) at the best end point."""
+    a, b, fa, fb = lo.copy(), hi.copy(), hlo.copy(), hhi.copy()
+    tol = _RTOL * np.maximum(target, 1.0)
+    width0 = np.abs(b - a)
+    stale = np.zeros(a.shape, dtype=np.int8)
+    active = (np.abs(fb) > tol) & (np.abs(fa) > tol)
+    for _ in range(_MAXIT):
+        idx = np.flatnonzero(active)
+        if idx.size == 0:
+            break
+        A, B, FA, FB = a[idx], b[idx], fa[idx], fb[idx]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (A * FB - B * FA) / (FB - FA)
+        lo_, hi_ = np.minimum(A, B), np.maximum(A, B)
+        bis = ~np.isfinite(x) | (x <= lo_) | (x >= hi_) | (stale[idx] >= 3)
+        x = np.where(bis, 0.5 * (A + B), x)
+        fx = _family(st, geo.take(idx), fam, x)[0] - target[idx]
+        fx = np.where(np.isnan(fx), -np.inf, fx)  # cannot happen inside a valid bracket
+        flip = np.sign(fx) != np.sign(FB)
+        # Illinois: keep the bracket, halve the stale end's value when it is kept twice
+        A = np.where(flip, B, A)
+        FA = np.where(flip, FB, 0.5 * FA)
+        B, FB = x, fx
+        w = np.abs(B - A)
+        shrunk = w <= 0.5 * width0[idx]
+        stale[idx] = np.where(shrunk | bis, 0, stale[idx] + 1)
+        width0[idx] = np.where(shrunk | bis, w, width0[idx])
+        a[idx], b[idx], fa[idx], fb[idx] = A, B, FA, FB
+        done = (np.abs(FB) <= tol[idx]) | (w <= 4.0 * np.finfo(float).eps * np.maximum(np.abs(B), 1e-300))
+        active[idx] = ~done
+    better_b = np.abs(fb) <= np.abs(fa)
+    return np.where(better_b, b, a), np.where(better_b, np.abs(fb), np.abs(fa))
+
+
+def _pick_brackets(h: NDArray[np.float64]):
+    """Up to two sign changes per row of h (pairs, samples): the first and last of those where
+    the range grows with phi (the minima of t = p X + tau(p), which include the earliest
+    eigenray), or of any sign change when there is none of that kind."""
+    h0, h1 = h[:, :-1], h[:, 1:]
+    fin = np.isfinite(h0) & np.isfinite(h1)
+    cross = fin & (h0 * h1 <= 0.0) & ~((h0 == 0.0) & (h1 == 0.0))
+    up = cross & (h0 <= 0.0) & (h1 >= 0.0)
+    use = np.where(up.any(axis=1, keepdims=True), up, cross)
+    has = use.any(axis=1)
+    first = np.argmax(use, axis=1)
+    last = use.shape[1] - 1 - np.argmax(use[:, ::-1], axis=1)
+    rows = np.flatnonzero(has)
+    f, l_ = first[rows], last[rows]
+    two = l_ != f
+    rr = np.concatenate([rows, rows[two]])
+    ss = np.concatenate([f, l_[two]])
+    return rr, ss
+
+
+@dataclass
+class _Arrivals:
+    """Direct eigenrays in (A -> B) orientation, one per pair; ok False where none."""
+
+    time: NDArray[np.float64]
+    length: NDArray[np.float64]
+    ang_a: NDArray[np.float64]
+    ang_b: NDArray[np.float64]
+    turn: NDArray[np.float64]
+    ok: NDArray[np.bool_]
+
+    @classmethod
+    def empty(cls, n: int) -> _Arrivals:
+        nan = np.full(n, np.nan)
+        return cls(np.full(n, np.inf), nan.copy(), nan.copy(), nan.copy(), nan.copy(), np.zeros(n, bool))
+
+
+def _angles(p, c, w_sign):
+    s, w = _cos_sin(p, c)
+    return w_sign * np.arctan2(w, s)
+
+
+def _finish(st, geo, fam, phi, target, idx, best: _Arrivals, resid) -> None:
+    """Evaluate candidates at their converged invariants and keep the earliest per pair."""
+    accept = resid <= 1e-9 * np.maximum(target, 1.0)
+    if not np.any(accept):
+        return
+    phi, idx, target = phi[accept], idx[accept], target[accept]
+    g = geo.take(idx)
+    x, t, arc, turn = _family(st, g, fam, phi, full=True)
+    p = g.pmax * np.cos(phi)
+    # t = p X + tau(p) is stationary at the eigenray: correct to first order in the residual
+    t = t + p * (target - x)
+    sa, sb = {_FAM_D: (1.0, 1.0), _FAM_L: (1.0, -1.0), _FAM_U: (-1.0, 1.0)}[fam]
+    # several candidates may share a pair: sort so the earliest is written last
+    order = np.argsort(-t, kind="stable")
+    idx, t, arc, turn, p = idx[order], t[order], arc[order], turn[order], p[order]
+    ca, cb = g.ca[order], g.cb[order]
+    better = t < best.time[idx]
+    idx, t, arc, turn, p, ca, cb = (v[better] for v in (idx, t, arc, turn, p, ca, cb))
+    best.time[idx] = t
+    best.length[idx] = arc
+    best.turn[idx] = turn
+    best.ang_a[idx] = _angles(p, ca, sa)
+    best.ang_b[idx] = _angles(p, cb, sb)
+    best.ok[idx] = True
+
+
+def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
+    """Earliest direct eigenray for one block of pairs with za <= zb, horizontal range x."""
+    n = za.size
+    best = _Arrivals.empty(n)
+    geo = _geometry(st, za, zb)
+    allidx = np.arange(n)
+
+    # coincident points, and equal depths inside a constant-speed layer: a horizontal line
+    same = (za == zb) & (x == 0.0)
+    best.time[same] = 0.0
+    best.length[same] = 0.0
+    best.ang_a[same] = best.ang_b[same] = 0.0
+    best.ok[same] = True
+    flat = (za == zb) & (x > 0.0) & (
+        (st.g[geo.ka] == 0.0) | ((za == st.z[geo.ka]) & (geo.ka > 0) & (st.g[np.maximum(geo.ka - 1, 0)] == 0.0))
+    )
+    best.time[flat] = x[flat] / geo.ca[flat]
+    best.length[flat] = x[flat]
+    best.ang_a[flat] = best.ang_b[flat] = 0.0
+    best.ok[flat] = True
+
+    # direct family: X_D increases monotonically from 0 (vertical) to its grazing value
+    vert = (zb > za) & (x == 0.0)
+    if np.any(vert):
+        i = allidx[vert]
+        _finish(st, geo, _FAM_D, np.full(i.size, 0.5 * np.pi), x[i], i, best, np.zeros(i.size))
+    cand = (zb > za) & (x > 0.0)
+    if np.any(cand):
+        i = allidx[cand]
+        g = geo.take(i)
+        xg = _family(st, g, _FAM_D, np.zeros(i.size))[0]
+        reach = xg >= x[i]
+        i, xg = i[reach], xg[reach]
+        if i.size:
+            lo, hi = np.zeros(i.size), np.full(i.size, 0.5 * np.pi)
+            phi, res = _refine(st, geo.take(i), _FAM_D, x[i], lo, hi, xg - x[i], -x[i])
+            _finish(st, geo, _FAM_D, phi, x[i], i, best, res)
+
+    # turning families: sample phi, bracket every usable sign change, refine
+    # the last sample stays a hair inside the family, where the turning point certainly exists
+    u = np.linspace(0.0, 1.0 - 1e-10, _GRID)
+    for fam, ext in ((_FAM_L, geo.phi_l), (_FAM_U, geo.phi_u)):
+        i = allidx[(ext > 0.0) & (x > 0.0)]
+        if i.size == 0:
+            continue
+        g = geo.take(i)
+        grid = ext[i, None] * u[None, :]
+        h = _family(st, g.col(), fam, grid)[0] - x[i, None]
+        rows, s = _pick_brackets(h)
+        if rows.size == 0:
+            continue
+        j = i[rows]
+        phi, res = _refine(st, geo.take(j), fam, x[j], grid[rows, s], grid[rows, s + 1], h[rows, s], h[rows, s + 1])
+        _finish(st, geo, fam, phi, x[j], j, best, res)
+    best.time[~best.ok] = np.nan
+    return best
+
+
+def _direct(st: _Stack, zs, zr, x) -> _Arrivals:
+    """Earliest direct eigenray src -> dst for flat arrays (depths zs, zr, horizontal x);
+    angles in the src -> dst orientation."""
+    n = zs.size
+    out = _Arrivals.empty(n)
+    out.time[:] = np.nan
+    swap = zs > zr
+    za, zb = np.where(swap, zr, zs), np.where(swap, zs, zr)
+    inside = (za >= 0.0) & (zb <= st.zmax) & np.isfinite(za) & np.isfinite(zb) & np.isfinite(x)
+    idx = np.flatnonzero(inside)
+    for s in range(0, idx.size, _CHUNK):
+        i = idx[s : s + _CHUNK]
+        r = _direct_block(st, za[i], zb[i], x[i])
+        for f in ("time", "length", "turn", "ok"):
+            getattr(out, f)[i] = getattr(r, f)
+        sw = swap[i]
+        # reversing the ray reverses both tangents
+        out.ang_a[i] = np.where(sw, -r.ang_b, r.ang_a)
+        out.ang_b[i] = np.where(sw, -r.ang_a, r.ang_b)
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# public API
+
+
+def _pairs(src: ArrayLike, dst: ArrayLike):
+    s = np.asarray(src, dtype=float)
+    d = np.asarray(dst, dtype=float)
+    if s.shape[-1:] != (3,) or d.shape[-1:] != (3,):
+        raise ValueError("src and dst must have a last axis of length 3 (x, y, z)")
+    s, d = np.broadcast_arrays(s, d)
+    shape = s.shape[:-1]
+    s, d = s.reshape(-1, 3), d.reshape(-1, 3)
+    x = np.hypot(d[:, 0] - s[:, 0], d[:, 1] - s[:, 1])
+    return shape, s, d, x
+
+
+def _deepest(s, d) -> float:
+    z = np.concatenate([s[:, 2], d[:, 2]])
+    z = z[np.isfinite(z)]
+    return float(z.max()) if z.size else 0.0
+
+
+def _to_eigenray(a: _Arrivals, kind: int, shape) -> Eigenray:
+    path = np.where(a.ok, kind, PathKind.NONE).astype(np.int8)
+    return Eigenray(
+        time=np.where(a.ok, a.time, np.nan).reshape(shape),
+        length=np.where(a.ok, a.length, np.nan).reshape(shape),
+        launch_angle=np.where(a.ok, a.ang_a, np.nan).reshape(shape),
+        arrival_angle=np.where(a.ok, a.ang_b, np.nan).reshape(shape),
+        turning_depth=np.where(a.ok, a.turn, np.nan).reshape(shape),
+        path=path.reshape(shape),
+    )
+
+
+def _reflected(st: _Stack, zs, zr, x, boundary: Literal["surface", "bottom"]) -> _Arrivals:
+    """First arrival with one reflection: the direct ray of the mirrored profile to the image."""
+    n = zs.size
+    if boundary == "bottom" and not st.bottom:
+        return _Arrivals.empty(n)
+    zm = st.zmax
+    inside = (zs >= 0.0) & (zs <= zm) & (zr >= 0.0) & (zr <= zm)
+    mst = st.mirrored(boundary)
+    if boundary == "surface":
+        zs_i, zr_i = zm - zs, zm + zr
+    else:
+        zs_i, zr_i = zs, 2.0 * zm - zr
+    a = _direct(mst, np.where(inside, zs_i, np.nan), np.where(inside, zr_i, np.nan), x)
+    a.ok &= inside
+    if boundary == "surface":
+        a.ang_a = -a.ang_a  # leaves the image source downwards = the real source upwards
+        a.turn = np.abs(a.turn - zm)
+    else:
+        a.ang_b = -a.ang_b
+        a.turn = np.where(a.turn > zm, 2.0 * zm - a.turn, a.turn)
+    return a
+
+
+def combine_arrivals(arrivals: list[tuple[int, Eigenray]], mode: Reflections) -> Eigenray:
+    """Merge per-path eigenrays: the first is the direct one; ``mode`` picks how reflected
+    paths (the others) are used: "none", "fallback" (only where no direct path) or "all"
+    (the earliest of every path)."""
+    if mode not in ("none", "fallback", "all"):
+        raise ValueError(f"reflections must be 'none', 'fallback' or 'all', got {mode!r}")
+    fields = ("time", "length", "launch_angle", "arrival_angle", "turning_depth")
+    _, base = arrivals[0]
+    out = {f: np.array(getattr(base, f), dtype=float, copy=True) for f in fields}
+    path = np.array(base.path, dtype=np.int8, copy=True)
+    if mode == "none":
+        return Eigenray(path=path, **out)
+    direct_ok = path != PathKind.NONE
+    for kind, ray in arrivals[1:]:
+        t = np.asarray(ray.time)
+        cur = np.where(np.isnan(out["time"]), np.inf, out["time"])
+        take = np.isfinite(t) & (t < cur)
+        if mode == "fallback":
+            take &= ~direct_ok
+        for f in fields:
+            out[f] = np.where(take, getattr(ray, f), out[f])
+        path = np.where(take, np.int8(kind), path).astype(np.int8)
+    return Eigenray(path=path, **out)
+
+
+def eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> Eigenray:
+    """First-arrival eigenray from ``src`` to ``dst`` (..., 3) through a layered profile.
+
+    ``reflections``: "none" (direct path only), "fallback" (the first surface- or
+    bottom-reflected arrival where there is no direct path), "all" (the earliest of the
+    direct and reflected arrivals). ``path`` tells which path each arrival took; NaN and
+    ``PathKind.NONE`` where there is none (see :func:`why_no_path`).
+    """
+    if reflections not in ("none", "fallback", "all"):
+        raise ValueError(f"reflections must be 'none', 'fallback' or 'all', got {reflections!r}")
+    shape, s, d, x = _pairs(src, dst)
+    st = _stack(profile, _deepest(s, d))
+    direct = _direct(st, s[:, 2], d[:, 2], x)
+    parts = [(PathKind.DIRECT, _to_eigenray(direct, PathKind.DIRECT, shape))]
+    if reflections != "none":
+        need = np.ones(x.size, bool) if reflections == "all" else ~direct.ok
+        for kind, name in ((PathKind.SURFACE, "surface"), (PathKind.BOTTOM, "bottom")):
+            r = _Arrivals.empty(x.size)
+            r.time[:] = np.nan
+            i = np.flatnonzero(need)
+            if i.size and (name == "surface" or st.bottom):
+                sub = _reflected(st, s[i, 2], d[i, 2], x[i], name)
+                for f in ("time", "length", "ang_a", "ang_b", "turn", "ok"):
+                    getattr(r, f)[i] = getattr(sub, f)
+            parts.append((kind, _to_eigenray(r, kind, shape)))
+    return combine_arrivals(parts, reflections)
+
+
+def travel_time(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> NDArray[np.float64]:
+    """First-arrival travel time (s); NaN where there is no path."""
+    return eigenray(profile, src, dst, reflections=reflections).time
+
+
+def slowness_gradient(profile, src: ArrayLike, dst: ArrayLike, ray: Eigenray) -> NDArray[np.float64]:
+    """d t / d dst (s/m) of any eigenray: the slowness vector at the receiver,
+    (cos theta_R u_h + sin theta_R e_z) / c(z_R), u_h the horizontal unit vector src -> dst.
+    Exact for every eigenray (t is stationary in the path, so only the end point moves)."""
+    s = np.asarray(src, dtype=float)
+    d = np.asarray(dst, dtype=float)
+    s, d = np.broadcast_arrays(s, d)
+    dx, dy = d[..., 0] - s[..., 0], d[..., 1] - s[..., 1]
+    hor = np.hypot(dx, dy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ux = np.where(hor > 0.0, dx / hor, 0.0)
+        uy = np.where(hor > 0.0, dy / hor, 0.0)
+    c = np.asarray(profile.speed(d[..., 2]), dtype=float)
+    th = np.asarray(ray.arrival_angle)
+    ch, sh = np.cos(th) / c, np.sin(th) / c
+    return np.stack([ch * ux, ch * uy, sh], axis=-1)
+
+
+def travel_time_gradient(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> NDArray[np.float64]:
+    """d travel_time / d dst (s/m), shape (..., 3); NaN where there is no path."""
+    ray = eigenray(profile, src, dst, reflections=reflections)
+    return slowness_gradient(profile, src, dst, ray)
+
+
+def reflected_eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, boundary: Literal["surface", "bottom"]) -> Eigenray:
+    """First arrival with exactly one reflection off ``boundary`` (profile mirrored about it)."""
+    shape, s, d, x = _pairs(src, dst)
+    st = _stack(profile, _deepest(s, d))
+    kind = PathKind.SURFACE if boundary == "surface" else PathKind.BOTTOM
+    return _to_eigenray(_reflected(st, s[:, 2], d[:, 2], x, boundary), kind, shape)
+
+
+def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDArray[np.object_]:
+    """Why there is no direct eigenray, per pair ("" where there is one): a point outside
+    the water; the rays that would connect the points leave the water (only a reflected
+    path exists: the reason names the boundary of the earliest one); or a shadow zone."""
+    shape, s, d, x = _pairs(src, dst)
+    st = _stack(profile, _deepest(s, d))
+    out = np.full(x.size, "", dtype=object)
+    zs, zr = s[:, 2], d[:, 2]
+    outside = ~((np.minimum(zs, zr) >= 0.0) & (np.maximum(zs, zr) <= st.zmax))
+    outside |= ~(np.isfinite(s).all(axis=1) & np.isfinite(d).all(axis=1))
+    out[outside] = REASON_OUTSIDE
+    direct = _direct(st, zs, zr, x)
+    i = np.flatnonzero(~direct.ok & ~outside)
+    if i.size:
+        ts = _reflected(st, zs[i], zr[i], x[i], "surface")
+        tb = _reflected(st, zs[i], zr[i], x[i], "bottom")
+        t_s = np.where(ts.ok, ts.time, np.inf)
+        t_b = np.where(tb.ok, tb.time, np.inf)
+        r = np.where(np.isfinite(t_s) & (t_s <= t_b), REASON_SURFACE, np.where(np.isfinite(t_b), REASON_BOTTOM, REASON_SHADOW))
+        out[i] = r
+    return out.reshape(shape)
+
+
+def straight_line_time(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
+    """Straight-ray time (s): distance times the mean slowness over the depth interval,
+    t = |d - s| / |dz| * integral dz / c(z) (Ramezani et al., eq 23, layer by layer);
+    1 / c(z) when both depths are equal."""
+    shape, s, d, x = _pairs(src, dst)
+    st = _stack(profile, _deepest(s, d))
+    z1 = np.minimum(s[:, 2], d[:, 2])
+    z2 = np.maximum(s[:, 2], d[:, 2])
+    dist = np.linalg.norm(d - s, axis=1)
+    top = np.maximum(st.z[:-1], z1[:, None])
+    bot = np.minimum(st.z[1:], z2[:, None])
+    hh = np.maximum(bot - top, 0.0)
+    c1 = st.c[:-1] + st.g * (top - st.z[:-1])
+    # integral of dz / c over the overlap: log(c2 / c1) / g written without 1/g
+    integral = (hh / c1 * _log1p_ratio(st.g * hh / c1)).sum(axis=1)
+    dz = z2 - z1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean_slow = np.where(dz > 0.0, integral / dz, 1.0 / st.speed(z1))
+    out = dist * mean_slow
+    outside = (z1 < 0.0) | (z2 > st.zmax)
+    return np.where(outside, np.nan, out).reshape(shape)

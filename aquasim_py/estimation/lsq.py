@@ -1,0 +1,132 @@
+"""Closed-form linearized least squares: multilateration on ranges and hyperbolic TDOA with a
+pivot reference. Both subtract the pivot anchor's equation from the others, which cancels
+the quadratic term |x|^2 and leaves a linear system; used as rough positions (e.g. ITMTL
+phase 1) or as the start of :func:`~aquasim_py.estimation.gauss_newton.gauss_newton`.
+
+Coordinates are shifted to the pivot before solving (better conditioned for anchors far from
+the origin). A rank-deficient system (collinear anchors in 2-D, coplanar in 3-D, too few
+anchors) raises :class:`~aquasim_py.estimation.errors.DegenerateGeometryError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import DegenerateGeometryError, InsufficientMeasurementsError
+
+__all__ = ["multilaterate", "tdoa_ls", "TDOAResult"]
+
+Array = NDArray[np.float64]
+
+#: relative singular-value threshold for the linear systems (rank test)
+_RCOND = 1e-9
+
+
+def _anchors(anchors: ArrayLike) -> Array:
+    A = np.asarray(anchors, dtype=float)
+    if A.ndim != 2 or A.shape[1] not in (2, 3):
+        raise ValueError(f"anchors must be (N, 2) or (N, 3), got {A.shape}")
+    return A
+
+
+def _solve(M: Array, b: Array, what: str) -> Array:
+    if M.shape[0] < M.shape[1]:
+        raise InsufficientMeasurementsError(
+            f"{what}: {M.shape[0]} independent equations for {M.shape[1]} unknowns")
+    # column scaling so that the rank test is not fooled by mixed units (m vs range)
+    scale = np.linalg.norm(M, axis=0)
+    scale[scale == 0] = 1.0
+    sol, _, rank, sv = np.linalg.lstsq(M / scale, b, rcond=None)
+    if rank < M.shape[1] or sv[-1] <= _RCOND * sv[0]:
+        raise DegenerateGeometryError(
+            f"{what}: the anchor geometry cannot fix the position (linear system of rank "
+            f"{int(np.sum(sv > _RCOND * sv[0]))} < {M.shape[1]}: collinear or coplanar anchors?)")
+    return sol / scale
+
+
+def multilaterate(
+    anchors: ArrayLike,
+    ranges: ArrayLike,
+    *,
+    depth: float | None = None,
+    pivot: int = 0,
+) -> Array:
+    """Position from ranges (m) to N anchors (N, d), d = 2 or 3.
+
+    For i != pivot: 2 (a_i - a_p)^T (x - a_p) = |a_i - a_p|^2 - r_i^2 + r_p^2. Needs N >= d + 1
+    anchors not all on one line (2-D) / plane (3-D). With ``depth`` (3-D only, m) the depth is
+    known and the problem is solved in (x, y) on the horizontal ranges; then 3 anchors not on
+    one vertical plane suffice.
+    """
+    A = _anchors(anchors)
+    r = np.asarray(ranges, dtype=float).reshape(-1)
+    if r.size != A.shape[0]:
+        raise ValueError(f"{A.shape[0]} anchors but {r.size} ranges")
+    if not np.all(np.isfinite(r)):
+        raise ValueError("ranges must be finite")
+    if depth is not None:
+        if A.shape[1] != 3:
+            raise ValueError("depth is only meaningful in 3-D")
+        # horizontal range^2; may go negative with noise, which the linear system tolerates
+        r2 = r**2 - (depth - A[:, 2]) ** 2
+        xy = _multi(A[:, :2], r2, pivot)
+        return np.array([xy[0], xy[1], float(depth)])
+    return _multi(A, r**2, pivot)
+
+
+def _multi(A: Array, r2: Array, pivot: int) -> Array:
+    p = A[pivot]
+    B = np.delete(A - p, pivot, axis=0)
+    rhs = np.sum(B**2, axis=1) - np.delete(r2, pivot) + r2[pivot]
+    y = _solve(2.0 * B, rhs, "multilateration")
+    return p + y
+
+
+@dataclass(frozen=True)
+class TDOAResult:
+    x: Array  #: position (d,) (3,) when depth was given
+    range_pivot: float  #: range to the pivot anchor (m), solved as an extra unknown
+
+
+def tdoa_ls(
+    anchors: ArrayLike,
+    arrival_times: ArrayLike,
+    speed: float,
+    *,
+    pivot: int = 0,
+    depth: float | None = None,
+) -> TDOAResult:
+    """Hyperbolic TDOA: arrival times (s) of one emission at N synchronized anchors, constant
+    sound ``speed`` (m/s). With d_i = d_p + c (t_i - t_p), linear in (x, d_p):
+
+        2 (a_i - a_p)^T (x - a_p) + 2 c (t_i - t_p) d_p = |a_i - a_p|^2 - c^2 (t_i - t_p)^2.
+
+    Needs N >= d + 2 anchors (5 in 3-D); with ``depth`` (m) known, 4 in 3-D. The linear
+    solution ignores d_p = |x - a_p| (spherical interpolation): exact for exact data.
+    """
+    A = _anchors(anchors)
+    t = np.asarray(arrival_times, dtype=float).reshape(-1)
+    if t.size != A.shape[0]:
+        raise ValueError(f"{A.shape[0]} anchors but {t.size} arrival times")
+    if not (np.isfinite(speed) and speed > 0):
+        raise ValueError("speed must be positive")
+    p = A[pivot]
+    B = np.delete(A - p, pivot, axis=0)
+    dd = speed * (np.delete(t, pivot) - t[pivot])
+    rhs = np.sum(B**2, axis=1) - dd**2
+    if depth is not None:
+        if A.shape[1] != 3:
+            raise ValueError("depth is only meaningful in 3-D")
+        yz = float(depth) - p[2]
+        rhs = rhs - 2.0 * B[:, 2] * yz
+        M = np.column_stack([2.0 * B[:, :2], 2.0 * dd])
+        sol = _solve(M, rhs, "TDOA")
+        x = p + np.array([sol[0], sol[1], yz])
+    else:
+        M = np.column_stack([2.0 * B, 2.0 * dd])
+        sol = _solve(M, rhs, "TDOA")
+        x = p + sol[:-1]
+    return TDOAResult(x, float(sol[-1]))

@@ -1,0 +1,145 @@
+"""Particle-filter core, vectorized over particles (no Python loop over them): propagation,
+log-space weighting, systematic and residual resampling, effective sample size, weighted
+moments. Randomness only from the ``numpy.random.Generator`` passed in (reproducible runs).
+
+Particles are (M, n) arrays; weights are kept as normalized log-weights (M,) so that very
+informative measurements do not underflow.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import solve_triangular
+from scipy.special import logsumexp
+
+from ._linalg import cho_factor
+
+__all__ = [
+    "propagate",
+    "gaussian_log_likelihood",
+    "normalize_log_weights",
+    "update_log_weights",
+    "effective_sample_size",
+    "systematic_resample",
+    "residual_resample",
+    "resample",
+    "weighted_mean",
+    "weighted_cov",
+]
+
+Array = NDArray[np.float64]
+
+
+def _psd_sqrt(Q: Array) -> Array:
+    """A matrix L with L L^T = Q for a symmetric positive *semi*-definite Q (process noise is
+    often singular, e.g. noise on velocities only, where Cholesky fails)."""
+    w, V = np.linalg.eigh(0.5 * (Q + Q.T))
+    if w.min() < -1e-12 * max(w.max(), 0.0):
+        raise ValueError("process noise covariance is not positive semi-definite")
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def propagate(
+    particles: ArrayLike,
+    f: Callable[[Array], Array],
+    Q: ArrayLike,
+    rng: np.random.Generator,
+) -> Array:
+    """x' = f(x) + w, w ~ N(0, Q), for all particles at once (``f`` maps (M, n) -> (M, n))."""
+    X = np.asarray(particles, dtype=float)
+    L = _psd_sqrt(np.asarray(Q, dtype=float))
+    return np.asarray(f(X), dtype=float) + rng.standard_normal(X.shape) @ L.T
+
+
+def gaussian_log_likelihood(z: ArrayLike, z_pred: ArrayLike, R: ArrayLike) -> Array:
+    """log N(z; z_pred[i], R) per particle: z (m,), z_pred (M, m), R (m, m) -> (M,)."""
+    z = np.asarray(z, dtype=float).reshape(-1)
+    Zp = np.asarray(z_pred, dtype=float).reshape(-1, z.size)
+    c, _ = cho_factor(np.atleast_2d(np.asarray(R, dtype=float)), "measurement covariance R")
+    # whiten with the Cholesky factor: ||L^-1 (z - z_pred)||^2 for all particles in one solve
+    E = solve_triangular(c, (z - Zp).T, lower=True, check_finite=False)
+    logdet = 2.0 * np.sum(np.log(np.diag(c)))
+    return -0.5 * (np.sum(E * E, axis=0) + logdet + z.size * np.log(2.0 * np.pi))
+
+
+def normalize_log_weights(logw: ArrayLike) -> tuple[Array, Array]:
+    """(weights, normalized log-weights): w = exp(logw - logsumexp(logw))."""
+    lw = np.asarray(logw, dtype=float)
+    if not np.any(np.isfinite(lw)):
+        raise ValueError("all particle weights are zero (every log-weight is -inf or NaN)")
+    lw = lw - logsumexp(lw)
+    return np.exp(lw), lw
+
+
+def update_log_weights(logw: ArrayLike, loglik: ArrayLike) -> Array:
+    """Bayes in log space: normalized log(w * likelihood)."""
+    return normalize_log_weights(np.asarray(logw, dtype=float) + np.asarray(loglik, dtype=float))[1]
+
+
+def effective_sample_size(w: ArrayLike) -> float:
+    """ESS = 1 / sum w_i^2 for normalized weights (M for uniform weights, 1 for a single one)."""
+    w = np.asarray(w, dtype=float)
+    return float(1.0 / np.sum(w * w))
+
+
+def _cumulative(w: Array) -> Array:
+    c = np.cumsum(w)
+    c /= c[-1]  # exact 1 at the end, so no uniform can fall beyond the last particle
+    return c
+
+
+def systematic_resample(w: ArrayLike, rng: np.random.Generator, size: int | None = None) -> Array:
+    """Indices by systematic resampling: one uniform u, points (u + i) / M."""
+    w = np.asarray(w, dtype=float)
+    M = w.size if size is None else int(size)
+    u = (rng.random() + np.arange(M)) / M
+    return np.minimum(np.searchsorted(_cumulative(w), u, side="right"), w.size - 1)
+
+
+def residual_resample(w: ArrayLike, rng: np.random.Generator) -> Array:
+    """Indices by residual resampling: floor(M w_i) copies of i, the rest multinomially from
+    the residual weights M w_i - floor(M w_i)."""
+    w = np.asarray(w, dtype=float)
+    M = w.size
+    Mw = M * w / w.sum()
+    counts = np.floor(Mw).astype(np.int64)
+    rest = M - int(counts.sum())
+    if rest > 0:
+        res = Mw - counts
+        counts += rng.multinomial(rest, res / res.sum())
+    return np.repeat(np.arange(M), counts)
+
+
+def resample(
+    particles: ArrayLike,
+    logw: ArrayLike,
+    rng: np.random.Generator,
+    method: str = "systematic",
+) -> tuple[Array, Array]:
+    """Resampled particles and uniform log-weights."""
+    X = np.asarray(particles)
+    w, _ = normalize_log_weights(logw)
+    if method == "systematic":
+        idx = systematic_resample(w, rng)
+    elif method == "residual":
+        idx = residual_resample(w, rng)
+    else:
+        raise ValueError(f"unknown resampling method {method!r} (systematic, residual)")
+    return X[idx], np.full(X.shape[0], -np.log(X.shape[0]))
+
+
+def weighted_mean(x: ArrayLike, w: ArrayLike) -> Array:
+    """sum_i w_i x_i for normalized w; x (M, n)."""
+    return np.asarray(w, dtype=float) @ np.asarray(x, dtype=float)
+
+
+def weighted_cov(x: ArrayLike, w: ArrayLike) -> Array:
+    """sum_i w_i (x_i - m)(x_i - m)^T (the particle approximation's own covariance)."""
+    x = np.asarray(x, dtype=float)
+    w = np.asarray(w, dtype=float)
+    D = x - w @ x
+    C = (D * w[:, None]).T @ D
+    return 0.5 * (C + C.T)

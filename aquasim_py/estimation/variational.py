@@ -1,0 +1,366 @@
+"""Spatial-temporal variational filtering (STVF) maths: Hu, Sun, Luo, Zhou, Guo, Sensors 2018.
+
+Pure numpy, no SimPy. Notation follows the paper (see docs/sections/stvf.md):
+
+- State ``s = [x, vx, y, vy]`` (m, m/s) in the unknown node's depth plane; ``A`` picks (x, y).
+- Gaussians are ``N(mean, precision)``; the Gamma is ``Gam(shape, rate)``.
+- Measurements ``z`` are one-way delays in **milliseconds** (``z_scale = 1e3`` ms per s), so the
+  Table-1 prior ``Gam(3, 200)`` on the noise precision means a noise std of about 8 ms.
+- ``s ~ N(mu, lam)``, ``mu ~ N(mu_prev, Lambda)``, ``lam ~ Wishart(W, n)`` (eq 3);
+  ``z_i ~ N(z_scale * r_i(s) / v, zeta)``, ``v ~ N(v0, V)``, ``zeta ~ Gam(alpha, beta)`` (eq 5).
+
+The functions: variational prediction (eq 11), the variational update of Algorithm 1 with
+importance sampling for <s> (eq 21) and <v> (eq 20) and the Wishart / Gamma updates
+(eqs 18-19, 22-23) iterated to convergence, the localization confidence (eqs 24-26), the
+measurement confidence used to rank references (eqs 27-29) and reference promotion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "STVFPrior",
+    "VariationalResult",
+    "POS",
+    "predict",
+    "initial_prior",
+    "state_moments",
+    "speed_moment",
+    "gamma_update",
+    "mean_update",
+    "wishart_update",
+    "variational_update",
+    "localization_confidence",
+    "measurement_confidence",
+    "select_references",
+    "promote",
+    "project_delay",
+]
+
+#: indices of (x, y) in the state [x, vx, y, vy]: the paper's selection matrix A.
+POS = np.array([0, 2])
+
+
+@dataclass(frozen=True)
+class STVFPrior:
+    """Fixed parameters of the STVF model (Table 1 defaults).
+
+    ``transition`` is the precision Lambda of mu_t | mu_{t-1} (1/m^2, 1/(m/s)^2), ``wishart_scale``
+    W and ``wishart_dof`` n the Wishart prior of the state precision, ``speed`` v (m/s) and
+    ``speed_precision`` V (1/(m/s)^2) the sound-speed prior, ``noise_shape`` alpha and
+    ``noise_rate`` beta (ms^2) the Gamma prior of the delay-noise precision (1/ms^2).
+    ``tol`` (m) stops the iteration when the position part of mu* moves less than that;
+    ``common_random_numbers`` reuses the standard-normal draws across iterations of one
+    localization so that the iteration is a deterministic map and "convergence" is not limited
+    by Monte Carlo noise (the per-iteration Monte Carlo error is unchanged).
+    """
+
+    transition: NDArray[np.float64] = field(default_factory=lambda: np.eye(4) / 900.0)
+    wishart_scale: NDArray[np.float64] = field(default_factory=lambda: 5.0 * np.eye(4))
+    wishart_dof: float = 10.0
+    speed: float = 1500.0
+    speed_precision: float = 1.0 / 100.0
+    noise_shape: float = 3.0
+    noise_rate: float = 200.0
+    n_state_samples: int = 200
+    n_speed_samples: int = 200
+    z_scale: float = 1e3
+    tol: float = 0.1
+    max_iter: int = 50
+    common_random_numbers: bool = True
+
+
+@dataclass(frozen=True)
+class VariationalResult:
+    """Output of one variational update (Algorithm 1, inner loop).
+
+    ``state`` is <s>_{t|t} (the location estimate is ``state[POS]``), ``mu`` / ``mu_precision``
+    the parameters of q(mu_t) carried to the next period, ``speed`` <v> (m/s), ``zeta`` <zeta>
+    (1/ms^2), ``iterations`` the number of passes of the while-loop, ``converged`` whether the
+    tolerance was met before ``max_iter``.
+    """
+
+    state: NDArray[np.float64]
+    state_second_moment: NDArray[np.float64]
+    mu: NDArray[np.float64]
+    mu_precision: NDArray[np.float64]
+    lam: NDArray[np.float64]
+    speed: float
+    zeta: float
+    noise_shape: float
+    noise_rate: float
+    iterations: int
+    converged: bool
+
+    @property
+    def position(self) -> NDArray[np.float64]:
+        """Estimated (x, y), m."""
+        return self.state[POS]
+
+
+def _sym(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    return 0.5 * (m + m.swapaxes(-1, -2))
+
+
+def predict(
+    mu_prev: ArrayLike, mu_precision_prev: ArrayLike, transition: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Variational prediction of q(mu_t) (eq 11): mu^p = mu*_{t-1},
+    Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions)."""
+    mu_p = np.array(mu_prev, dtype=float)
+    cov = np.linalg.inv(np.asarray(mu_precision_prev, float)) + np.linalg.inv(
+        np.asarray(transition, float)
+    )
+    return mu_p, _sym(np.linalg.inv(cov))
+
+
+def initial_prior(position: ArrayLike, std: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """q(mu_0) for a node with no previous estimate: N([x, 0, y, 0], I / std^2).
+
+    Algorithm 1 takes mu*_0, Lambda*_0 as inputs without saying where they come from; the
+    protocol supplies a coarse position (e.g. a multilateration fix) and its std (m)."""
+    p = np.asarray(position, float)
+    mu = np.array([p[0], 0.0, p[1], 0.0])
+    return mu, np.eye(4) / std**2
+
+
+def _sample_gaussian(
+    mean: NDArray[np.float64], precision: NDArray[np.float64], eps: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision)."""
+    chol_cov = np.linalg.cholesky(_sym(np.linalg.inv(precision)))
+    return mean + eps @ chol_cov.T
+
+
+def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
+    w = np.exp(logw - logw.max(axis=-1, keepdims=True))
+    return w / w.sum(axis=-1, keepdims=True)
+
+
+def _delays(
+    positions: NDArray[np.float64], refs: NDArray[np.float64], speed: ArrayLike, z_scale: float
+) -> NDArray[np.float64]:
+    """Predicted delays z_scale * ||A(s - s_i)|| / v for positions (..., 2), refs (Nr, 2)."""
+    r = np.linalg.norm(positions[..., None, :] - refs, axis=-1)
+    return z_scale * r / np.asarray(speed)[..., None]
+
+
+def state_moments(
+    mean: ArrayLike,
+    precision: ArrayLike,
+    z: ArrayLike,
+    refs: ArrayLike,
+    speed: float,
+    zeta: float,
+    eps: NDArray[np.float64],
+    z_scale: float = 1e3,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Importance-sampling moments of q(s) (eq 21).
+
+    Proposal N(mean, precision) (4-D), weights prod_i N(z_i | z_scale r_i(s)/<v>, <zeta>);
+    ``eps`` (Ns, 4) standard normals. Returns <s> (4,) and <s s^T> (4, 4)."""
+    mean = np.asarray(mean, float)
+    s = _sample_gaussian(mean, np.asarray(precision, float), eps)
+    res = np.asarray(z, float) - _delays(s[:, POS], np.asarray(refs, float), speed, z_scale)
+    w = _normalized_weights(-0.5 * zeta * np.einsum("ki,ki->k", res, res))
+    m1 = w @ s
+    m2 = (s * w[:, None]).T @ s
+    return m1, _sym(m2)
+
+
+def speed_moment(
+    position: ArrayLike,
+    z: ArrayLike,
+    refs: ArrayLike,
+    speed_mean: float,
+    speed_precision: float,
+    zeta: float,
+    eps: NDArray[np.float64],
+    z_scale: float = 1e3,
+) -> float:
+    """Importance-sampling mean of q(v) (eq 20): v_k ~ N(v0, V), weights
+    prod_i N(z_i | z_scale r_i(<s>)/v_k, <zeta>); ``eps`` (Nv,) standard normals."""
+    v = speed_mean + eps / np.sqrt(speed_precision)
+    r = z_scale * np.linalg.norm(np.asarray(position, float) - np.asarray(refs, float), axis=-1)
+    res = np.asarray(z, float)[None, :] - r[None, :] / v[:, None]
+    w = _normalized_weights(-0.5 * zeta * np.einsum("ki,ki->k", res, res))
+    return float(w @ v)
+
+
+def gamma_update(
+    shape: float, rate: float, z: ArrayLike, refs: ArrayLike, position: ArrayLike, speed: float,
+    z_scale: float = 1e3,
+) -> tuple[float, float]:
+    """Gamma update of q(zeta) (eq 22): alpha* = alpha + Nr/2,
+    beta* = beta + 1/2 sum_i (z_i - z_scale r_i(<s>)/<v>)^2."""
+    z = np.asarray(z, float)
+    res = z - _delays(np.asarray(position, float), np.asarray(refs, float), speed, z_scale)
+    return shape + 0.5 * z.size, rate + 0.5 * float(res @ res)
+
+
+def mean_update(
+    lam: ArrayLike, state: ArrayLike, mu_p: ArrayLike, mu_p_precision: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """q(mu_t) = N(mu*, Lambda*) (eqs 13, 18): Lambda* = <lam> + Lambda^p,
+    mu* = Lambda*^-1 (<lam> <s> + Lambda^p mu^p)."""
+    lam = np.asarray(lam, float)
+    lp = np.asarray(mu_p_precision, float)
+    prec = _sym(lam + lp)
+    mu = np.linalg.solve(prec, lam @ np.asarray(state, float) + lp @ np.asarray(mu_p, float))
+    return mu, prec
+
+
+def wishart_update(
+    second_moment: ArrayLike, state: ArrayLike, mu: ArrayLike, mu_second_moment: ArrayLike,
+    scale: ArrayLike,
+) -> NDArray[np.float64]:
+    """Wishart scale of q(lam_t) (eqs 14, 18):
+    W* = (<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1)^-1 (dof n* = n + 1)."""
+    s = np.asarray(state, float)
+    m = np.asarray(mu, float)
+    mat = (
+        np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s)
+        + np.asarray(mu_second_moment, float) + np.linalg.inv(np.asarray(scale, float))
+    )
+    return _sym(np.linalg.inv(_sym(mat)))
+
+
+def variational_update(
+    z: ArrayLike,
+    refs: ArrayLike,
+    mu_p: ArrayLike,
+    mu_p_precision: ArrayLike,
+    prior: STVFPrior,
+    rng: np.random.Generator,
+) -> VariationalResult:
+    """Variational update of Algorithm 1 for one node and one period.
+
+    ``z`` (Nr,) delays (ms), ``refs`` (Nr, 2) reference positions projected on the node's depth
+    plane (m), ``mu_p``, ``mu_p_precision`` the predicted q(mu_t) from :func:`predict`.
+    Initialization as printed in Algorithm 1 (Lambda* = 2 Lambda^p,
+    W* = [(2 Lambda^p)^-1 + W^-1]^-1, beta* = beta / 2, <v> = v0); then <s>, <ss^T> and <v>
+    by importance sampling and the closed-form updates, until the position part of mu* moves
+    less than ``prior.tol`` m or ``prior.max_iter`` passes."""
+    z = np.asarray(z, float)
+    refs = np.asarray(refs, float)
+    mu_p = np.asarray(mu_p, float)
+    lp = np.asarray(mu_p_precision, float)
+    nr = z.size
+    dof = prior.wishart_dof + 1.0
+
+    mu_prec = 2.0 * lp
+    mu = mu_p.copy()
+    w_star = _sym(np.linalg.inv(np.linalg.inv(2.0 * lp) + np.linalg.inv(prior.wishart_scale)))
+    shape = prior.noise_shape + 0.5 * nr
+    rate = 0.5 * prior.noise_rate
+    speed = prior.speed
+    lam = dof * w_star
+    zeta = shape / rate
+    mu_mu = np.outer(mu, mu) + np.linalg.inv(mu_prec)
+
+    eps_s = rng.standard_normal((prior.n_state_samples, 4))
+    eps_v = rng.standard_normal(prior.n_speed_samples)
+    converged = False
+    it = 0
+    s1 = mu.copy()
+    s2 = mu_mu
+    for it in range(1, prior.max_iter + 1):
+        if not prior.common_random_numbers and it > 1:
+            eps_s = rng.standard_normal((prior.n_state_samples, 4))
+            eps_v = rng.standard_normal(prior.n_speed_samples)
+        s1, s2 = state_moments(mu, lam, z, refs, speed, zeta, eps_s, prior.z_scale)
+        speed = speed_moment(
+            s1[POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale
+        )
+        # Parameters from the current expectations, then the expectations (Algorithm 1 order).
+        new_mu, mu_prec = mean_update(lam, s1, mu_p, lp)
+        w_star = wishart_update(s2, s1, mu, mu_mu, prior.wishart_scale)
+        shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed,
+                                   prior.z_scale)
+        step = float(np.linalg.norm(new_mu[POS] - mu[POS]))
+        mu = new_mu
+        mu_mu = np.outer(mu, mu) + np.linalg.inv(mu_prec)
+        lam = dof * w_star
+        zeta = shape / rate
+        if step < prior.tol:
+            converged = True
+            break
+    return VariationalResult(
+        state=s1, state_second_moment=s2, mu=mu, mu_precision=mu_prec, lam=lam, speed=speed,
+        zeta=zeta, noise_shape=shape, noise_rate=rate, iterations=it, converged=converged,
+    )
+
+
+def localization_confidence(
+    ref_confidence: ArrayLike,
+    position: ArrayLike,
+    refs: ArrayLike,
+    z: ArrayLike,
+    speed: float,
+    z_scale: float = 1e3,
+    absolute: bool = True,
+) -> float:
+    """Confidence of a localized node (eqs 24-26): eta = mean(eta_i) (1 - E / D),
+    D = sum_i ||A(<s> - s_i)||^2, E = sum_i (||A(<s> - s_i)||^2 - (z_i <v>)^2).
+
+    ``absolute=True`` sums |.| of each term of E: the paper prints a signed sum, which lets errors
+    of opposite sign cancel and can push eta above the references' mean (even above 1); the
+    text calls E "the sum of errors", so by default each error counts. Clipped to [0, 1]."""
+    d2 = np.sum((np.asarray(position, float) - np.asarray(refs, float)) ** 2, axis=-1)
+    m2 = (np.asarray(z, float) * speed / z_scale) ** 2
+    err = d2 - m2
+    e = np.abs(err).sum() if absolute else err.sum()
+    eta = float(np.mean(ref_confidence)) * (1.0 - e / d2.sum())
+    return float(np.clip(eta, 0.0, 1.0))
+
+
+def _normalize(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    span = a.max() - a.min()
+    # All equal: the term cannot rank anything; 0 keeps gamma in [0, 1].
+    return np.zeros_like(a) if span <= 0 else (a - a.min()) / span
+
+
+def measurement_confidence(
+    ref_confidence: ArrayLike,
+    z: ArrayLike,
+    ref_speed: ArrayLike,
+    weights: tuple[float, float, float] = (0.7, 0.2, 0.1),
+    penalize: bool = True,
+) -> NDArray[np.float64]:
+    """Measurement confidence gamma_i (eqs 27-29) from reference confidence eta_i, delay z_i and
+    reference speed |v_i| = sqrt(vx^2 + vy^2), min-max normalized over the candidates.
+
+    ``penalize=False`` is eq 27 as printed: gamma = C1 eta + C2 f_z + C3 f_v, which gives the
+    *farthest* and *fastest* references the highest confidence. The text motivating eq 27 says
+    the opposite (long distances and high speeds incur larger errors), so by default the
+    normalized terms enter as (1 - f_z) and (1 - f_v)."""
+    c1, c2, c3 = weights
+    fz = _normalize(np.asarray(z, float))
+    fv = _normalize(np.asarray(ref_speed, float))
+    if penalize:
+        fz, fv = 1.0 - fz, 1.0 - fv
+    return c1 * np.asarray(ref_confidence, float) + c2 * fz + c3 * fv
+
+
+def select_references(gamma: ArrayLike, n_r: int) -> NDArray[np.intp]:
+    """Indices of the ``n_r`` largest gamma, best first (ties keep arrival order)."""
+    g = np.asarray(gamma, float)
+    return np.argsort(-g, kind="stable")[:n_r]
+
+
+def promote(confidence: float, threshold: float) -> bool:
+    """A localized node becomes a reference when eta >= delta (Algorithm 1)."""
+    return bool(confidence >= threshold)
+
+
+def project_delay(z: ArrayLike, depth_difference: ArrayLike, speed: float, z_scale: float = 1e3) -> NDArray[np.float64]:
+    """Delay (same unit as ``z``) of the horizontal component of a 3-D path, for the projection
+    of a neighbour onto the receiver's depth plane: sqrt(z^2 - (z_scale dz / v)^2), floored at 0
+    (noise can make z shorter than the vertical separation)."""
+    zv = z_scale * np.asarray(depth_difference, float) / speed
+    z = np.asarray(z, float)
+    return np.sqrt(np.maximum(z * z - zv * zv, 0.0))

@@ -1,0 +1,475 @@
+"""The simulation kernel: a SimPy environment, seeded random streams, the node registry,
+ground truth (positions, clocks) and the run loop.
+
+Ground truth lives here. Nodes reach it only through :class:`_NodeCore` (held by each node in
+a name-mangled attribute), whose methods hand back local observables: local clock readings,
+noisy sensor readings, receptions with local MAC stamps.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import simpy
+from pydantic import BaseModel
+
+from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
+from .channel.ssp import Constant, SoundSpeedProfile
+from .node import Node, Role, Sensors, SensorUnavailable
+from .packet import Reception
+from .trace import Trace, TraceConfig
+
+__all__ = ["Simulation", "Group", "ChannelConfig", "TraceConfig"]
+
+ClockSpec = Sequence[Any] | Callable[[int, np.random.Generator], Any] | None
+MobilitySpec = Any  # a Mobility object, or a callable rng -> Mobility
+
+
+def _key_words(key: Iterable[Any]) -> list[int]:
+    """Stable integers for an rng key: independent of Python's hash seed and of the platform.
+
+    Each part becomes (type tag, value): ints zig-zag encoded, strings (and anything else, by
+    repr) through an 8-byte BLAKE2b digest, so ("node", 3) and ("node", "3") differ.
+    """
+    words: list[int] = []
+    for part in key:
+        if isinstance(part, (bool, np.bool_)):
+            words += [2, int(part)]
+        elif isinstance(part, (int, np.integer)):
+            v = int(part)
+            words += [0, 2 * v if v >= 0 else -2 * v - 1]
+        else:
+            s = part if isinstance(part, str) else repr(part)
+            words += [1, int.from_bytes(hashlib.blake2b(s.encode(), digest_size=8).digest(), "little")]
+    return words
+
+
+@dataclass
+class Group:
+    """Nodes added by one :meth:`Simulation.add_group` call (one mobility object)."""
+
+    name: str
+    node_cls: type
+    role: Role
+    mobility: Any
+    start: int
+    count: int
+    static: bool
+
+
+class _NodeCore:
+    """Kernel-side state of one node; the only bridge between a Node and ground truth."""
+
+    __slots__ = (
+        "sim", "env", "channel", "index", "role", "params", "protocol", "group", "local",
+        "clock", "sensors", "has_velocity", "rng_protocol", "_rng_depth", "_rng_vel", "_rng_mac",
+        "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp",
+    )
+
+    def __init__(self, sim: Simulation, index: int, group: Group, local: int, clock: Any,
+                 sensors: Sensors, params: BaseModel, protocol: str) -> None:
+        self.sim = sim
+        self.env = sim.env
+        self.channel = sim.channel
+        self.index = index
+        self.role = group.role
+        self.params = params
+        self.protocol = protocol
+        self.group = group
+        self.local = local
+        self.clock = clock
+        # A drift-free Clock is the affine map local = (1 + skew) t + offset: evaluate it on
+        # Python floats (same IEEE operations as Clock.to_local) to skip numpy scalar overhead
+        # on the per-packet path.
+        self.affine = (getattr(clock, "drift_std", None) == 0.0 and hasattr(clock, "skew")
+                       and hasattr(clock, "offset"))
+        self.exact_stamp = self.affine and getattr(clock, "jitter_std", None) == 0.0
+        self.sensors = sensors
+        self.has_velocity = sensors.has_velocity(group.role)
+        self.rng_protocol = sim.rng("node", index, "protocol")
+        self._rng_depth: np.random.Generator | None = None
+        self._rng_vel: np.random.Generator | None = None
+        self._rng_mac: np.random.Generator | None = None
+        self.jitter_std = float(sim.channel_config.jitter_std_s)
+        cap = getattr(group.node_cls, "inbox_capacity", None)
+        self.inbox: deque[Reception] = deque(maxlen=cap)
+        self.waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        self.tx_free_at = 0.0
+        self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
+        self.rx_log: list[tuple[float, float, float]] = []  # (arrival, end, snr_db) of signals here
+
+    # -- truth ------------------------------------------------------------------------------------
+
+    def position(self, t: float) -> np.ndarray:
+        return self.group.mobility.position(t)[self.local]
+
+    def local(self, t: float) -> float:
+        """The node's clock reading at true time ``t`` (no jitter)."""
+        c = self.clock
+        if self.affine:
+            return (1.0 + c.skew) * t + c.offset
+        return float(c.to_local(t))
+
+    def true_delay(self, dt_local: float) -> float:
+        """True-time duration (s) after which the local clock has advanced by ``dt_local``."""
+        dt_local = float(dt_local)
+        if not dt_local >= 0.0:
+            raise ValueError(f"a delay must be >= 0 local seconds, got {dt_local!r}")
+        now = self.env.now
+        c = self.clock
+        if self.affine:
+            return dt_local / (1.0 + c.skew)
+        return max(0.0, float(c.to_true(c.to_local(now) + dt_local)) - now)
+
+    def stamp(self, t: float) -> float:
+        """MAC timestamp of true time ``t``: the clock's stamp plus the channel's MAC jitter."""
+        c = self.clock
+        s = (1.0 + c.skew) * t + c.offset if self.exact_stamp else float(c.stamp(t))
+        if self.jitter_std > 0.0:
+            if self._rng_mac is None:
+                self._rng_mac = self.sim.rng("node", self.index, "mac_jitter")
+            s += float(self._rng_mac.normal(0.0, self.jitter_std))
+        return s
+
+    # -- modem ------------------------------------------------------------------------------------
+
+    def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+        if dst is not None and not 0 <= dst < len(self.sim.nodes):
+            raise ValueError(f"node {self.index}: no node with id {dst}")
+        return self.channel.transmit(self, dst, str(kind), payload, int(bits))
+
+    def deliver(self, rec: Reception) -> None:
+        kind = rec.packet.kind
+        waiters = self.waiters
+        for i, (ev, kinds) in enumerate(waiters):
+            if kinds is None or kind in kinds:
+                del waiters[i]
+                ev.succeed(rec)
+                return
+        self.inbox.append(rec)
+
+    def recv(self, timeout: float | None, kinds: str | Iterable[str] | None,
+             to_true_delay: Callable[[float], float]) -> simpy.Event:
+        ks: frozenset[str] | None
+        if kinds is None:
+            ks = None
+        elif isinstance(kinds, str):
+            ks = frozenset((kinds,))
+        else:
+            ks = frozenset(kinds)
+        ev = self.env.event()
+        inbox = self.inbox
+        if inbox:
+            if ks is None:
+                return ev.succeed(inbox.popleft())
+            for i, rec in enumerate(inbox):
+                if rec.packet.kind in ks:
+                    del inbox[i]
+                    return ev.succeed(rec)
+        entry = (ev, ks)
+        self.waiters.append(entry)
+        if timeout is not None:
+            delay = to_true_delay(timeout)
+
+            def expire(_: simpy.Event) -> None:
+                # The reception may have won the race in the meantime: then do nothing.
+                if not ev.triggered:
+                    self.waiters.remove(entry)
+                    ev.succeed(None)
+
+            self.env.timeout(delay).callbacks.append(expire)
+        return ev
+
+    # -- sensors ----------------------------------------------------------------------------------
+
+    def read_depth(self) -> float:
+        z = float(self.position(self.env.now)[2])
+        std = self.sensors.depth_std
+        if std > 0.0:
+            if self._rng_depth is None:
+                self._rng_depth = self.sim.rng("node", self.index, "depth")
+            z += float(self._rng_depth.normal(0.0, std))
+        return z
+
+    def read_velocity(self) -> np.ndarray:
+        if not self.has_velocity:
+            raise SensorUnavailable(
+                f"node {self.index} ({self.role.value}) has no velocity sensor; give its group "
+                "Sensors(velocity=True) to add one"
+            )
+        v = np.array(self.group.mobility.velocity(self.env.now)[self.local], dtype=float)
+        std = self.sensors.velocity_std
+        if std > 0.0:
+            if self._rng_vel is None:
+                self._rng_vel = self.sim.rng("node", self.index, "velocity")
+            v = v + self._rng_vel.normal(0.0, std, 3)
+        return v
+
+    # -- logging ----------------------------------------------------------------------------------
+
+    def log(self, table: str, columns: Mapping[str, Any]) -> None:
+        reserved = {"time", "node", "protocol"} & set(columns)
+        if reserved:
+            raise ValueError(f"log(): columns {sorted(reserved)} are added by the kernel")
+        self.sim.trace.append(table, time=self.env.now, node=self.index, protocol=self.protocol, **columns)
+
+    def log_estimate(self, x: float, y: float, z: float, confidence: float, is_reference: bool,
+                     extra: Mapping[str, Any]) -> None:
+        t = self.env.now
+        tx, ty, tz = (float(v) for v in self.position(t))
+        err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
+        self.sim.trace.append(
+            "estimates", time=t, node=self.index, protocol=self.protocol, x=x, y=y, z=z,
+            true_x=tx, true_y=ty, true_z=tz, error=err, confidence=confidence,
+            is_reference=is_reference, **extra,
+        )
+
+    def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
+        t = self.env.now
+        clock = self.clock
+        local = float(clock.to_local(t))
+        true_skew = float(clock.skew_at(t))
+        true_offset = float(clock.offset_at(t))
+        # the node's estimate of true time now, from its own clock reading and its clock model
+        err = (local - offset) / (1.0 + skew) - t
+        self.sim.trace.append(
+            "clocks", time=t, node=self.index, protocol=self.protocol, skew=skew, offset=offset,
+            true_skew=true_skew, true_offset=true_offset, error=err, **extra,
+        )
+
+
+def _perfect_clock() -> Any:
+    from .clock import Clock
+
+    return Clock.perfect()
+
+
+def _is_static(mobility: Any) -> bool:
+    try:
+        from .mobility import Static
+    except ImportError:  # pragma: no cover - mobility module not there yet
+        Static = ()  # type: ignore[assignment]
+    return bool(getattr(mobility, "is_static", False)) or (bool(Static) and isinstance(mobility, Static))
+
+
+class Simulation:
+    """One run: ``Simulation(seed, ssp, volume, channel, trace)``; add groups, then ``run``.
+
+    seed: int for the run's ``numpy.random.SeedSequence`` (None = fresh entropy, kept in
+    ``seed`` so the run can be repeated). ssp: the sound-speed profile (default 1500 m/s
+    constant). volume: the scenario's ``mobility.Box`` (used to build default static mobility).
+    channel: :class:`ChannelConfig`. trace: :class:`TraceConfig`. loss_model: SNR model for the
+    channel (default: ``aquasim_py.channel.loss`` when present, else no SNR).
+    """
+
+    def __init__(self, seed: int | None = 0, ssp: SoundSpeedProfile | None = None, volume: Any = None,
+                 channel: ChannelConfig | None = None, trace: TraceConfig | None = None,
+                 *, loss_model: LossModel | None = None) -> None:
+        ss = np.random.SeedSequence(seed)
+        self.seed: int = int(ss.entropy)  # type: ignore[arg-type]
+        self._seedseq = ss
+        self.env = simpy.Environment()
+        self.ssp: SoundSpeedProfile = ssp if ssp is not None else Constant(1500.0)
+        self.volume = volume
+        self.channel_config = channel if channel is not None else ChannelConfig()
+        self.trace = Trace(trace)
+        self.channel = AcousticChannel(self, self.ssp, self.channel_config, loss_model=loss_model)
+        self.nodes: list[Node] = []
+        self.groups: list[Group] = []
+        self._cores: list[_NodeCore] = []
+        self._moving = np.zeros(0, dtype=bool)
+        self._pos_t = math.nan
+        self._pos_cache = np.zeros((0, 3))
+        self._static_pos: np.ndarray | None = None
+        self._sampler_started = False
+
+    # -- randomness -------------------------------------------------------------------------------
+
+    def rng(self, *key: Any) -> np.random.Generator:
+        """A Generator for ``key`` (e.g. ``("node", 3, "depth")``), independent of every other key.
+
+        Derived from the run's SeedSequence with the key as spawn key, so it does not depend on
+        which other streams exist or in what order they were made. The same key gives a fresh
+        Generator in the same state each call: ask once and keep it.
+        """
+        if not key:
+            raise ValueError("rng() needs a key, e.g. sim.rng('node', 3, 'depth')")
+        ss = np.random.SeedSequence(self._seedseq.entropy,
+                                    spawn_key=tuple(self._seedseq.spawn_key) + tuple(_key_words(key)))
+        return np.random.Generator(np.random.PCG64(ss))
+
+    # -- building ---------------------------------------------------------------------------------
+
+    @property
+    def now(self) -> float:
+        """True simulation time (s): kernel, channel, trace and metrics only."""
+        return self.env.now
+
+    def add_group(self, node_cls: type[Node], count: int, *, role: Role | str = Role.ORDINARY,
+                  mobility: MobilitySpec = None, positions: Any = None, clocks: ClockSpec = None,
+                  params: Mapping[str, Any] | BaseModel | None = None, sensors: Sensors | None = None,
+                  name: str | None = None) -> list[Node]:
+        """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
+
+        mobility: a Mobility (``position(t) -> (count, 3)``) or a callable ``rng -> Mobility``
+        (given the stream ("group", name, "mobility")); None = static at ``positions``.
+        clocks: None (perfect clocks), a sequence of ``count`` Clocks, or a callable
+        ``(node_id, rng) -> Clock`` (rng = stream ("node", id, "clock")).
+        params: the protocol's parameters (validated by ``node_cls.Params``).
+        sensors: depth / velocity sensor noise (:class:`~aquasim_py.node.Sensors`).
+        """
+        if not (isinstance(node_cls, type) and issubclass(node_cls, Node)):
+            raise TypeError(f"add_group: {node_cls!r} is not a Node subclass")
+        count = int(count)
+        if count < 1:
+            raise ValueError(f"add_group: count must be >= 1, got {count}")
+        role = Role(role)
+        gname = name if name is not None else f"group{len(self.groups)}"
+        if any(g.name == gname for g in self.groups):
+            raise ValueError(f"add_group: a group named {gname!r} exists already")
+        if mobility is None:
+            if positions is None:
+                raise ValueError("add_group: give a mobility model or static positions")
+            from .mobility import Box, Static
+
+            p0 = np.asarray(positions, dtype=float).reshape(count, 3)
+            box = self.volume
+            if box is None:  # no scenario volume: any box holding the nodes will do for Static
+                box = Box(np.minimum(p0.min(axis=0) - 1.0, [np.inf, np.inf, 0.0]).clip([-np.inf, -np.inf, 0.0]),
+                          p0.max(axis=0) + 1.0)
+            mobility = Static(p0, box, self.rng("group", gname, "mobility"))
+        elif callable(mobility) and not hasattr(mobility, "position"):
+            mobility = mobility(self.rng("group", gname, "mobility"))
+        p0 = np.asarray(mobility.position(0.0))
+        if p0.shape != (count, 3):
+            raise ValueError(f"add_group {gname!r}: mobility gives positions of shape {p0.shape}, "
+                             f"expected ({count}, 3)")
+        start = len(self.nodes)
+        group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility))
+        if params is None:
+            p = node_cls.Params()
+        elif isinstance(params, node_cls.Params):
+            p = params
+        else:
+            p = node_cls.Params.model_validate(dict(params))
+        sensors = sensors if sensors is not None else Sensors()
+        if callable(clocks):
+            clock_list = [clocks(start + i, self.rng("node", start + i, "clock")) for i in range(count)]
+        elif clocks is None:
+            clock_list = [_perfect_clock() for _ in range(count)]
+        else:
+            clock_list = list(clocks)
+            if len(clock_list) != count:
+                raise ValueError(f"add_group {gname!r}: {len(clock_list)} clocks for {count} nodes")
+        protocol = getattr(node_cls, "name", node_cls.__name__)
+        new: list[Node] = []
+        for i in range(count):
+            core = _NodeCore(self, start + i, group, i, clock_list[i], sensors, p, protocol)
+            node = node_cls(core)
+            self._cores.append(core)
+            self.nodes.append(node)
+            new.append(node)
+            self.trace.append("nodes", node=start + i, role=role.value, protocol=protocol, group=gname)
+        self.groups.append(group)
+        self._moving = np.concatenate([self._moving, np.full(count, not group.static)])
+        self._static_pos = None
+        self._pos_t = math.nan
+        for node in new:
+            gen = node.run()
+            if not inspect.isgenerator(gen):
+                raise TypeError(f"{node_cls.__name__}.run() must be a generator (use yield)")
+            self.env.process(gen)
+        return new
+
+    # -- ground truth -----------------------------------------------------------------------------
+
+    def positions(self, t: float | None = None) -> np.ndarray:
+        """True positions (N, 3) of every node at true time ``t`` (default now)."""
+        t = self.env.now if t is None else float(t)
+        if t == self._pos_t:
+            return self._pos_cache
+        if not self._moving.any():
+            if self._static_pos is None:
+                self._static_pos = self._gather(0.0)
+            return self._static_pos
+        p = self._gather(t)
+        self._pos_t, self._pos_cache = t, p
+        return p
+
+    def _gather(self, t: float) -> np.ndarray:
+        if len(self.groups) == 1:
+            return np.asarray(self.groups[0].mobility.position(t), dtype=float)
+        if not self.groups:
+            return np.zeros((0, 3))
+        return np.concatenate([np.asarray(g.mobility.position(t), dtype=float) for g in self.groups])
+
+    def velocities(self, t: float | None = None) -> np.ndarray:
+        """True velocities (N, 3) at true time ``t`` (default now)."""
+        t = self.env.now if t is None else float(t)
+        if not self.groups:
+            return np.zeros((0, 3))
+        return np.concatenate([np.asarray(g.mobility.velocity(t), dtype=float) for g in self.groups])
+
+    def positions_at(self, idx: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """True positions (k, 3) of nodes ``idx[i]`` at true times ``times[i]``."""
+        out = np.empty((len(idx), 3))
+        cores = self._cores
+        # one mobility query per (moving node, time): the few receivers of one packet
+        for i, (j, t) in enumerate(zip(idx.tolist(), times.tolist())):
+            c = cores[j]
+            out[i] = c.group.mobility.position(t)[c.local]
+        return out
+
+    def is_moving(self) -> np.ndarray:
+        """(N,) bool: which nodes belong to a non-static mobility group."""
+        return self._moving
+
+    def clock_of(self, node_id: int) -> Any:
+        """The Clock of a node (kernel, trace and tests only)."""
+        return self._cores[node_id].clock
+
+    # -- running ----------------------------------------------------------------------------------
+
+    def _sample_positions(self, interval: float) -> Any:
+        k = 0
+        table = self.trace.table("positions")
+        while True:
+            t = self.env.now
+            n = len(self.nodes)
+            if n:
+                p = self.positions(t)
+                v = self.velocities(t)
+                table.extend(time=np.full(n, t), node=np.arange(n), x=p[:, 0], y=p[:, 1], z=p[:, 2],
+                             vx=v[:, 0], vy=v[:, 1], vz=v[:, 2])
+            k += 1
+            # absolute grid k * interval, so sample times carry no accumulated rounding
+            yield self.env.timeout(max(0.0, k * interval - self.env.now))
+
+    def _progress(self, until: float, callback: Callable[[float, float], Any]) -> Any:
+        step = (until - self.env.now) / 100.0
+        while self.env.now + step < until:
+            yield self.env.timeout(step)
+            callback(self.env.now, until)
+
+    def run(self, until: float, progress: Callable[[float, float], Any] | None = None) -> None:
+        """Run to true time ``until`` (s). ``progress(t, until)`` is called about every 1 %."""
+        until = float(until)
+        if not until > self.env.now:
+            raise ValueError(f"run(until={until}) must be later than now ({self.env.now})")
+        if not self._sampler_started:
+            self._sampler_started = True
+            interval = self.trace.config.position_interval
+            if interval:
+                self.env.process(self._sample_positions(float(interval)))
+        if progress is not None:
+            self.env.process(self._progress(until, progress))
+        self.env.run(until=until)
+        if progress is not None:
+            progress(until, until)

@@ -1,0 +1,671 @@
+"""Node mobility: exact, deterministic trajectories inside the scenario volume.
+
+Coordinates are metres, (x, y, z) with z = depth, positive down; times are seconds of true
+simulation time. One :class:`Mobility` object drives a group of ``n`` nodes, vectorized over
+them: ``position(t)`` and ``velocity(t)`` return ``(n, 3)`` arrays, exact at any ``t >= 0``
+and independent of the order of queries (queries never advance hidden state; random legs and
+integrated current tables are extended lazily, always in the same fixed blocks from ``t = 0``).
+
+Walls, surface and bottom reflect like mirrors: each model computes its *unconstrained*
+trajectory and :meth:`Box.fold` folds it into the box coordinate-wise (a triangle wave per
+axis). Folding is an exact specular reflection for any path, and the velocity is the folded
+derivative (each component's sign flips on every bounce).
+
+Models: :class:`Static`, :class:`ConstantVelocity`, :class:`CoordinatedTurn` (circle arcs in
+x-y), :class:`RandomWalk` (piecewise-constant random legs), :class:`MeanderingCurrent` (the
+kinematic ocean-current model of SLMP used in STVF's Table 1) and :class:`Waypoints`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.integrate import solve_ivp
+
+__all__ = [
+    "Box",
+    "Mobility",
+    "Static",
+    "ConstantVelocity",
+    "CoordinatedTurn",
+    "RandomWalk",
+    "MeanderingCurrent",
+    "Waypoints",
+]
+
+Array = NDArray[np.float64]
+
+
+# ---------------------------------------------------------------------------------------------
+# Scenario volume
+
+
+class Box:
+    """Axis-aligned scenario volume ``lo <= p <= hi`` (m); ``lo[2] >= 0`` is the surface side."""
+
+    __slots__ = ("lo", "hi", "size", "_period", "_inv_period", "_cache")
+
+    def __init__(self, lo: ArrayLike, hi: ArrayLike) -> None:
+        lo_a = np.array(lo, dtype=float).reshape(-1)
+        hi_a = np.array(hi, dtype=float).reshape(-1)
+        if lo_a.shape != (3,) or hi_a.shape != (3,):
+            raise ValueError(f"Box corners must be 3-vectors (x, y, z), got {lo!r} and {hi!r}")
+        if not (np.all(np.isfinite(lo_a)) and np.all(np.isfinite(hi_a))):
+            raise ValueError("Box corners must be finite")
+        if np.any(hi_a <= lo_a):
+            raise ValueError(f"Box needs hi > lo on every axis, got lo={lo_a}, hi={hi_a}")
+        if lo_a[2] < 0.0:
+            raise ValueError(f"Box lo[2] is a depth and must be >= 0 (surface at z = 0), got {lo_a[2]}")
+        lo_a.flags.writeable = False
+        hi_a.flags.writeable = False
+        self.lo = lo_a
+        self.hi = hi_a
+        self.size = hi_a - lo_a
+        self._period = 2.0 * self.size
+        self._inv_period = 1.0 / self._period
+        self._cache: dict[tuple[int, ...], tuple[Array, ...]] = {}
+
+    def __repr__(self) -> str:
+        return f"Box(lo={self.lo.tolist()}, hi={self.hi.tolist()})"
+
+    def contains(self, p: ArrayLike) -> NDArray[np.bool_]:
+        """Whether each point of ``p`` (..., 3) lies in the closed box."""
+        pa = np.asarray(p, dtype=float)
+        return np.all((pa >= self.lo) & (pa <= self.hi), axis=-1)
+
+    def fold(self, p: ArrayLike) -> tuple[Array, Array]:
+        """Mirror-fold points (..., 3) into the box: (folded points, d folded / d p per axis).
+
+        Triangle wave of period 2 * size per axis, exact for any overshoot (multiple bounces).
+        The sign is -1 where the point sits in a mirrored copy of the box.
+        """
+        d, lo, hi = self._centred(p)
+        sign = np.copysign(1.0, d)
+        np.negative(sign, out=sign)
+        return self._finish(d, lo, hi), sign
+
+    def reflect(self, p: ArrayLike) -> Array:
+        """Points (..., 3) folded back into the box like a mirror (see :meth:`fold`)."""
+        return self._finish(*self._centred(p))
+
+    def _consts(self, shape: tuple[int, ...]) -> tuple[Array, ...]:
+        # Broadcasting against a length-3 last axis runs numpy's inner loop 3 elements at a
+        # time (several times slower); materialize the constants at the query's shape once.
+        c = self._cache.get(shape)
+        if c is None:
+            c = tuple(np.ascontiguousarray(np.broadcast_to(a, shape)) for a in (self.lo, self.hi, self.size, self._period, self._inv_period))
+            if len(self._cache) < 64:
+                self._cache[shape] = c
+        return c
+
+    def _centred(self, p: ArrayLike) -> tuple[Array, Array, Array]:
+        # Phase within one period minus size: in [-size, size), > 0 in the mirrored copy.
+        # floor-based remainder: np.mod costs several times more on the per-reception hot path.
+        pa = np.asarray(p, dtype=float)
+        lo, hi, size, period, inv_period = self._consts(pa.shape)
+        d = pa - lo
+        q = d * inv_period
+        np.floor(q, out=q)
+        q *= period
+        d -= q
+        d -= size
+        return d, lo, hi
+
+    @staticmethod
+    def _finish(d: Array, lo: Array, hi: Array) -> Array:
+        np.abs(d, out=d)
+        out = np.subtract(hi, d, out=d)
+        # Rounding of the remainder can land one ulp below lo.
+        np.maximum(out, lo, out=out)
+        return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Helpers
+
+
+def _time(t: float) -> float:
+    tf = float(t)
+    if not (0.0 <= tf < math.inf):
+        raise ValueError(f"time must be finite and >= 0 s, got {t!r}")
+    return tf
+
+
+def _per_node(name: str, value: ArrayLike, n: int, *, minimum: float | None = None) -> Array:
+    """A scalar or (n,) parameter as a finite (n,) array."""
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(n, float(a))
+    if a.shape != (n,):
+        raise ValueError(f"{name} must be a scalar or have shape ({n},), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite")
+    if minimum is not None and np.any(a < minimum):
+        raise ValueError(f"{name} must be >= {minimum}, got min {a.min()}")
+    return a.copy()
+
+
+def _positive(name: str, value: float) -> float:
+    v = float(value)
+    if not (0.0 < v < math.inf):
+        raise ValueError(f"{name} must be positive and finite, got {value!r}")
+    return v
+
+
+def _need_rng(rng: np.random.Generator | None, who: str) -> np.random.Generator:
+    if not isinstance(rng, np.random.Generator):
+        raise ValueError(f"{who} needs rng, a numpy.random.Generator (got {type(rng).__name__})")
+    return rng
+
+
+def _readonly(a: Array) -> Array:
+    a.flags.writeable = False
+    return a
+
+
+class _Table:
+    """Growable array of per-knot states (K, n, 3) with capacity doubling."""
+
+    __slots__ = ("data", "count")
+
+    def __init__(self, first: Array) -> None:
+        self.data = np.empty((16,) + first.shape)
+        self.data[0] = first
+        self.count = 1
+
+    def append(self, rows: Array) -> None:
+        need = self.count + len(rows)
+        if need > len(self.data):
+            cap = max(need, 2 * len(self.data))
+            grown = np.empty((cap,) + self.data.shape[1:])
+            grown[: self.count] = self.data[: self.count]
+            self.data = grown
+        self.data[self.count : need] = rows
+        self.count = need
+
+    @property
+    def last(self) -> Array:
+        return self.data[self.count - 1]
+
+
+# ---------------------------------------------------------------------------------------------
+# Base class
+
+
+class Mobility:
+    """Trajectories of a group of ``n`` nodes, built as ``Cls(initial_positions, box, rng, **params)``.
+
+    Subclasses implement the unconstrained motion in ``_raw_position(t)`` and
+    ``_raw_velocity(t)`` (each (n, 3)); the base class folds it into the box.
+    """
+
+    #: False for models whose unconstrained path provably stays in the (convex) box.
+    _folds: bool = True
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        if not isinstance(box, Box):
+            raise ValueError(f"box must be a mobility.Box, got {type(box).__name__}")
+        p0 = np.array(initial_positions, dtype=float)
+        if p0.ndim != 2 or p0.shape[1] != 3 or p0.shape[0] < 1:
+            raise ValueError(f"initial_positions must have shape (n, 3) with n >= 1, got {p0.shape}")
+        if not np.all(np.isfinite(p0)):
+            raise ValueError("initial_positions must be finite")
+        outside = np.flatnonzero(~box.contains(p0))
+        if outside.size:
+            i = int(outside[0])
+            raise ValueError(f"initial position of node {i} {p0[i].tolist()} is outside {box!r}")
+        self.box = box
+        self._p0 = _readonly(p0)
+        self._rng = rng
+
+    @property
+    def n(self) -> int:
+        """Number of nodes in the group."""
+        return self._p0.shape[0]
+
+    @property
+    def initial_positions(self) -> Array:
+        return self._p0
+
+    def position(self, t: float) -> Array:
+        """Positions (n, 3) in m at true time ``t`` (s)."""
+        raw = self._raw_position(_time(t))
+        return self.box.reflect(raw) if self._folds else raw
+
+    def velocity(self, t: float) -> Array:
+        """Velocities (n, 3) in m/s at true time ``t`` (s) (right derivative at bounces)."""
+        return self.state(t)[1]
+
+    def state(self, t: float) -> tuple[Array, Array]:
+        """``(position(t), velocity(t))`` from one evaluation of the trajectory."""
+        tf = _time(t)
+        raw_p = self._raw_position(tf)
+        raw_v = self._raw_velocity(tf)
+        if not self._folds:
+            return raw_p, raw_v
+        pos, sign = self.box.fold(raw_p)
+        return pos, raw_v * sign
+
+    def track(self, times: ArrayLike) -> Array:
+        """Positions (m, n, 3) at each of ``times`` (convenience, loops over times)."""
+        ts = np.asarray(times, dtype=float).reshape(-1)
+        return np.stack([self.position(t) for t in ts]) if ts.size else np.empty((0, self.n, 3))
+
+    # Subclass hooks ------------------------------------------------------------------------
+
+    def _raw_position(self, t: float) -> Array:
+        raise NotImplementedError
+
+    def _raw_velocity(self, t: float) -> Array:
+        raise NotImplementedError
+
+
+# ---------------------------------------------------------------------------------------------
+# Models
+
+
+class Static(Mobility):
+    """Nodes that never move (moored anchors, buoys)."""
+
+    _folds = False
+
+    def __init__(self, initial_positions: ArrayLike, box: Box, rng: np.random.Generator | None = None) -> None:
+        super().__init__(initial_positions, box, rng)
+        self._zero = _readonly(np.zeros_like(self._p0))
+
+    def _raw_position(self, t: float) -> Array:
+        return self._p0
+
+    def _raw_velocity(self, t: float) -> Array:
+        return self._zero
+
+
+class ConstantVelocity(Mobility):
+    """Straight lines at constant velocity (m/s), ``velocity`` a 3-vector or (n, 3)."""
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        v = np.asarray(velocity, dtype=float)
+        try:
+            v = np.broadcast_to(v, (self.n, 3)).copy()
+        except ValueError:
+            raise ValueError(f"velocity must be a 3-vector or shape ({self.n}, 3), got {v.shape}") from None
+        if not np.all(np.isfinite(v)):
+            raise ValueError("velocity must be finite")
+        self._v = _readonly(v)
+
+    def _raw_position(self, t: float) -> Array:
+        return self._p0 + self._v * t
+
+    def _raw_velocity(self, t: float) -> Array:
+        return self._v
+
+
+class CoordinatedTurn(Mobility):
+    """Constant horizontal speed on circles in x-y plus a constant vertical speed.
+
+    Heading h(t) = heading + turn_rate t (rad, from +x towards +y); the horizontal velocity is
+    speed (cos h, sin h), so the circle radius is speed / |turn_rate|. Positions use the exact
+    arc integral written with sinc so turn_rate -> 0 is the straight line without cancellation.
+
+    Parameters (scalars or per node (n,)): ``speed`` (m/s, >= 0), ``turn_rate`` (rad/s),
+    ``heading`` (rad; uniform on [0, 2 pi) from ``rng`` when None), ``vz`` (m/s, down positive).
+    """
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        speed: ArrayLike = 1.0,
+        turn_rate: ArrayLike = 0.0,
+        heading: ArrayLike | None = None,
+        vz: ArrayLike = 0.0,
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        n = self.n
+        self.speed = _readonly(_per_node("speed", speed, n, minimum=0.0))
+        self.turn_rate = _readonly(_per_node("turn_rate", turn_rate, n))
+        if heading is None:
+            heading = _need_rng(rng, "CoordinatedTurn with heading=None").uniform(0.0, 2.0 * np.pi, n)
+        self.heading = _readonly(_per_node("heading", heading, n))
+        self.vz = _readonly(_per_node("vz", vz, n))
+
+    def _raw_position(self, t: float) -> Array:
+        n = self.n
+        half = self.turn_rate * (0.5 * t)
+        mid = self.heading + half
+        # sin(h0 + w t) - sin(h0) = 2 cos(h0 + w t / 2) sin(w t / 2) (and likewise for cos):
+        # chord = speed t sinc(w t / 2), no cancellation as w -> 0.
+        chord = np.ones(n)
+        np.divide(np.sin(half), half, out=chord, where=half != 0.0)
+        chord *= self.speed * t
+        d = np.empty((3, n))
+        np.cos(mid, out=d[0])
+        np.sin(mid, out=d[1])
+        d[:2] *= chord
+        np.multiply(self.vz, t, out=d[2])
+        return self._p0 + d.T
+
+    def _raw_velocity(self, t: float) -> Array:
+        h = self.heading + self.turn_rate * t
+        d = np.empty((3, self.n))
+        np.cos(h, out=d[0])
+        np.sin(h, out=d[1])
+        d[:2] *= self.speed
+        d[2] = self.vz
+        return np.ascontiguousarray(d.T)
+
+
+class RandomWalk(Mobility):
+    """Piecewise-constant velocity legs of ``leg_duration`` s, each drawn afresh.
+
+    Leg speeds are uniform on [speed_min, speed_max] (m/s); directions are uniform on the
+    horizontal circle (``vertical=False``, vz = 0) or on the sphere (``vertical=True``). Legs are
+    drawn from ``rng`` in fixed blocks of 64, all nodes at once, as far as queries reach.
+    """
+
+    _BLOCK = 64
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        speed_min: float = 0.0,
+        speed_max: float = 1.0,
+        leg_duration: float = 10.0,
+        vertical: bool = False,
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        self._legs_rng = _need_rng(rng, "RandomWalk")
+        self.speed_min = float(speed_min)
+        self.speed_max = float(speed_max)
+        if not (0.0 <= self.speed_min <= self.speed_max < math.inf):
+            raise ValueError(f"need 0 <= speed_min <= speed_max < inf, got {speed_min!r}, {speed_max!r}")
+        self.leg_duration = _positive("leg_duration", leg_duration)
+        self.vertical = bool(vertical)
+        # Leg k: raw start position _starts[k], velocity _vels[k].
+        self._starts = _Table(self._p0)
+        self._vels: _Table | None = None
+
+    def _draw_block(self) -> None:
+        rng, n, b = self._legs_rng, self.n, self._BLOCK
+        speed = rng.uniform(self.speed_min, self.speed_max, (b, n))
+        azimuth = rng.uniform(0.0, 2.0 * np.pi, (b, n))
+        if self.vertical:
+            cos_polar = rng.uniform(-1.0, 1.0, (b, n))  # uniform on the sphere (Archimedes)
+            horiz = np.sqrt(1.0 - cos_polar**2)
+        else:
+            cos_polar = np.zeros((b, n))
+            horiz = np.ones((b, n))
+        vel = speed[..., None] * np.stack((horiz * np.cos(azimuth), horiz * np.sin(azimuth), cos_polar), axis=-1)
+        ends = self._starts.last + np.cumsum(vel * self.leg_duration, axis=0)
+        if self._vels is None:
+            self._vels = _Table(vel[0])
+            self._vels.append(vel[1:])
+        else:
+            self._vels.append(vel)
+        self._starts.append(ends)
+
+    def _leg(self, t: float) -> tuple[int, float]:
+        k = int(t // self.leg_duration)
+        while self._vels is None or k >= self._vels.count:
+            self._draw_block()
+        return k, t - k * self.leg_duration
+
+    def _raw_position(self, t: float) -> Array:
+        k, dt = self._leg(t)
+        return self._starts.data[k] + self._vels.data[k] * dt
+
+    def _raw_velocity(self, t: float) -> Array:
+        k, _ = self._leg(t)
+        return self._vels.data[k]
+
+    def leg_velocities(self, count: int) -> Array:
+        """Unconstrained velocities (count, n, 3) of the first ``count`` legs (for analysis)."""
+        if count <= 0:
+            return np.empty((0, self.n, 3))
+        self._leg((count - 1) * self.leg_duration)
+        return self._vels.data[:count].copy()
+
+
+class Waypoints(Mobility):
+    """Constant speed along straight segments: initial position -> waypoints[i][0] -> ... .
+
+    ``waypoints``: per node a sequence of points (array (n, m, 3) or a list of n arrays
+    (m_i, 3)), all inside the box (the box is convex, so paths never need folding). ``speed``
+    (m/s, scalar or (n,)). After the last point a node stops (``loop=False``) or heads back to
+    its initial position and repeats the cycle (``loop=True``).
+    """
+
+    _folds = False
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        waypoints: ArrayLike | Sequence[ArrayLike],
+        speed: ArrayLike = 1.0,
+        loop: bool = False,
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        n = self.n
+        if len(waypoints) != n:
+            raise ValueError(f"waypoints must give one list of points per node ({n}), got {len(waypoints)}")
+        self.speed = _readonly(_per_node("speed", speed, n, minimum=0.0))
+        self.loop = bool(loop)
+        paths = []
+        for i, w in enumerate(waypoints):
+            wa = np.asarray(w, dtype=float)
+            if wa.ndim != 2 or wa.shape[1] != 3 or wa.shape[0] < 1:
+                raise ValueError(f"waypoints of node {i} must have shape (m, 3) with m >= 1, got {wa.shape}")
+            if not np.all(np.isfinite(wa)) or not np.all(box.contains(wa)):
+                raise ValueError(f"waypoints of node {i} must be finite and inside {box!r}")
+            pts = [self._p0[i : i + 1], wa] + ([self._p0[i : i + 1]] if self.loop else [])
+            paths.append(np.concatenate(pts))
+        m = max(len(p) for p in paths)
+        # Pad with repeats of the last point: zero-length segments take no time.
+        pts = np.stack([np.concatenate([p, np.repeat(p[-1:], m - len(p), axis=0)]) for p in paths])
+        #: Path corners per node (n, M + 1, 3), starting at the initial position.
+        self.points = _readonly(pts)
+        seg = np.diff(pts, axis=1)  # (n, M, 3)
+        length = np.linalg.norm(seg, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = np.where(length[..., None] > 0.0, seg / length[..., None], 0.0)
+        self._starts = _readonly(pts[:, :-1])
+        self._unit = _readonly(unit)
+        self._cum = _readonly(np.concatenate([np.zeros((n, 1)), np.cumsum(length, axis=1)[:, :-1]], axis=1))
+        self.path_length = _readonly(length.sum(axis=1))
+        segs = self._cum.shape[1]
+        self._row_base = np.arange(n) * segs - 1
+        self._starts_flat = self._starts.reshape(n * segs, 3)
+        self._unit_flat = self._unit.reshape(n * segs, 3)
+        self._cum_flat = self._cum.reshape(n * segs)
+        self._closed = self.path_length > 0.0
+        self._safe_total = np.where(self._closed, self.path_length, 1.0)
+
+    def _locate(self, t: float) -> tuple[Array, NDArray[np.intp], Array]:
+        """(arc length travelled, flat segment index, speed now) per node."""
+        s = self.speed * t
+        total = self.path_length
+        if self.loop:
+            s = np.where(self._closed, np.mod(s, self._safe_total), 0.0)
+            speed_now = np.where(self._closed, self.speed, 0.0)
+        else:
+            speed_now = np.where(s < total, self.speed, 0.0)
+            np.minimum(s, total, out=s)
+        # Last segment starting at or before s: skips zero-length segments.
+        k = np.count_nonzero(self._cum <= s[:, None], axis=1)
+        k += self._row_base  # row * M - 1
+        return s, k, speed_now
+
+    def _raw_position(self, t: float) -> Array:
+        s, k, _ = self._locate(t)
+        along = s - np.take(self._cum_flat, k)
+        return np.take(self._starts_flat, k, axis=0) + np.take(self._unit_flat, k, axis=0) * along[:, None]
+
+    def _raw_velocity(self, t: float) -> Array:
+        _, k, speed_now = self._locate(t)
+        return np.take(self._unit_flat, k, axis=0) * speed_now[:, None]
+
+
+class MeanderingCurrent(Mobility):
+    """Drift in the kinematic ocean-current model of SLMP (STVF, Sensors 2018, Sec. 5.1).
+
+    Dimensionless velocity field (STVF's unnumbered equation after Table 1), with x, y, t
+    dimensionless::
+
+        Vx = k1 iota omega sin(k2 x) cos(k3 y) + k1 iota cos(2 k1 t) + k4
+        Vy = -iota omega cos(k2 x) sin(k3 y) + k5
+
+    Each node draws its own k1..k5, iota, omega from N(mean, (rel_std * mean)^2) (Table 1 gives
+    N(mean, precision) with std 10 % of the mean). Physical units: x = length_scale * x',
+    t = time_scale * (t' - phase), v = (length_scale / time_scale) v'. Defaults:
+    ``time_scale`` = 44712 s (12.42 h, the semidiurnal M2 tide: cos(2 k1 t') then has the tidal
+    period at the mean k1 = pi) and ``length_scale`` = 4471.2 m (speed scale 0.1 m/s), which
+    give a mean speed of about 1.0 m/s at phase 0 and about 105 m covered in 100 s, as in
+    STVF's sample trajectory (~110 m in 100 s). Depth stays constant (the model is 2-D).
+
+    Trajectories are integrated once, in fixed chunks from t = 0 (scipy DOP853, rtol 1e-12),
+    into a table of positions and velocities every ``time_scale / steps_per_unit`` seconds,
+    and read back by cubic Hermite interpolation, so ``position`` is C1, ``velocity`` is its
+    exact derivative, and a query costs microseconds. The current is evaluated along the
+    unconstrained path, which is then folded into the box (mirror walls).
+    """
+
+    _PARAMS = ("k1", "k2", "k3", "iota", "omega", "k4", "k5")
+    _CHUNK = 256
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        length_scale: float = 4471.2,
+        time_scale: float = 44712.0,
+        phase: float = 0.0,
+        k1: float = math.pi,
+        k2: float = math.pi,
+        k3: float = 2.0 * math.pi,
+        iota: float = 3.0,
+        omega: float = 1.0,
+        k4: float = 1.0,
+        k5: float = 1.0,
+        rel_std: float = 0.1,
+        steps_per_unit: int = 2048,
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        self.length_scale = _positive("length_scale", length_scale)
+        self.time_scale = _positive("time_scale", time_scale)
+        self.phase = float(phase)
+        if not math.isfinite(self.phase):
+            raise ValueError(f"phase must be finite, got {phase!r}")
+        self.rel_std = float(rel_std)
+        if not (0.0 <= self.rel_std < math.inf):
+            raise ValueError(f"rel_std must be >= 0, got {rel_std!r}")
+        if int(steps_per_unit) != steps_per_unit or steps_per_unit < 16:
+            raise ValueError(f"steps_per_unit must be an integer >= 16, got {steps_per_unit!r}")
+        self.steps_per_unit = int(steps_per_unit)
+        means = dict(k1=k1, k2=k2, k3=k3, iota=iota, omega=omega, k4=k4, k5=k5)
+        gen = _need_rng(rng, "MeanderingCurrent") if self.rel_std > 0.0 else None
+        for name in self._PARAMS:  # fixed draw order: the same seed gives the same nodes
+            mean = float(means[name])
+            if not math.isfinite(mean):
+                raise ValueError(f"{name} must be finite, got {means[name]!r}")
+            vals = gen.normal(mean, self.rel_std * abs(mean), self.n) if gen is not None else np.full(self.n, mean)
+            setattr(self, name, _readonly(vals))
+        self._speed_scale = self.length_scale / self.time_scale
+        self._h = self.time_scale / self.steps_per_unit  # table step, s
+        self._inv_h = 1.0 / self._h
+        p0 = self._p0.copy()
+        self._pos = _Table(p0)
+        self._vel = _Table(self.field(p0, 0.0))
+
+    def _dimensionless(self, x: Array, y: Array, tp: ArrayLike) -> tuple[Array, Array]:
+        """(Vx', Vy') of the STVF field at dimensionless x', y', t' (per-node parameters broadcast on the last axis)."""
+        a = self.iota * self.omega
+        tide = self.k1 * self.iota * np.cos(2.0 * self.k1 * tp)
+        vx = self.k1 * a * np.sin(self.k2 * x) * np.cos(self.k3 * y) + tide + self.k4
+        vy = -a * np.cos(self.k2 * x) * np.sin(self.k3 * y) + self.k5
+        return vx, vy
+
+    def field(self, p: ArrayLike, t: ArrayLike) -> Array:
+        """Current velocity (m/s), shape (..., n, 3) with vz = 0, at unfolded positions ``p`` (..., n, 3), time ``t`` (s, broadcast to p[..., 0])."""
+        pa = np.asarray(p, dtype=float)
+        tp = np.asarray(t, dtype=float) / self.time_scale + self.phase
+        vx, vy = self._dimensionless(pa[..., 0] / self.length_scale, pa[..., 1] / self.length_scale, tp)
+        return np.stack((vx, vy, np.zeros_like(vx)), axis=-1) * self._speed_scale
+
+    def _rhs(self, tp: float, s: Array) -> Array:
+        """Dimensionless ODE right-hand side, state (x'_1..x'_n, y'_1..y'_n)."""
+        n = self.n
+        return np.concatenate(self._dimensionless(s[:n], s[n:], tp))
+
+    def _extend(self) -> None:
+        """Integrate one more chunk of ``_CHUNK`` table steps from the last knot."""
+        n, spu = self.n, self.steps_per_unit
+        k0 = self._pos.count - 1
+        last = self._pos.last
+        s0 = np.concatenate((last[:, 0], last[:, 1])) / self.length_scale
+        # Knot times in dimensionless units; computed from integers so chunks tile exactly.
+        tgrid = self.phase + np.arange(k0, k0 + self._CHUNK + 1) / spu
+        sol = solve_ivp(self._rhs, (tgrid[0], tgrid[-1]), s0, method="DOP853", t_eval=tgrid[1:], rtol=1e-12, atol=1e-13)
+        if not sol.success:  # pragma: no cover - the field is smooth and bounded
+            raise RuntimeError(f"MeanderingCurrent integration failed: {sol.message}")
+        xy = sol.y.T * self.length_scale  # (C, 2n)
+        pos = np.empty((self._CHUNK, n, 3))
+        pos[:, :, 0] = xy[:, :n]
+        pos[:, :, 1] = xy[:, n:]
+        pos[:, :, 2] = self._p0[:, 2]
+        times = (np.arange(k0 + 1, k0 + self._CHUNK + 1)) * self._h
+        vel = self.field(pos, times[:, None])
+        self._pos.append(pos)
+        self._vel.append(vel)
+
+    def _knot(self, t: float) -> tuple[int, float]:
+        x = t * self._inv_h
+        i = int(x)
+        while i + 1 >= self._pos.count:
+            self._extend()
+        return i, x - i
+
+    def _raw_position(self, t: float) -> Array:
+        i, u = self._knot(t)
+        P, V = self._pos.data, self._vel.data
+        um = 1.0 - u
+        # Cubic Hermite basis on [t_i, t_i + h].
+        h00 = (1.0 + 2.0 * u) * um * um
+        h10 = u * um * um * self._h
+        h01 = u * u * (3.0 - 2.0 * u)
+        h11 = -u * u * um * self._h
+        return h00 * P[i] + h10 * V[i] + h01 * P[i + 1] + h11 * V[i + 1]
+
+    def _raw_velocity(self, t: float) -> Array:
+        i, u = self._knot(t)
+        P, V = self._pos.data, self._vel.data
+        um = 1.0 - u
+        d00 = 6.0 * u * um * self._inv_h
+        d10 = um * (1.0 - 3.0 * u)
+        d11 = u * (3.0 * u - 2.0)
+        return d00 * (P[i + 1] - P[i]) + d10 * V[i] + d11 * V[i + 1]

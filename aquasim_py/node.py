@@ -1,0 +1,217 @@
+"""The node a protocol developer subclasses: roles, modem API, local clock, sensors, logging.
+
+A node sees only what a real node could: its local clock, the packets it receives (with local
+MAC stamps) and its own noisy sensors. Everything that touches ground truth (the Simulation,
+the mobility model, the clock parameters, true time) is held in one name-mangled attribute
+and used only inside the methods below, which return local observables.
+
+Times given to a node (``sleep``, ``recv(timeout=...)``, ``env.timeout``) are durations on
+the node's own clock (local seconds): a node has no perfect timer.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator, Iterable, Mapping
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any, ClassVar
+
+import numpy as np
+import simpy
+from pydantic import BaseModel, ConfigDict
+
+from .packet import Reception
+
+__all__ = ["Node", "Role", "Sensors", "NodeEnv", "SensorUnavailable", "BROADCAST"]
+
+#: ``dst`` of a broadcast packet
+BROADCAST = None
+
+
+class Role(str, Enum):
+    """What a node is in the network (references keep true time by default)."""
+
+    BUOY = "buoy"
+    ANCHOR = "anchor"
+    ORDINARY = "ordinary"
+    TARGET = "target"
+    SINK = "sink"
+
+
+class SensorUnavailable(RuntimeError):
+    """The node has no such sensor (e.g. ``velocity()`` on a role without one)."""
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """A group's sensors.
+
+    depth_std: std of the depth gauge's Gaussian noise (m).
+    velocity_std: std of the velocity sensor's Gaussian noise per axis (m/s).
+    velocity: whether the nodes have a velocity sensor (DVL / GPS-derived); None = the role's
+        default: every role but ``target`` (a non-cooperative target reports nothing).
+    """
+
+    depth_std: float = 0.0
+    velocity_std: float = 0.0
+    velocity: bool | None = None
+
+    def has_velocity(self, role: Role) -> bool:
+        return self.velocity if self.velocity is not None else role is not Role.TARGET
+
+
+class NodeEnv:
+    """The SimPy environment as a node may use it: events and processes, but no true clock.
+
+    ``timeout(delay)`` takes a duration on the node's local clock. There is no ``now``: use
+    ``Node.local_time()``.
+    """
+
+    __slots__ = ("__env", "__to_true_delay")
+
+    def __init__(self, env: simpy.Environment, to_true_delay: Any) -> None:
+        self.__env = env
+        self.__to_true_delay = to_true_delay
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "now":
+            raise AttributeError("a node has no access to true time: use Node.local_time()")
+        raise AttributeError(name)
+
+    def timeout(self, delay: float, value: Any = None) -> simpy.Timeout:
+        """Event after ``delay`` seconds of the node's local clock."""
+        return self.__env.timeout(self.__to_true_delay(delay), value)
+
+    def event(self) -> simpy.Event:
+        return self.__env.event()
+
+    def process(self, generator: Generator[Any, Any, Any]) -> simpy.Process:
+        return self.__env.process(generator)
+
+    def all_of(self, events: Iterable[simpy.Event]) -> simpy.AllOf:
+        return simpy.AllOf(self.__env, list(events))
+
+    def any_of(self, events: Iterable[simpy.Event]) -> simpy.AnyOf:
+        return simpy.AnyOf(self.__env, list(events))
+
+
+class Node:
+    """Base class of every protocol: subclass it and override :meth:`run`.
+
+    Public attributes: ``id`` (int), ``role`` (:class:`Role`), ``params`` (an instance of the
+    class's ``Params`` model), ``rng`` (this node's own numpy Generator), ``env`` (a
+    :class:`NodeEnv`). Class attributes for the registry: ``name``, ``Params``, ``metrics``.
+    """
+
+    name: ClassVar[str] = "node"
+
+    class Params(BaseModel):
+        """Protocol parameters (none for the base node)."""
+
+        model_config = ConfigDict(extra="forbid")
+
+    #: receptions buffered by the modem while the protocol is not listening; the oldest are
+    #: discarded beyond this (None = unbounded)
+    inbox_capacity: ClassVar[int | None] = 4096
+
+    def __init__(self, core: Any) -> None:
+        # Everything with ground truth in it sits behind this one name-mangled attribute.
+        self.__k = core
+        self.id: int = core.index
+        self.role: Role = core.role
+        self.params = core.params
+        self.rng: np.random.Generator = core.rng_protocol
+        self.env = NodeEnv(core.env, self._local_delay)
+        self.setup()
+
+    # -- hooks ----------------------------------------------------------------------------------
+
+    def setup(self) -> None:
+        """Called once after construction (override instead of ``__init__``)."""
+
+    def run(self) -> Generator[Any, Any, Any]:
+        """The node's SimPy process; override it. The base node does nothing."""
+        return
+        yield  # pragma: no cover - makes this a generator
+
+    @classmethod
+    def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
+        """The protocol's own metrics from trace tables (override)."""
+        return {}
+
+    # -- clock ----------------------------------------------------------------------------------
+
+    def local_time(self) -> float:
+        """The node's local clock now (s)."""
+        k = self.__k
+        return k.local(k.env.now)
+
+    def _local_delay(self, dt_local: float) -> float:
+        """True-time duration (s) after which the local clock has advanced by ``dt_local``."""
+        return self.__k.true_delay(dt_local)
+
+    def sleep(self, dt_local: float) -> simpy.Timeout:
+        """Event after ``dt_local`` seconds of the node's local clock."""
+        k = self.__k
+        return k.env.timeout(k.true_delay(dt_local))
+
+    # -- modem ----------------------------------------------------------------------------------
+
+    def broadcast(self, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
+        """Transmit to everyone in range. The event fires when the last bit has left; its value
+        is the local MAC transmit stamp (first bit). A busy modem queues the packet."""
+        return self.__k.transmit(None, kind, payload, bits)
+
+    def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
+        """Transmit to node ``dst`` (others in range hear it, and it collides at them, but only
+        ``dst`` delivers it). Event as for :meth:`broadcast`."""
+        if dst is None:
+            raise ValueError("send() needs a destination id; use broadcast() for everyone")
+        return self.__k.transmit(int(dst), kind, payload, bits)
+
+    def recv(self, timeout: float | None = None, kinds: str | Iterable[str] | None = None) -> simpy.Event:
+        """Event whose value is the next :class:`~aquasim_py.packet.Reception` (of one of
+        ``kinds`` if given), or ``None`` after ``timeout`` local seconds.
+
+        The timeout is handled here, on the same event: do not build ``recv() | timeout`` yourself
+        (a get that loses such a race stays queued and eats the next packet).
+        """
+        return self.__k.recv(timeout, kinds, self._local_delay)
+
+    def pending(self) -> int:
+        """Receptions buffered and not yet taken by :meth:`recv`."""
+        return len(self.__k.inbox)
+
+    # -- sensors --------------------------------------------------------------------------------
+
+    def depth(self) -> float:
+        """Depth gauge reading (m, positive down), with the group's Gaussian noise."""
+        return self.__k.read_depth()
+
+    def velocity(self) -> np.ndarray:
+        """Velocity sensor reading (m/s, shape (3,)), with the group's Gaussian noise.
+
+        Raises :class:`SensorUnavailable` if the node's role/group has no velocity sensor.
+        """
+        return self.__k.read_velocity()
+
+    # -- logging --------------------------------------------------------------------------------
+
+    def log(self, table: str, **columns: Any) -> None:
+        """Append a row to a trace table (the kernel adds ``time``, ``node``, ``protocol``)."""
+        self.__k.log(table, columns)
+
+    def log_estimate(self, x: float, y: float, z: float, *, confidence: float = math.nan,
+                     is_reference: bool = False, **extra: Any) -> None:
+        """Log a position estimate (m) to ``estimates``; the kernel adds truth and error."""
+        self.__k.log_estimate(float(x), float(y), float(z), float(confidence), bool(is_reference), extra)
+
+    def log_clock(self, skew: float, offset: float, **extra: Any) -> None:
+        """Log a clock estimate to ``clocks``: the node believes local = (1 + skew) t + offset.
+        The kernel adds true_skew, true_offset and error (the estimated true time now minus the
+        true time, s)."""
+        self.__k.log_clock(float(skew), float(offset), extra)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} id={self.id} role={self.role.value}>"

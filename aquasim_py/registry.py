@@ -1,0 +1,147 @@
+"""Protocol registry: a protocol name -> its :class:`~aquasim_py.node.Node` subclass.
+
+Two sources, loaded lazily on the first lookup:
+
+- built-ins: every module of the ``protocols`` package is imported; a module registers its
+  Node subclass with the :func:`register` decorator. A module that fails to import does not
+  break the registry (the others still load); its error is reported when its name is asked for.
+- third-party packages: the entry-point group ``aquasim_py.protocols``, each entry point
+  naming a Node subclass, e.g. in a plug-in's ``pyproject.toml``::
+
+      [project.entry-points."aquasim_py.protocols"]
+      my_mac = "my_package.my_module:MyMacNode"
+
+A protocol class declares ``name`` (str), ``Params`` (a pydantic model of its parameters, with
+types, defaults and units in the field descriptions), and optionally the classmethods
+``metrics(tables) -> dict[str, float]`` and ``report(tables) -> str | rich renderable``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import pkgutil
+import threading
+from typing import Any
+
+from pydantic import BaseModel
+
+__all__ = ["register", "get", "available", "UnknownProtocolError", "ProtocolDefinitionError"]
+
+ENTRY_POINT_GROUP = "aquasim_py.protocols"
+BUILTIN_PACKAGE = "protocols"
+
+_registry: dict[str, type] = {}
+_load_errors: dict[str, str] = {}  # module or entry-point name -> why it did not load
+_loaded = False
+_lock = threading.RLock()
+
+
+class UnknownProtocolError(KeyError):
+    """No protocol of that name is registered."""
+
+    def __init__(self, name: str, message: str) -> None:
+        super().__init__(name)
+        self.name = name
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class ProtocolDefinitionError(TypeError):
+    """A class handed to :func:`register` lacks what the registry needs."""
+
+
+def _check(cls: type) -> str:
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name:
+        raise ProtocolDefinitionError(f"{cls.__qualname__}: a protocol needs a non-empty str `name`")
+    params = getattr(cls, "Params", None)
+    if not (isinstance(params, type) and issubclass(params, BaseModel)):
+        raise ProtocolDefinitionError(
+            f"{cls.__qualname__}: a protocol needs `Params`, a pydantic BaseModel subclass"
+        )
+    return name
+
+
+def register(cls: type) -> type:
+    """Class decorator: register a Node subclass under its ``name``.
+
+    Registering the same class twice is harmless (module reloads); two different classes
+    under one name is an error, since a scenario could not tell them apart.
+    """
+    name = _check(cls)
+    with _lock:
+        old = _registry.get(name)
+        if old is not None and old is not cls and (
+            old.__module__ != cls.__module__ or old.__qualname__ != cls.__qualname__
+        ):
+            raise ProtocolDefinitionError(
+                f"protocol name {name!r} is already taken by {old.__module__}.{old.__qualname__}"
+            )
+        _registry[name] = cls
+    return cls
+
+
+def _load_builtins() -> None:
+    try:
+        pkg = importlib.import_module(BUILTIN_PACKAGE)
+    except ImportError as exc:  # installed without the protocols package
+        _load_errors[BUILTIN_PACKAGE] = f"{type(exc).__name__}: {exc}"
+        return
+    for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        modname = f"{BUILTIN_PACKAGE}.{info.name}"
+        try:
+            importlib.import_module(modname)
+        except Exception as exc:  # a half-written protocol must not hide the others
+            _load_errors[info.name] = f"{modname} failed to import ({type(exc).__name__}: {exc})"
+
+
+def _load_entry_points() -> None:
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            cls = ep.load()
+            _check(cls)
+            # the entry point's own name is what a scenario uses; the class may say otherwise
+            with _lock:
+                if ep.name not in _registry:
+                    _registry[ep.name] = cls
+        except Exception as exc:
+            _load_errors[ep.name] = f"entry point {ep.value!r} failed to load ({type(exc).__name__}: {exc})"
+
+
+def _ensure_loaded() -> None:
+    global _loaded
+    with _lock:
+        if _loaded:
+            return
+        _loaded = True
+        _load_builtins()
+        _load_entry_points()
+
+
+def available() -> list[str]:
+    """Sorted names of every protocol that loaded."""
+    _ensure_loaded()
+    return sorted(_registry)
+
+
+def get(name: str) -> type:
+    """The Node subclass registered as ``name``; :class:`UnknownProtocolError` if none."""
+    _ensure_loaded()
+    cls = _registry.get(name)
+    if cls is not None:
+        return cls
+    if name in _load_errors:
+        raise UnknownProtocolError(name, f"protocol {name!r} is not available: {_load_errors[name]}")
+    names = ", ".join(available()) or "none"
+    raise UnknownProtocolError(name, f"unknown protocol {name!r} (available: {names})")
+
+
+def load_errors() -> dict[str, Any]:
+    """Modules and entry points that failed to load, with the reason (for diagnostics)."""
+    _ensure_loaded()
+    return dict(_load_errors)

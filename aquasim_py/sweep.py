@@ -1,0 +1,194 @@
+"""Monte Carlo and parameter sweeps: one run per (grid point, seed), on local cores or Dask.
+
+A scenario's ``[sweep]`` table gives ``runs`` (Monte Carlo repetitions) and ``grid``, a table
+of key paths to value lists; the sweep is the Cartesian product of the grid values (keys in
+file order, values in list order) times ``runs``, the run index varying fastest. Run ``r``
+uses the seed :func:`run_seed` ``(scenario seed, r)`` at every grid point (common random
+numbers: grid points differ by their parameters, not by their luck).
+
+Rows come back in that job order whatever the number of workers or their finishing order, and
+each run depends only on its own (scenario, overrides, seed), so a sweep gives the same rows
+serially, on 2 local processes, or on a Dask cluster.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from aquasim_py import metrics as _metrics
+from aquasim_py import scenario as _scenario
+
+__all__ = ["Job", "plan", "run_seed", "run_job", "run_jobs", "rows_to_csv", "DaskMissingError"]
+
+Progress = Callable[[int, int], None]
+
+
+class DaskMissingError(ImportError):
+    """``--scheduler`` was given but dask.distributed is not installed."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a sweep: its position in the output, swept values and seed."""
+
+    index: int
+    point: tuple[tuple[str, Any], ...]  # (key path, value) per grid key, in grid order
+    run: int
+    seed: int
+
+
+def run_seed(base_seed: int, run: int) -> int:
+    """Seed of Monte Carlo run ``run``: a SeedSequence hash of (base seed, run), 63 bits.
+
+    Stable across platforms and numpy versions (SeedSequence's hashing is specified), and
+    distinct runs get statistically independent streams even for neighbouring base seeds.
+    """
+    state = np.random.SeedSequence([int(base_seed), int(run)]).generate_state(1, dtype=np.uint64)
+    return int(state[0] >> np.uint64(1))
+
+
+def plan(sc: _scenario.Scenario) -> list[Job]:
+    """Every job of the scenario's sweep, in output order."""
+    if sc.sweep is None:
+        raise _scenario.ScenarioError(sc.path, "sweep", "the scenario has no [sweep] table")
+    keys = list(sc.sweep.grid)
+    values = [sc.sweep.grid[k] for k in keys]
+    jobs: list[Job] = []
+    for combo in itertools.product(*values):
+        for r in range(sc.sweep.runs):
+            jobs.append(Job(len(jobs), tuple(zip(keys, combo)), r, run_seed(sc.simulation.seed, r)))
+    return jobs
+
+
+def run_job(base: dict[str, Any], path: str | None, job: Job) -> dict[str, Any]:
+    """Run one job (in any process) and return its row: swept values, run, seed, metrics.
+
+    ``base`` is the resolved scenario (:meth:`Scenario.to_dict`), ``path`` its file (for relative
+    file names and messages).
+    """
+    overrides = [(_scenario.parse_key_path(k), v) for k, v in job.point]
+    sc = _scenario.load_dict(base, path, overrides=overrides, seed=job.seed)
+    sim = _scenario.build(sc)
+    sim.run(sc.simulation.duration_s)
+    m = _metrics.summarize(
+        sim.trace.frames(),
+        sc.protocols(),
+        percentiles=sc.metrics.percentiles,
+        warmup_s=sc.metrics.warmup_s,
+        unknown_roles=sc.metrics.unknown_roles,
+    )
+    row: dict[str, Any] = {k: v for k, v in job.point}
+    row["run"] = job.run
+    row["seed"] = job.seed
+    row.update(m)
+    return row
+
+
+def run_jobs(
+    sc: _scenario.Scenario,
+    jobs: Sequence[Job],
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: Progress | None = None,
+) -> list[dict[str, Any]]:
+    """Run ``jobs`` and return their rows in job order.
+
+    ``workers``: local processes (default ``os.cpu_count()``; 1 runs in this process).
+    ``scheduler``: a Dask scheduler address ("tcp://host:8786"); then ``workers`` is ignored.
+    ``progress(done, total)`` is called after each finished run (in this process).
+    """
+    base = sc.to_dict()
+    path = str(sc.path) if sc.path is not None else None
+    total = len(jobs)
+    results: list[dict[str, Any] | None] = [None] * total
+    pos = {job.index: i for i, job in enumerate(jobs)}
+    done = 0
+
+    def _done(i: int, row: dict[str, Any]) -> None:
+        nonlocal done
+        results[i] = row
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    if scheduler is not None:
+        _run_dask(scheduler, base, path, jobs, pos, _done)
+    else:
+        n = workers if workers is not None else (os.cpu_count() or 1)
+        n = max(1, min(int(n), total)) if total else 1
+        if n == 1:
+            for i, job in enumerate(jobs):
+                _done(i, run_job(base, path, job))
+        else:
+            # Every job is submitted before the caller's progress display draws anything, so
+            # the worker processes are forked before any display thread exists.
+            with ProcessPoolExecutor(max_workers=n) as pool:
+                futs = {pool.submit(run_job, base, path, job): job for job in jobs}
+                try:
+                    for fut in as_completed(futs):
+                        _done(pos[futs[fut].index], fut.result())
+                except BaseException:
+                    for f in futs:
+                        f.cancel()
+                    raise
+    rows = [r for r in results if r is not None]
+    # a drop reason absent from a run's trace means none of those drops happened in it
+    counts = {k for r in rows for k in r if k.startswith("packets.")}
+    for r in rows:
+        for k in counts:
+            r.setdefault(k, 0)
+    return rows
+
+
+def _run_dask(scheduler: str, base: dict[str, Any], path: str | None, jobs: Sequence[Job],
+              pos: dict[int, int], done: Callable[[int, dict[str, Any]], None]) -> None:
+    try:
+        from dask.distributed import Client, as_completed as dask_completed
+    except ImportError as e:
+        raise DaskMissingError(
+            "--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'"
+        ) from e
+    with Client(scheduler) as client:
+        futs = [client.submit(run_job, base, path, job, pure=False) for job in jobs]
+        index = {f.key: job.index for f, job in zip(futs, jobs)}
+        for fut in dask_completed(futs):
+            done(pos[index[fut.key]], fut.result())
+
+
+def columns(rows: Sequence[dict[str, Any]], jobs: Sequence[Job]) -> list[str]:
+    """CSV columns: grid keys (grid order), run, seed, then every metric name sorted."""
+    grid = [k for k, _ in jobs[0].point] if jobs else []
+    fixed = set(grid) | {"run", "seed"}
+    metric_names = sorted({k for r in rows for k in r if k not in fixed})
+    return grid + ["run", "seed"] + metric_names
+
+
+def _cell(v: Any) -> Any:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else repr(v)  # repr round-trips exactly
+    if isinstance(v, (list, dict)):
+        return json.dumps(v)
+    return v
+
+
+def rows_to_csv(rows: Sequence[dict[str, Any]], cols: Sequence[str], path: str | Path) -> None:
+    """Write rows (missing metrics left empty) with exact float text."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(cols)
+        for r in rows:
+            w.writerow([_cell(r.get(c)) for c in cols])

@@ -1,0 +1,313 @@
+"""Event tables of a run: cheap appends during the run, pandas / CSV / Parquet after.
+
+Each table is a set of typed columns (``array.array`` for numbers, integer codes for
+categorical strings, a list for anything else): appending a row costs a few list appends and
+a packet trace of millions of rows stays compact. ``frames()`` turns the tables into pandas
+DataFrames with the DESIGN.md columns first; ``write`` and :func:`load` round-trip them.
+
+Floats are written with Python's shortest round-trip representation (``repr``), which is
+exact and platform independent, so the same run gives byte-identical CSV files.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from array import array
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["TraceConfig", "Trace", "Table", "SCHEMAS", "load"]
+
+#: Column kinds: "f" float64, "i" int64, "o" any object (strings, None for missing).
+SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
+    "packets": (
+        ("time", "f"), ("event", "o"), ("reason", "o"), ("node", "i"), ("src", "i"),
+        ("dst", "i"), ("uid", "i"), ("kind", "o"), ("bits", "i"), ("tof", "f"),
+        ("snr_db", "f"), ("path", "o"), ("local_time", "f"),
+    ),
+    "positions": (
+        ("time", "f"), ("node", "i"), ("x", "f"), ("y", "f"), ("z", "f"),
+        ("vx", "f"), ("vy", "f"), ("vz", "f"),
+    ),
+    "estimates": (
+        ("time", "f"), ("node", "i"), ("protocol", "o"), ("x", "f"), ("y", "f"), ("z", "f"),
+        ("true_x", "f"), ("true_y", "f"), ("true_z", "f"), ("error", "f"),
+        ("confidence", "f"), ("is_reference", "o"),
+    ),
+    "clocks": (
+        ("time", "f"), ("node", "i"), ("protocol", "o"), ("skew", "f"), ("offset", "f"),
+        ("true_skew", "f"), ("true_offset", "f"), ("error", "f"),
+    ),
+}
+
+# Sort key of the packets table in frames(): rows are appended when the kernel decides them
+# (a reception when its last bit arrives), so the table is re-ordered by event time.
+_SORT_BY = {"packets": "time", "positions": None, "estimates": None, "clocks": None}
+
+
+@dataclass(frozen=True)
+class TraceConfig:
+    """What the trace records.
+
+    position_interval: seconds of true time between ground-truth position samples (None or
+    0 disables the ``positions`` table).
+    """
+
+    position_interval: float | None = 1.0
+
+
+class _Column:
+    """One typed column. Degrades to a plain list when a value does not fit its type.
+
+    Strings live in plain lists: a list slot is one pointer, as small as an integer code, and
+    the repeated strings of a table ("rx", "direct", a kind) are shared objects.
+    """
+
+    __slots__ = ("kind", "data", "append")
+
+    def __init__(self, kind: str, n_missing: int = 0) -> None:
+        self.kind = kind
+        if kind == "f":
+            self.data: Any = array("d", [math.nan]) * n_missing
+        elif kind == "i" and not n_missing:
+            self.data = array("q")
+        elif kind == "i":  # an int column with earlier missing rows starts as float (NaN)
+            self.kind = "f"
+            self.data = array("d", [math.nan]) * n_missing
+        else:
+            self.kind = "o"
+            self.data = [None] * n_missing
+        self.append = self.data.append
+
+    def _to_kind(self, kind: str) -> None:
+        old = list(self.data)
+        self.kind = kind
+        if kind == "f":
+            self.data = array("d", [math.nan if v is None else float(v) for v in old])
+        else:
+            self.data = old
+        self.append = self.data.append
+
+    def push(self, v: Any) -> None:
+        """Append one value, widening the column type if it does not fit."""
+        try:
+            self.append(v)
+            return
+        except (TypeError, OverflowError):
+            pass
+        if self.kind == "i" and (v is None or isinstance(v, (float, np.floating))):
+            self._to_kind("f")
+            self.append(math.nan if v is None else v)
+        else:
+            self._to_kind("o")
+            self.append(v)
+
+    def push_many(self, values: tuple[Any, ...]) -> None:
+        """Append a batch of values (C-level extend when they all fit)."""
+        n0 = len(self.data)
+        try:
+            self.data.extend(values)
+        except (TypeError, OverflowError):
+            del self.data[n0:]  # array.extend keeps what it appended before the bad value
+            for v in values:
+                self.push(v)
+
+    def fill_missing(self, count: int = 1) -> None:
+        if self.kind == "f":
+            self.data.extend([math.nan] * count)
+        elif self.kind == "i":
+            self._to_kind("f")
+            self.data.extend([math.nan] * count)
+        else:
+            self.data.extend([None] * count)
+
+    def extend(self, values: np.ndarray) -> None:
+        if self.kind == "f":
+            self.data.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+        elif self.kind == "i" and values.dtype.kind in "iub":
+            self.data.frombytes(np.ascontiguousarray(values, dtype=np.int64).tobytes())
+        else:
+            self.push_many(tuple(values.tolist()))
+
+    def series(self, name: str) -> pd.Series:
+        if self.kind == "f":
+            return pd.Series(np.frombuffer(self.data, dtype=np.float64).copy(), name=name)
+        if self.kind == "i":
+            return pd.Series(np.frombuffer(self.data, dtype=np.int64).copy(), name=name)
+        return pd.Series(self.data, name=name, dtype=object)
+
+
+def _kind_of(v: Any) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "o"
+    if isinstance(v, (int, np.integer)):
+        return "i"
+    if isinstance(v, (float, np.floating)):
+        return "f"
+    return "o"
+
+
+class Table:
+    """A column store for one event table.
+
+    The kernel's hot path (:meth:`append_fast`) buffers row tuples and moves them into the
+    columns in batches (one C-level ``extend`` per column), so a row costs one list append.
+    """
+
+    _BATCH = 4096
+
+    def __init__(self, name: str, schema: Iterable[tuple[str, str]] = ()) -> None:
+        self.name = name
+        self._n = 0
+        self.columns: dict[str, _Column] = {c: _Column(k) for c, k in schema}
+        self._schema = tuple(self.columns)
+        self._buf: list[tuple[Any, ...]] = []
+
+    @property
+    def n(self) -> int:
+        """Number of rows."""
+        return self._n + len(self._buf)
+
+    def _flush(self) -> None:
+        buf = self._buf
+        if not buf:
+            return
+        self._buf = []
+        for key, values in zip(self._schema, zip(*buf)):
+            self.columns[key].push_many(values)
+        if len(self.columns) != len(self._schema):
+            for key in list(self.columns)[len(self._schema):]:
+                self.columns[key].fill_missing(len(buf))
+        self._n += len(buf)
+
+    def append(self, **row: Any) -> None:
+        """Append one row; unknown columns are created (earlier rows get missing values)."""
+        if self._buf:
+            self._flush()
+        cols = self.columns
+        for key, v in row.items():
+            col = cols.get(key)
+            if col is None:
+                col = cols[key] = _Column(_kind_of(v), self._n)
+            col.push(v)
+        if len(row) != len(cols):
+            for key, col in cols.items():
+                if key not in row:
+                    col.fill_missing()
+        self._n += 1
+
+    def append_fast(self, values: tuple[Any, ...]) -> None:
+        """Append a row given in schema order (the kernel's hot path: no checks, no new columns)."""
+        buf = self._buf
+        buf.append(values)
+        if len(buf) >= self._BATCH:
+            self._flush()
+
+    def extend(self, **cols: np.ndarray) -> None:
+        """Append many rows at once from equal-length 1-D arrays (e.g. sampled positions)."""
+        self._flush()
+        lengths = {len(v) for v in cols.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"table {self.name}: columns of unequal length {sorted(lengths)}")
+        (m,) = lengths
+        for key, v in cols.items():
+            col = self.columns.get(key)
+            arr = np.asarray(v)
+            if col is None:
+                kind = "f" if arr.dtype.kind == "f" else "i" if arr.dtype.kind in "iu" else "o"
+                col = self.columns[key] = _Column(kind, self._n)
+            col.extend(arr)
+        for key, col in self.columns.items():
+            if key not in cols:
+                col.fill_missing(m)
+        self._n += m
+
+    def frame(self) -> pd.DataFrame:
+        self._flush()
+        if not self.columns:
+            return pd.DataFrame()
+        df = pd.DataFrame({k: c.series(k) for k, c in self.columns.items()})
+        key = _SORT_BY.get(self.name)
+        if key is not None and len(df):
+            df = df.sort_values(key, kind="mergesort", ignore_index=True)
+        return df
+
+
+class Trace:
+    """All event tables of a run. ``append(table, **row)`` from anywhere in the kernel."""
+
+    def __init__(self, config: TraceConfig | None = None) -> None:
+        self.config = config or TraceConfig()
+        self.tables: dict[str, Table] = {name: Table(name, schema) for name, schema in SCHEMAS.items()}
+
+    def table(self, name: str) -> Table:
+        t = self.tables.get(name)
+        if t is None:
+            t = self.tables[name] = Table(name, SCHEMAS.get(name, ()))
+        return t
+
+    def append(self, table: str, **row: Any) -> None:
+        self.table(table).append(**row)
+
+    def frames(self) -> dict[str, pd.DataFrame]:
+        """Every table as a DataFrame (DESIGN.md columns first, extra columns after)."""
+        return {name: t.frame() for name, t in self.tables.items()}
+
+    def write(self, directory: str | os.PathLike[str], fmt: str = "csv") -> list[Path]:
+        """Write one file per table into ``directory`` (created); returns the paths."""
+        return write_frames(self.frames(), directory, fmt)
+
+
+def write_frames(frames: Mapping[str, pd.DataFrame], directory: str | os.PathLike[str], fmt: str = "csv") -> list[Path]:
+    """Write DataFrames as ``<name>.csv`` (or ``.parquet``, which needs pyarrow)."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, df in frames.items():
+        if fmt == "csv":
+            p = out / f"{name}.csv"
+            # lineterminator fixed so Windows and POSIX produce the same bytes
+            df.to_csv(p, index=False, lineterminator="\n")
+        elif fmt == "parquet":
+            try:
+                import pyarrow  # noqa: F401
+            except ImportError as e:  # pragma: no cover - depends on the environment
+                raise RuntimeError("fmt='parquet' needs pyarrow (pip install 'aquasim-py[parquet]')") from e
+            p = out / f"{name}.parquet"
+            df.to_parquet(p, index=False)
+        else:
+            raise ValueError(f"unknown trace format {fmt!r} (use 'csv' or 'parquet')")
+        paths.append(p)
+    return paths
+
+
+# pandas < 3 parses floats with a fast, not always exact, parser unless asked; 3.x is exact by
+# default and deprecates the option.
+_READ_CSV_KW: dict[str, Any] = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+
+
+def load(directory: str | os.PathLike[str]) -> dict[str, pd.DataFrame]:
+    """Read every ``*.csv`` / ``*.parquet`` table of a trace directory (``summary.json`` as a dict
+    under the key ``"summary"`` is left to the caller: only tables are returned)."""
+    d = Path(directory)
+    if not d.is_dir():
+        raise FileNotFoundError(f"trace directory {d} does not exist")
+    frames: dict[str, pd.DataFrame] = {}
+    for p in sorted(d.iterdir()):
+        if p.suffix == ".csv":
+            frames[p.stem] = pd.read_csv(p, **_READ_CSV_KW)
+        elif p.suffix == ".parquet":
+            frames[p.stem] = pd.read_parquet(p)
+    return frames
+
+
+def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``summary.json`` of a trace directory."""
+    return json.loads((Path(directory) / "summary.json").read_text())

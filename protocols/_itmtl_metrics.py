@@ -1,0 +1,144 @@
+"""Metrics and per-round report of ITMTL and its baselines, from trace tables only.
+
+Ordinary nodes are selected by role (the ``nodes`` table), not by ``is_reference``: a promoted
+node stays an ordinary node whose errors count.
+
+- sync error: |estimated true time - true time| at each ``clocks`` row (s); mean and 95th
+  percentile over the nodes' final rows, and per round.
+- localization: RMSE (m) and NMSE (sum of squared errors / sum of squared true positions,
+  :func:`aquasim_py.metrics.nmse`'s definition) over all rows and over the final rows.
+- coverage: share of ordinary nodes with at least one position estimate.
+- coverage upper bound: iterated ">= 3 localized neighbours" promotion on the connectivity
+  graph seen in the ``packets`` table (an edge wherever a frame was received), from the
+  buoys and anchors (networkx).
+- rounds to convergence: first round from which the per-round mean sync error stays within
+  twice its last value (and the same for the localization error).
+- promoted: share of ordinary nodes that ever logged ``is_reference``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import networkx as nx
+import numpy as np
+import pandas as pd
+
+REFERENCE_ROLES = ("buoy", "anchor")
+
+
+def _ordinary(tables: Mapping[str, pd.DataFrame], name: str) -> np.ndarray:
+    nodes = tables.get("nodes")
+    if nodes is None or len(nodes) == 0:
+        return np.empty(0, dtype=int)
+    sel = (nodes["role"].astype(str) == "ordinary") & (nodes["protocol"].astype(str) == name)
+    return nodes.loc[sel, "node"].to_numpy(int)
+
+
+def _rows(df: pd.DataFrame | None, name: str, ids: np.ndarray) -> pd.DataFrame:
+    if df is None or len(df) == 0:
+        return pd.DataFrame()
+    return df[(df["protocol"].astype(str) == name) & df["node"].isin(ids)]
+
+
+def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
+    """Per round: mean and p95 |sync error| (s), RMSE of position (m), nodes reporting."""
+    ids = _ordinary(tables, name)
+    clk = _rows(tables.get("clocks"), name, ids)
+    est = _rows(tables.get("estimates"), name, ids)
+    out = pd.DataFrame()
+    if len(clk) and "round" in clk:
+        e = clk.assign(abs_err=clk["error"].abs()).groupby("round")["abs_err"]
+        out["sync_mean_s"] = e.mean()
+        out["sync_p95_s"] = e.quantile(0.95)
+    if len(est) and "round" in est:
+        g = est.assign(se=est["error"] ** 2).groupby("round")
+        out["loc_rmse_m"] = np.sqrt(g["se"].mean())
+        out["nodes"] = g["node"].nunique()
+        if "is_reference" in est:
+            out["promoted"] = est[est["is_reference"].astype(bool)].groupby("round")["node"].nunique()
+    out.index.name = "round"
+    return out.fillna({"promoted": 0}) if "promoted" in out else out
+
+
+def _converged_at(series: pd.Series) -> float:
+    s = series.dropna()
+    if len(s) == 0:
+        return float("nan")
+    ok = (s <= 2.0 * s.iloc[-1]).to_numpy()
+    # first index from which every later value is ok
+    bad = np.nonzero(~ok)[0]
+    k = 0 if bad.size == 0 else bad[-1] + 1
+    return float(s.index[k]) if k < len(s) else float("nan")
+
+
+def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int = 3) -> float:
+    """Share of ordinary nodes reachable by iterated promotion on the observed link graph."""
+    nodes, pk = tables.get("nodes"), tables.get("packets")
+    if nodes is None or pk is None or len(nodes) == 0:
+        return float("nan")
+    rx = pk[pk["event"].astype(str) == "rx"]
+    G = nx.Graph()
+    G.add_nodes_from(nodes["node"].to_numpy(int))
+    G.add_edges_from(zip(rx["src"].to_numpy(int), rx["node"].to_numpy(int)))
+    roles = dict(zip(nodes["node"].to_numpy(int), nodes["role"].astype(str)))
+    known = {n for n, r in roles.items() if r in REFERENCE_ROLES}
+    unknown = {n for n, r in roles.items() if r == "ordinary"}
+    if not unknown:
+        return float("nan")
+    grew = True
+    while grew:
+        new = {n for n in unknown - known if sum(1 for m in G.neighbors(n) if m in known) >= min_neighbours}
+        grew = bool(new)
+        known |= new
+    return len(known & unknown) / len(unknown)
+
+
+def protocol_metrics(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str, float]:
+    ids = _ordinary(tables, name)
+    nan = float("nan")
+    out: dict[str, float] = {}
+    clk = _rows(tables.get("clocks"), name, ids)
+    est = _rows(tables.get("estimates"), name, ids)
+    if len(clk):
+        fin = clk.sort_values("time").groupby("node").tail(1)["error"].abs()
+        out["sync_final_mean_s"] = float(fin.mean())
+        out["sync_final_p95_s"] = float(np.percentile(fin, 95))
+        out["sync_mean_s"] = float(clk["error"].abs().mean())
+    else:
+        out["sync_final_mean_s"] = out["sync_final_p95_s"] = out["sync_mean_s"] = nan
+    if len(est):
+        x = est[["true_x", "true_y", "true_z"]].to_numpy(float)
+        d = est[["x", "y", "z"]].to_numpy(float) - x
+        out["loc_rmse_m"] = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+        out["loc_nmse"] = float(np.sum(d * d) / np.sum(x * x))
+        fin = est.sort_values("time").groupby("node").tail(1)
+        xf = fin[["true_x", "true_y", "true_z"]].to_numpy(float)
+        df = fin[["x", "y", "z"]].to_numpy(float) - xf
+        out["loc_final_rmse_m"] = float(np.sqrt(np.mean(np.sum(df * df, axis=1))))
+        out["loc_final_nmse"] = float(np.sum(df * df) / np.sum(xf * xf))
+        out["promoted_share"] = float(est[est["is_reference"].astype(bool)]["node"].nunique() / max(len(ids), 1))
+    else:
+        for k in ("loc_rmse_m", "loc_nmse", "loc_final_rmse_m", "loc_final_nmse"):
+            out[k] = nan
+        out["promoted_share"] = 0.0
+    out["coverage"] = float(est["node"].nunique() / len(ids)) if len(ids) and len(est) else (0.0 if len(ids) else nan)
+    out["coverage_upper_bound"] = coverage_upper_bound(tables)
+    pr = per_round(tables, name)
+    out["rounds_to_converge_sync"] = _converged_at(pr["sync_mean_s"]) if "sync_mean_s" in pr else nan
+    out["rounds_to_converge_loc"] = _converged_at(pr["loc_rmse_m"]) if "loc_rmse_m" in pr else nan
+    return out
+
+
+def round_table(tables: Mapping[str, pd.DataFrame], name: str) -> str:
+    """Plain-text per-round table of the ordinary nodes' sync and localization errors."""
+    pr = per_round(tables, name)
+    if len(pr) == 0:
+        return f"{name}: no ordinary-node estimates"
+    lines = [f"{name}: ordinary nodes per round",
+             f"{'round':>5} {'nodes':>5} {'promoted':>8} {'sync mean (us)':>15} {'sync p95 (us)':>14} {'loc RMSE (m)':>13}"]
+    for r, row in pr.iterrows():
+        lines.append(f"{int(r):>5} {int(row.get('nodes', 0) or 0):>5} {int(row.get('promoted', 0) or 0):>8} "
+                     f"{row.get('sync_mean_s', np.nan) * 1e6:>15.2f} {row.get('sync_p95_s', np.nan) * 1e6:>14.2f} "
+                     f"{row.get('loc_rmse_m', np.nan):>13.3f}")
+    return "\n".join(lines)

@@ -1,0 +1,228 @@
+"""Shared Req/Res machinery of ITMTL and its baselines (not a protocol by itself).
+
+One SimPy process per node multiplexes three activities on a single receive loop, so no
+two processes compete for the modem's inbox:
+
+- reference side (buoys, anchors, promoted ordinary nodes): a ``sync_req`` received at local
+  ``T`` is answered after a random hold with a ``sync_res`` to its sender carrying
+  ``t2`` (receive stamp, reference time), ``t3`` (send stamp), the reference's position,
+  velocity and confidence;
+- ordinary side: every ``round_period_s`` (local) broadcast ``sync_req``, collect the
+  answers for ``collect_window_s``, then hand the round to :meth:`ReqResNode.process_round`;
+- TSHL's one-way beacons are the ``sync_res`` stamps themselves (``t3`` sent, ``T4`` received).
+
+Buoys and anchors keep true time and know their position (GPS / surveyed deployment); a
+promoted node answers with its synchronized time and its estimated position.
+Every node of a run must use one of these protocols (the packet kinds are shared, so
+references of any of them answer any of them).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import pandas as pd
+from pydantic import BaseModel, ConfigDict, Field
+
+from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
+from aquasim_py.node import Node, Role, SensorUnavailable
+
+from . import _itmtl_metrics
+
+REQ = "sync_req"
+RES = "sync_res"
+REFERENCE_ROLES = (Role.BUOY, Role.ANCHOR)
+
+
+class ReqResParams(BaseModel):
+    """Parameters shared by ITMTL and the baselines (times in local seconds)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    round_period_s: float = Field(30.0, gt=0, description="time between an ordinary node's Req broadcasts (s)")
+    first_round_s: float = Field(10.0, ge=0, description="first Req at a uniform random time in [0, this) (s)")
+    collect_window_s: float = Field(8.0, gt=0, description="how long answers are collected after a Req (s)")
+    hold_min_s: float = Field(0.15, ge=0, description="a reference's minimum delay before answering (s)")
+    hold_spread_s: float = Field(5.0, ge=0, description="plus a uniform random delay up to this (s)")
+    req_bits: int = Field(96, ge=1, description="Req frame size (bits)")
+    res_bits: int = Field(224, ge=1, description="Res frame size (bits)")
+    min_refs: int = Field(3, ge=1, description="answers needed to localize (3 at known depth)")
+    mean_speed_mps: float = Field(1500.0, gt=0, description="sound speed of straight-line models (m/s)")
+    ssp_depths_m: list[float] = Field(default_factory=list, description="depths of the node's sound-speed profile (m)")
+    ssp_speeds_mps: list[float] = Field(default_factory=list, description="speeds at those depths (m/s)")
+    surveyed_positions: dict[str, list[float]] = Field(
+        default_factory=dict, description="node id -> surveyed (x, y, z) of static references (m)")
+
+
+@dataclass
+class Answer:
+    """One reference's answer to this node's Req."""
+
+    ref: int
+    T1: float  #: local Req send stamp
+    t2: float  #: reference's receive stamp (reference time)
+    t3: float  #: reference's send stamp
+    T4: float  #: local receive stamp
+    pos: np.ndarray  #: reference position at t2 (m)
+    vel: np.ndarray  #: reference velocity (m/s)
+    conf: float  #: reference confidence (1 for buoys / anchors)
+
+
+@dataclass
+class Round:
+    index: int
+    T1: float
+    answers: list[Answer] = field(default_factory=list)
+
+
+class ReqResNode(Node):
+    """Base of ITMTL, TSHL, MU-Sync and Mobi-Sync nodes (see module docstring)."""
+
+    name: ClassVar[str] = "_reqres"
+    Params = ReqResParams
+
+    # -- state ----------------------------------------------------------------------------------
+
+    def setup(self) -> None:
+        self.is_reference = self.role in REFERENCE_ROLES
+        self.is_anchor = self.is_reference
+        self.confidence = 1.0 if self.is_reference else 0.0
+        self.round_index = 0
+        self.alpha = 1.0  # this node's estimate of its clock: local = alpha t + beta
+        self.beta = 0.0
+        self.synced = self.is_reference
+        self._replies: list[tuple[float, int, dict[str, Any]]] = []  # (due local, dst, payload)
+
+    # -- what a reference tells others ------------------------------------------------------------
+
+    def own_position(self) -> np.ndarray:
+        """Position a buoy / anchor knows: the node's GPS / survey fix (``known_position()``,
+        as the beacon protocol also expects) where the kernel provides one, else the
+        surveyed position given for this node id in ``surveyed_positions``."""
+        fn = getattr(self, "known_position", None)
+        if callable(fn):
+            return np.asarray(fn(), dtype=float).reshape(3)
+        pos = self.params.surveyed_positions.get(str(self.id))
+        if pos is None:
+            raise RuntimeError(f"node {self.id}: no known position (give params.surveyed_positions)")
+        return np.asarray(pos, dtype=float)
+
+    def profile(self) -> SoundSpeedProfile:
+        """The sound-speed profile the node believes (a CTD cast): ``ssp_depths_m`` /
+        ``ssp_speeds_mps`` (two points = isogradient, more = layered), else the mean speed."""
+        p = self.params
+        if not p.ssp_depths_m:
+            return Constant(p.mean_speed_mps)
+        z = np.asarray(p.ssp_depths_m, float)
+        c = np.asarray(p.ssp_speeds_mps, float)
+        if z.size == 2:
+            g = (c[1] - c[0]) / (z[1] - z[0])
+            return Isogradient(c[0] - g * z[0], g)
+        return Layered(z, c)
+
+    def own_velocity(self) -> np.ndarray:
+        """Velocity sensor reading where the node has one, else zero."""
+        try:
+            return np.asarray(self.velocity(), dtype=float)
+        except SensorUnavailable:
+            return np.zeros(3)
+
+    def ref_time(self, local: float) -> float:
+        """Reference time of a local stamp: true time for anchors, synchronized otherwise."""
+        return (local - self.beta) / self.alpha
+
+    def estimated_position_at(self, t: float) -> np.ndarray:
+        """This node's position estimate extrapolated to (its estimate of) true time ``t``."""
+        raise NotImplementedError
+
+    def estimated_velocity(self) -> np.ndarray:
+        return np.zeros(3)
+
+    # -- main loop --------------------------------------------------------------------------------
+
+    def run(self) -> Generator[Any, Any, None]:
+        p = self.params
+        start = self.local_time()
+        next_round = start + (float(self.rng.uniform(0.0, p.first_round_s)) if p.first_round_s > 0 else 0.0)
+        current: Round | None = None
+        collect_end = math.inf
+        if self.is_reference:
+            next_round = math.inf
+        while True:
+            now = self.local_time()
+            due_reply = min((r[0] for r in self._replies), default=math.inf)
+            wake = min(next_round, collect_end, due_reply)
+            if wake <= now:
+                if due_reply <= now:
+                    yield from self._send_due_replies()
+                    continue
+                if collect_end <= now and current is not None:
+                    self.process_round(current)
+                    current, collect_end = None, math.inf
+                    continue
+                if next_round <= now:
+                    self.round_index += 1
+                    T1 = yield self.broadcast(REQ, {"round": self.round_index}, p.req_bits)
+                    current = Round(self.round_index, float(T1))
+                    collect_end = float(T1) + p.collect_window_s
+                    next_round = float(T1) + p.round_period_s
+                    continue
+            timeout = None if math.isinf(wake) else max(0.0, wake - now)
+            rec = yield self.recv(timeout=timeout, kinds=(REQ, RES))
+            if rec is None:
+                continue
+            pkt = rec.packet
+            if pkt.kind == REQ and self.answers_requests():
+                hold = p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
+                self._replies.append((rec.rx_local + hold, pkt.src, {
+                    "round": pkt.payload["round"], "T2_local": rec.rx_local,
+                }))
+            elif pkt.kind == RES and current is not None and pkt.dst == self.id \
+                    and pkt.payload["round"] == current.index:
+                pl = pkt.payload
+                current.answers.append(Answer(
+                    pkt.src, current.T1, pl["t2"], pl["t3"], rec.rx_local,
+                    np.asarray(pl["pos"], float), np.asarray(pl["vel"], float), float(pl["conf"]),
+                ))
+
+    def answers_requests(self) -> bool:
+        return self.is_reference
+
+    def _send_due_replies(self) -> Generator[Any, Any, None]:
+        now = self.local_time()
+        due = [r for r in self._replies if r[0] <= now]
+        self._replies = [r for r in self._replies if r[0] > now]
+        for _, dst, info in sorted(due, key=lambda r: r[0]):
+            T3 = self.local_time()
+            t2 = self.ref_time(info["T2_local"])
+            t3 = self.ref_time(T3)
+            if self.is_anchor:
+                pos = self.own_position()
+                vel = self.own_velocity()
+            else:
+                pos = self.estimated_position_at(t2)
+                vel = self.estimated_velocity()
+            payload = {"round": info["round"], "t2": t2, "t3": t3, "pos": tuple(map(float, pos)),
+                       "vel": tuple(map(float, vel)), "conf": float(self.confidence)}
+            # The modem is idle here (this loop waits for each transmission to end), so the MAC
+            # stamp of the first bit is the local time read just above.
+            yield self.send(dst, RES, payload, self.params.res_bits)
+
+    # -- subclasses -------------------------------------------------------------------------------
+
+    def process_round(self, rnd: Round) -> None:
+        raise NotImplementedError
+
+    # -- metrics ----------------------------------------------------------------------------------
+
+    @classmethod
+    def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
+        return _itmtl_metrics.protocol_metrics(tables, cls.name)
+
+    @classmethod
+    def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
+        return _itmtl_metrics.round_table(tables, cls.name)

@@ -1,0 +1,157 @@
+"""Beacon ranging: the smallest useful protocol, and the template for new ones.
+
+Anchors (and buoys) broadcast a ``beacon`` every ``period_s`` seconds of their own clock,
+carrying their position as they know it; the modem adds the MAC transmit stamp ``tx_local``.
+Every other node listens and turns each beacon into a one-way time-of-arrival range
+
+    range = (rx_local - tx_local) * nominal_speed_mps                       [m]
+
+which is exact only when both clocks agree, the sound speed equals the nominal one and the
+ray is straight: the range error measures exactly those effects (clock offset and skew,
+timestamp jitter, ray bending, sound-speed mismatch). Each range goes to the ``ranges`` table.
+
+The protocol never sees ground truth. The true range is computed afterwards, in
+:meth:`Beacon.metrics`, from the trace alone: the packet's true send and arrival times (the
+``packets`` table, by uid) and the true positions at those times (the ``positions`` table,
+interpolated), so the same numbers come out of a CSV trace read back later.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import BaseModel, ConfigDict, Field
+
+from aquasim_py.metrics import positions_at
+from aquasim_py.node import Node, Role
+from aquasim_py.registry import register
+
+__all__ = ["Beacon", "true_ranges"]
+
+_BROADCASTERS = (Role.ANCHOR, Role.BUOY)
+
+
+@register
+class Beacon(Node):
+    """Anchors and buoys broadcast beacons; everyone else logs one-way ToA ranges."""
+
+    name = "beacon"
+
+    class Params(BaseModel):
+        model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+        period_s: float = Field(10.0, gt=0.0, description="time between an anchor's beacons (s, local clock)")
+        nominal_speed_mps: float = Field(1500.0, gt=0.0, description="sound speed assumed for ranging (m/s)")
+        bits: int = Field(128, ge=1, description="beacon length (bits)")
+        random_phase: bool = Field(True, description="first beacon at a random time in [0, period_s)")
+
+    def run(self) -> Generator[Any, Any, None]:
+        if self.role in _BROADCASTERS:
+            yield from self._broadcast_loop()
+        else:
+            yield from self._listen_loop()
+
+    def _own_position(self) -> list[float] | None:
+        # An anchor knows where it is (survey or GPS); the kernel exposes that fix, if at all,
+        # as a method of the node. Without one the beacon carries no position: ranging and its
+        # metrics do not need it.
+        fix = getattr(self, "known_position", None)
+        if fix is None:
+            return None
+        return [float(v) for v in np.asarray(fix(), dtype=float).ravel()]
+
+    def _broadcast_loop(self) -> Generator[Any, Any, None]:
+        p = self.params
+        if p.random_phase:
+            yield self.sleep(float(self.rng.uniform(0.0, p.period_s)))
+        while True:
+            started = self.local_time()
+            yield self.broadcast("beacon", {"position": self._own_position()}, bits=p.bits)
+            # keep a fixed period on the local clock whatever the air time was
+            yield self.sleep(max(0.0, p.period_s - (self.local_time() - started)))
+
+    def _listen_loop(self) -> Generator[Any, Any, None]:
+        c = self.params.nominal_speed_mps
+        while True:
+            rx = yield self.recv(kinds="beacon")
+            pkt = rx.packet
+            pos = (pkt.payload or {}).get("position") or [np.nan, np.nan, np.nan]
+            self.log(
+                "ranges",
+                anchor=pkt.src,
+                uid=pkt.uid,
+                tx_local=pkt.tx_local,
+                rx_local=rx.rx_local,
+                range_m=(rx.rx_local - pkt.tx_local) * c,
+                anchor_x=float(pos[0]),
+                anchor_y=float(pos[1]),
+                anchor_z=float(pos[2]),
+            )
+
+    # -- after the run ------------------------------------------------------------------------
+
+    @classmethod
+    def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
+        """Range error statistics (m): count, mean, std (ddof 1), RMSE, max |error|."""
+        err = range_errors(tables)
+        e = err["error_m"].to_numpy(float) if len(err) else np.empty(0)
+        e = e[np.isfinite(e)]
+        nan = float("nan")
+        return {
+            "ranges": int(e.size),
+            "range_error_mean_m": float(e.mean()) if e.size else nan,
+            "range_error_std_m": float(e.std(ddof=1)) if e.size > 1 else nan,
+            "range_rmse_m": float(np.sqrt(np.mean(e**2))) if e.size else nan,
+            "range_error_max_abs_m": float(np.abs(e).max()) if e.size else nan,
+        }
+
+    @classmethod
+    def report(cls, tables: Mapping[str, pd.DataFrame]) -> Any:
+        """Per-anchor range error table (a rich Table), printed by the CLI after the metrics."""
+        from rich.table import Table
+
+        err = range_errors(tables)
+        t = Table(title="beacon: range error per anchor (m)")
+        for col in ("anchor", "ranges", "mean", "std", "RMSE"):
+            t.add_column(col, justify="right")
+        if len(err) == 0:
+            return t
+        for anchor, g in err.groupby("anchor", sort=True):
+            e = g["error_m"].to_numpy(float)
+            std = f"{e.std(ddof=1):.4g}" if e.size > 1 else "-"
+            t.add_row(str(anchor), str(e.size), f"{e.mean():.4g}", std, f"{np.sqrt(np.mean(e**2)):.4g}")
+        return t
+
+
+def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None = None) -> pd.DataFrame:
+    """True ranges (m) for the rows of ``ranges``: the distance from the sender's position when
+    the first bit left to the receiver's position when it arrived (the times from the
+    ``packets`` table by uid, the positions interpolated from the ``positions`` table)."""
+    r = tables.get("ranges") if ranges is None else ranges
+    packets = tables.get("packets")
+    positions = tables.get("positions")
+    if r is None or len(r) == 0 or packets is None or positions is None:
+        return pd.DataFrame(columns=["uid", "node", "anchor", "t_tx", "t_rx", "true_range_m"])
+    ev = packets["event"].astype(str)
+    tx = packets.loc[ev == "tx", ["uid", "time"]].rename(columns={"time": "t_tx"})
+    rx = packets.loc[ev == "rx", ["uid", "node", "time"]].rename(columns={"time": "t_rx"})
+    df = r[["uid", "node", "anchor"]].merge(tx, on="uid", how="left").merge(rx, on=["uid", "node"], how="left")
+    p_tx = positions_at(positions, df["anchor"].to_numpy(), df["t_tx"].to_numpy(float))
+    p_rx = positions_at(positions, df["node"].to_numpy(), df["t_rx"].to_numpy(float))
+    df["true_range_m"] = np.linalg.norm(p_rx - p_tx, axis=1)
+    return df
+
+
+def range_errors(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
+    """The ``ranges`` rows with their true range and error = estimate - truth (m)."""
+    r = tables.get("ranges")
+    if r is None or len(r) == 0:
+        return pd.DataFrame(columns=["uid", "node", "anchor", "range_m", "true_range_m", "error_m"])
+    truth = true_ranges(tables, r)
+    out = r[["uid", "node", "anchor", "range_m"]].reset_index(drop=True).copy()
+    out["true_range_m"] = truth["true_range_m"].to_numpy()
+    out["error_m"] = out["range_m"] - out["true_range_m"]
+    return out

@@ -1,0 +1,335 @@
+"""ITMTL: joint time synchronization and localization by iterative tracing (seed 004).
+
+R. Gao, D. Qiao, M. Zhang, G. Xu et al., mobile target localization based on iterative
+tracing for underwater wireless sensor networks. The equations of the paper were lost; the
+maths follows the reconstruction in ``notes/papers.md`` (see :mod:`protocols.itmtl_math` and
+:mod:`aquasim_py.estimation.sync`).
+
+Roles: buoys and anchors answer Req messages (true time, known position); ordinary nodes run
+rounds. Per round an ordinary node:
+
+1. broadcasts Req and collects the Res answers (``t2``, ``t3``, position, velocity, confidence);
+2. phase 1 (first localization): TDOA rough position with reference 1 as pivot and the initial
+   clock; later rounds: the IMM prediction to this round's send time;
+3. phase 2: delay rates from the ray-traced gradient at the rough position (ITMTL) or the
+   line of sight / mean speed (ITMTL-wsc, ``compensate = false``), relative-motion split of
+   every round trip, weighted linear regression over all exchanges so far, iterated;
+4. phase 3: position fix from the one-way forward delays (least squares through the eigenray
+   time or, for wsc, distance / mean speed), filtered by an IMM of a constant-velocity KF and a
+   coordinated-turn EKF (``imm = false``: raw fixes);
+5. phase 4: the outer loop 2-3 repeats with the new fix as rough position until it moves less
+   than ``outer_tol_m``; the estimate is the next round's rough position;
+6. network-wide: confidence = mean reference confidence x (1 - normalized residual); after
+   ``promote_min_rounds`` rounds above ``promote_threshold`` the node becomes a reference
+   and answers Req with its synchronized time and estimated position.
+
+Logged per round: ``clocks`` (skew = alpha - 1, offset = beta) and ``estimates`` (the position
+extrapolated to the logging instant, confidence, is_reference), with a ``round`` column.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar, Literal
+
+import numpy as np
+from pydantic import Field
+
+from aquasim_py.estimation.imm import IMM
+from aquasim_py.estimation.motion import ConstantVelocity, CoordinatedTurn
+from aquasim_py.estimation.sync import Exchanges, half_round_trip_sync, itmtl_sync, split_delays
+from aquasim_py.registry import register
+
+from ._reqres import ReqResNode, ReqResParams, Round
+from .itmtl_math import DelayModel, fix_confidence, initial_clock, multilaterate, position_fix, promote, tdoa_pivot
+
+__all__ = ["ItmtlNode"]
+
+
+class ItmtlParams(ReqResParams):
+    """ITMTL parameters (ITMTL-wsc: ``compensate = false``; no tracking: ``imm = false``)."""
+
+    compensate: bool = Field(True, description="stratification compensation through the ray tracer (False = ITMTL-wsc)")
+    imm: bool = Field(True, description="IMM (CV KF + coordinated-turn EKF) filtering of the fixes; False = raw fixes")
+    motion_split: bool = Field(True, description="relative-motion split of the round trip (False = half round trip)")
+    motion_mode: Literal["relative", "separate"] = Field("relative", description="Delta from the relative LOS speed (paper) or node/reference motion separately")
+    own_velocity: Literal["track", "sensor", "none"] = Field("track", description="where the node's own velocity comes from")
+    min_skew_span_s: float = Field(20.0, ge=0, description="fit the skew only once the data span this long (s); before, offset only")
+    max_outer_iter: int = Field(4, ge=1, description="phase 2-3 iterations per round")
+    outer_tol_m: float = Field(0.01, gt=0, description="stop when the fix moves less (m)")
+    weighted: bool = Field(True, description="weight regression points by the reference's confidence")
+    residual_scale_m: float = Field(5.0, gt=0, description="range residual that drives confidence to 0 (m)")
+    promotion: bool = Field(True, description="promote confident ordinary nodes to references")
+    promote_threshold: float = Field(0.9, ge=0, le=1, description="confidence needed for promotion")
+    promote_min_rounds: int = Field(3, ge=1, description="consecutive confident rounds before promotion")
+    imm_q_cv: float = Field(1e-3, gt=0, description="CV acceleration noise density (m^2/s^3)")
+    imm_q_ct: float = Field(1e-3, gt=0, description="CT acceleration noise density (m^2/s^3)")
+    imm_q_turn: float = Field(1e-6, gt=0, description="CT turn-rate noise density (rad^2/s^3)")
+    imm_switch: float = Field(0.05, gt=0, lt=1, description="IMM mode switching probability per round")
+    max_speed_mps: float = Field(5.0, gt=0, description="a track faster than this is not used for the motion split (m/s)")
+    fix_std_floor_m: float = Field(0.5, gt=0, description="floor of the fix noise std fed to the IMM (m)")
+
+
+@register
+class ItmtlNode(ReqResNode):
+    """ITMTL node (see module docstring)."""
+
+    name: ClassVar[str] = "itmtl"
+    Params = ItmtlParams
+
+    def setup(self) -> None:
+        super().setup()
+        p = self.params
+        self.model = DelayModel(self.profile(), p.compensate, p.mean_speed_mps)
+        self.localized = False
+        self.conf_hist: list[float] = []
+        # exchanges so far, one row per answer
+        self._ex: list[tuple[float, float, float, float, float]] = []  # T1, t2, t3, T4, weight
+        self._ex_round: list[int] = []
+        self._ref_pos: list[np.ndarray] = []
+        self._ref_vel: list[np.ndarray] = []
+        # per round: node position estimate at t1 and velocity estimate (None = unknown yet)
+        self._round_pos: dict[int, np.ndarray] = {}
+        self._round_vel: dict[int, np.ndarray | None] = {}
+        self.imm_filter: IMM | None = None
+        self.t_est: float = np.nan  # true time (estimated) of the last position estimate
+        self.p_est = np.zeros(3)
+        self.v_est: np.ndarray | None = None
+        self._last_fix: tuple[float, np.ndarray] | None = None
+        self._n_fixes = 0
+
+    # -- reference side -----------------------------------------------------------------------
+
+    def answers_requests(self) -> bool:
+        return self.is_reference
+
+    def estimated_position_at(self, t: float) -> np.ndarray:
+        v = self.v_est if self.v_est is not None else np.zeros(3)
+        return self.p_est + v * (t - self.t_est)
+
+    def estimated_velocity(self) -> np.ndarray:
+        return self.v_est if self.v_est is not None else np.zeros(3)
+
+    # -- ordinary side ------------------------------------------------------------------------
+
+    def _exchanges(self, k_node: np.ndarray, k_ref: np.ndarray) -> Exchanges:
+        a = np.asarray(self._ex, dtype=float)
+        w = a[:, 4] if self.params.weighted else np.ones(len(a))
+        return Exchanges.build(a[:, 0], a[:, 1], a[:, 2], a[:, 3], k_node, k_ref, w)
+
+    def _rates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Delay rates of every stored exchange from its round's position / velocity estimate."""
+        n = len(self._ex)
+        if not self.params.motion_split:
+            return np.zeros(n), np.zeros(n)
+        pos = np.array([self._round_pos.get(r, np.full(3, np.nan)) for r in self._ex_round])
+        vel = np.array([self._round_vel.get(r) if self._round_vel.get(r) is not None else np.zeros(3)
+                        for r in self._ex_round])
+        ok = np.all(np.isfinite(pos), axis=1)
+        kn, kr = np.zeros(n), np.zeros(n)
+        if ok.any():
+            a, b = self.model.motion_rates(np.array(self._ref_pos)[ok], pos[ok], vel[ok],
+                                           np.array(self._ref_vel)[ok], self.params.motion_mode)
+            kn[ok], kr[ok] = a, b
+        return kn, kr
+
+    def _sync(self) -> None:
+        ex = self._exchanges(*self._rates())
+        t = np.concatenate([ex.t2, ex.t3])
+        fix_skew = float(t.max() - t.min()) < self.params.min_skew_span_s
+        fit = itmtl_sync(ex, self.alpha, fix_skew=fix_skew)
+        self.alpha, self.beta = fit.alpha, fit.beta
+        self.synced = True
+
+    def _velocity_now(self) -> np.ndarray | None:
+        src = self.params.own_velocity
+        if src == "sensor":
+            return self.own_velocity()
+        if src == "none":
+            return np.zeros(3)
+        return self._plausible(self.v_est)
+
+    def _plausible(self, v: np.ndarray | None) -> np.ndarray | None:
+        """A track faster than ``max_speed_mps`` is lost: its velocity is not used."""
+        if v is None or np.linalg.norm(v) > self.params.max_speed_mps:
+            return None
+        return v
+
+    def _ambiguous(self, ref_pos: np.ndarray, fix: Any, depth: float) -> bool:
+        """Is the fix's mirror image across the references' horizontal principal axis an
+        equally good solution (references nearly in a vertical plane)?"""
+        xy = ref_pos[:, :2]
+        c = xy.mean(axis=0)
+        u = np.linalg.svd(xy - c)[2][0]
+        d = fix.position[:2] - c
+        mirror = c + 2.0 * (d @ u) * u - d
+        sel = np.array(self._ex_round) == self._ex_round[-1]
+        ex = self._exchanges(np.zeros(len(self._ex)), np.zeros(len(self._ex)))
+        tau_f, _ = split_delays(ex, self.alpha)
+        alt = position_fix(self.model, ref_pos, tau_f[sel], np.append(mirror, depth), depth=depth)
+        apart = np.linalg.norm(alt.position - fix.position) > 2.0 * self.params.residual_scale_m
+        return bool(apart and alt.rms_residual <= 2.0 * fix.rms_residual + self.params.residual_scale_m / self.params.mean_speed_mps / 5)
+
+    def _imm_step(self, t1: float, fix: np.ndarray | None, R: np.ndarray | None) -> None:
+        """Predict the IMM to true time t1 and (if a fix came) update it."""
+        p = self.params
+        if self.imm_filter is None:
+            if fix is None:
+                return
+            x0 = np.array([fix[0], fix[1], 0.0, 0.0, 0.0])
+            P0 = np.diag([R[0, 0], R[1, 1], 1.0, 1.0, 0.01 ** 2])
+            P0[:2, :2] = R
+            Pi = np.array([[1 - p.imm_switch, p.imm_switch], [p.imm_switch, 1 - p.imm_switch]])
+            self.imm_filter = IMM([ConstantVelocity(2, 1.0, p.imm_q_cv), CoordinatedTurn(2, 1.0, p.imm_q_ct, p.imm_q_turn)],
+                                  Pi, x0, P0)
+            self._imm_t = t1
+            return
+        f = self.imm_filter
+        dt = max(t1 - self._imm_t, 1e-6)
+        f.models = [dataclasses.replace(m, motion=dataclasses.replace(m.motion, dt=dt)) for m in f.models]
+        f.predict()
+        self._imm_t = t1
+        if fix is not None:
+            H = np.zeros((2, 5))
+            H[0, 0] = H[1, 1] = 1.0
+            f.update(fix[:2], R, H=H)
+
+    def process_round(self, rnd: Round) -> None:
+        p = self.params
+        ans = rnd.answers
+        if not ans:
+            return
+        r = rnd.index
+        for a in ans:
+            self._ex.append((a.T1, a.t2, a.t3, a.T4, max(a.conf, 1e-3)))
+            self._ex_round.append(r)
+            self._ref_pos.append(a.pos)
+            self._ref_vel.append(a.vel)
+        depth = self.depth()
+        ref_pos = np.array([a.pos for a in ans])
+        ref_conf = np.array([a.conf for a in ans])
+        can_fix = len(ans) >= p.min_refs
+
+        # phase 1 / rough position
+        if not self.localized:
+            if not can_fix:
+                if len(self._ex) >= 1:
+                    self._sync()
+                    self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
+                return
+            t2 = np.array([a.t2 for a in ans])
+            try:
+                td = tdoa_pivot(ref_pos, t2, p.mean_speed_mps, depth=depth)
+                rough, d1 = td.position, td.d1
+                # Two hyperbola intersections (3 references), or a linearized solution thrown
+                # far off by a reference outside the node's hull: keep the candidate whose
+                # ranges agree best with the round trips (half of each at the mean speed;
+                # alpha ~ 1 is enough), the round-trip multilateration being one candidate.
+                S = np.array([(a.T4 - a.T1) - (a.t3 - a.t2) for a in ans])
+                rr = 0.5 * S * p.mean_speed_mps
+                cands = list(td.candidates) or [(td.position, td.d1)]
+                try:
+                    q = multilaterate(ref_pos, rr, depth)
+                    cands.append((q, float(np.linalg.norm(ref_pos[0] - q))))
+                except np.linalg.LinAlgError:
+                    pass
+                mis = [np.sum((np.linalg.norm(ref_pos - c, axis=1) - rr) ** 2) for c, _ in cands]
+                rough, d1 = cands[int(np.argmin(mis))]
+                if not self.synced:
+                    self.alpha, self.beta = initial_clock(ans[0].T1, ans[0].t2, d1, p.mean_speed_mps)
+            except (ValueError, np.linalg.LinAlgError):
+                rough = np.append(ref_pos[:, :2].mean(axis=0), depth)
+            t1 = self.ref_time(rnd.T1)
+        else:
+            t1 = self.ref_time(rnd.T1)
+            if p.imm and self.imm_filter is not None:
+                self._imm_step(t1, None, None)
+                x = self.imm_filter.x
+                rough = np.array([x[0], x[1], depth])
+            else:
+                v = self.v_est if self.v_est is not None else np.zeros(3)
+                rough = self.p_est + v * (t1 - self.t_est)
+                rough[2] = depth
+        self._round_pos[r] = rough
+        self._round_vel[r] = self._velocity_now()
+
+        # phases 2-3, iterated
+        fix = None
+        for _ in range(p.max_outer_iter):
+            self._sync()
+            if not can_fix:
+                break
+            ex = self._exchanges(*self._rates())
+            sel = np.array(self._ex_round) == r
+            tau_f, _ = split_delays(ex, self.alpha)
+            fix = position_fix(self.model, ref_pos, tau_f[sel], rough, depth=depth)
+            moved = float(np.linalg.norm(fix.position - rough))
+            rough = fix.position
+            self._round_pos[r] = rough
+            if moved < p.outer_tol_m:
+                break
+        t1 = self.ref_time(rnd.T1)
+
+        if fix is not None and not self.localized and self._ambiguous(ref_pos, fix, depth):
+            # first fix with a mirror solution as good as this one: wait for better geometry
+            self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
+            self._round_pos.pop(r, None)
+            return
+
+        if fix is not None:
+            res_m = fix.rms_residual * p.mean_speed_mps
+            sigma = max(fix.rms_residual, p.fix_std_floor_m / p.mean_speed_mps)
+            R = fix.cov_unit * sigma**2
+            conf = fix_confidence(ref_conf, res_m, p.residual_scale_m)
+        else:
+            R, conf, res_m = None, self.confidence * 0.9, np.nan
+
+        if p.imm:
+            if self.imm_filter is None or fix is not None:
+                if self.imm_filter is None:
+                    self._imm_step(t1, fix.position, R)
+                else:
+                    # the prediction to t1 was done above; only the update is left
+                    H = np.zeros((2, 5))
+                    H[0, 0] = H[1, 1] = 1.0
+                    self.imm_filter.update(fix.position[:2], R, H=H)
+            x = self.imm_filter.x
+            self.p_est = np.array([x[0], x[1], depth])
+            self.v_est = np.array([x[2], x[3], 0.0]) if self.localized else None
+        else:
+            if fix is not None:
+                if self._last_fix is not None and t1 > self._last_fix[0]:
+                    self.v_est = (fix.position - self._last_fix[1]) / (t1 - self._last_fix[0])
+                    self.v_est[2] = 0.0
+                self._last_fix = (t1, fix.position)
+                self.p_est = fix.position
+            else:
+                v = self.v_est if self.v_est is not None else np.zeros(3)
+                self.p_est = self.p_est + v * (t1 - self.t_est)
+        self.t_est = t1
+        self.localized = True
+        if fix is not None:
+            self._n_fixes += 1
+        self._round_pos[r] = self.p_est.copy()
+        if p.own_velocity == "track":
+            # the round's velocity is the track's after this round's fix; rounds before the
+            # track had two fixes get the first velocity it gave, and the clock is refitted
+            mature = self._plausible(self.v_est) is not None and self._n_fixes >= 2
+            self._round_vel[r] = self.v_est.copy() if mature else None
+            if mature:
+                for k, v in self._round_vel.items():
+                    if v is None:
+                        self._round_vel[k] = self.v_est.copy()
+                self._sync()
+
+        # network-wide
+        self.confidence = conf
+        self.conf_hist.append(conf)
+        if p.promotion and not self.is_reference and promote(self.conf_hist, p.promote_threshold, p.promote_min_rounds):
+            self.is_reference = True
+
+        now = self.ref_time(self.local_time())
+        pos_now = self.estimated_position_at(now)
+        self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
+        self.log_estimate(pos_now[0], pos_now[1], depth, confidence=conf, is_reference=self.is_reference,
+                          round=r, n_refs=len(ans), residual_m=res_m)

@@ -1,0 +1,178 @@
+"""SLMP (Zhou, Peng, Cui, Shi, Bagtzoglou, IEEE TMC 2011 / INFOCOM 2008) as the STVF paper
+runs it for comparison (Hu et al., Sensors 2018, Sec. 5.3).
+
+- Beacons (role ``anchor``) broadcast position, depth, confidence 1 and their predicted
+  velocity every period; the first ``training_s`` (100 s) only train the mobility predictors.
+- Unknown nodes (role ``ordinary``) keep each reference's last beacon for ``validity_s``
+  (60 s, the prediction window): a beacon heard at t0 constrains the node's own position at
+  t0, so a stale one is used with the node's predicted displacement since t0 added to the
+  reference position. With >= ``min_refs`` (3, after projection on the depth plane)
+  references: multilateration and a confidence (:func:`~protocols.slmp_math.slmp_confidence`);
+  above ``delta`` the node becomes a reference. Otherwise, with >= ``self_min_refs`` references
+  in view ("more than one", STVF Sec. 5.3.1) and a previous estimate, the node self-estimates
+  from its previous location and its predicted velocity.
+- Mobility prediction: :class:`~protocols.slmp_math.MobilityPredictor` (window 60 s, overlap
+  20 %, order 15, refit when the one-step error exceeds 5 % of the range).
+
+The ranging model is STVF's: one-way delays from MAC stamps (synchronized clocks), error std
+``noise_ratio`` x delay, ranges at the nominal ``speed_mps``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Mapping
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from aquasim_py.estimation.variational import project_delay
+from aquasim_py.node import Node, Role, SensorUnavailable
+from aquasim_py.registry import register
+
+from .slmp_math import DegenerateGeometryError, InsufficientMeasurementsError, MobilityPredictor, \
+    multilaterate_2d, slmp_confidence
+from .stvf import localization_metrics
+
+__all__ = ["SLMPNode"]
+
+KIND = "slmp_beacon"
+
+
+class SLMPParams(BaseModel):
+    """SLMP parameters (STVF Sec. 5.3 defaults)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    period_s: float = Field(1.0, gt=0, description="localization period (s)")
+    listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
+    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
+    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
+    training_s: float = Field(100.0, ge=0, description="beacon training before unknown nodes localize (s)")
+    window_s: float = Field(60.0, gt=0, description="prediction window (s)")
+    overlap: float = Field(0.2, ge=0, lt=1, description="overlap of neighbouring windows (fraction)")
+    order: int = Field(15, ge=1, description="prediction step: order of the linear predictor")
+    range_m: float = Field(80.0, gt=0, description="communication range (m), for the error threshold")
+    error_ratio: float = Field(0.05, gt=0, description="prediction error threshold / range")
+    validity_s: float = Field(60.0, ge=0, description="how long a reference's beacon stays usable (s)")
+    delta: float = Field(0.9, ge=0, le=1, description="confidence threshold for references")
+    min_refs: int = Field(3, ge=3, description="references needed for multilateration (2-D)")
+    self_min_refs: int = Field(2, ge=0, description="references in view needed to self-estimate")
+    speed_mps: float = Field(1500.0, gt=0, description="nominal sound speed (m/s)")
+    noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay")
+
+
+@register
+class SLMPNode(Node):
+    """An SLMP node: beacons (anchor) broadcast; unknown nodes (ordinary) localize."""
+
+    name = "slmp"
+    Params = SLMPParams
+
+    def setup(self) -> None:
+        p: SLMPParams = self.params
+        self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
+        self.predictor = MobilityPredictor(
+            p.period_s, window=int(round(p.window_s / p.period_s)), overlap=p.overlap,
+            order=p.order, threshold=p.error_ratio * p.range_m)
+        self.confidence = 1.0 if self.is_beacon else 0.0
+        self.is_reference = self.is_beacon
+        self.last: tuple[float, np.ndarray] | None = None  # (local time, xy) of the last estimate
+        self.table: dict[int, tuple[float, np.ndarray, float, float]] = {}  # src -> (t0, xy, r, eta)
+
+    def position_fix(self) -> np.ndarray:
+        """A beacon's own position fix (x, y, z) in m: GPS through the surface buoys in the
+        paper. Read from the node's position sensor ``known_position()``."""
+        fix = getattr(self, "known_position", None)
+        if fix is None:
+            raise SensorUnavailable(f"{self!r}: a beacon needs a position fix (Node.known_position())")
+        return np.asarray(fix(), float)
+
+    def payload(self) -> dict[str, Any] | None:
+        now = self.local_time()
+        if self.is_beacon:
+            pos = self.position_fix()
+            self.predictor.add(now, pos[:2])
+            vel = self.predictor.velocity()
+            return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
+                    "vel": (float(vel[0]), float(vel[1]))}
+        if self.is_reference and self.last is not None:
+            vel = self.predictor.velocity()
+            xy = self.last[1] + vel * (now - self.last[0])
+            return {"xy": (float(xy[0]), float(xy[1])), "depth": self.depth(), "eta": self.confidence,
+                    "vel": (float(vel[0]), float(vel[1]))}
+        return None
+
+    def run(self) -> Generator[Any, Any, None]:
+        p: SLMPParams = self.params
+        t_start = self.local_time()
+        k = 0
+        while True:
+            period_start = t_start + k * p.period_s
+            payload = self.payload()
+            if payload is not None:
+                offset = self.rng.uniform(0.0, p.send_window_s)
+                yield self.sleep(max(0.0, period_start + offset - self.local_time()))
+                yield self.broadcast(KIND, payload, p.bits)
+            if not self.is_beacon:
+                yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
+                heard = []
+                while self.pending():
+                    rec = yield self.recv()
+                    if rec.packet.kind == KIND:
+                        heard.append(rec)
+                if self.local_time() - t_start >= p.training_s:
+                    self.localize(heard)
+            k += 1
+            yield self.sleep(max(0.0, t_start + k * p.period_s - self.local_time()))
+
+    def localize(self, heard: list[Any]) -> None:
+        p: SLMPParams = self.params
+        now = self.local_time()
+        depth = self.depth()
+        for rec in heard:
+            q = rec.packet.payload
+            z = rec.rx_local - rec.packet.tx_local
+            if p.noise_ratio > 0:
+                z *= 1.0 + p.noise_ratio * float(self.rng.standard_normal())
+            zh = float(project_delay(z, q["depth"] - depth, p.speed_mps, z_scale=1.0))
+            self.table[rec.packet.src] = (rec.rx_local, np.asarray(q["xy"], float), zh * p.speed_mps, q["eta"])
+        self.table = {s: e for s, e in self.table.items() if now - e[0] <= p.validity_s}
+        vel = self.predictor.velocity() if self.predictor.times else None
+        refs, ranges, etas = [], [], []
+        for t0, xy, r, eta in self.table.values():
+            if now - t0 > p.period_s:
+                if vel is None:
+                    continue
+                xy = xy + vel * (now - t0)  # own displacement since the beacon was heard
+            refs.append(xy)
+            ranges.append(r)
+            etas.append(eta)
+        method = ""
+        xy_est = None
+        conf = 0.0
+        if len(refs) >= p.min_refs:
+            try:
+                xy_est = multilaterate_2d(np.array(refs), np.array(ranges))
+                conf = slmp_confidence(etas, xy_est, np.array(refs), np.array(ranges))
+                method = "multilateration"
+            except (DegenerateGeometryError, InsufficientMeasurementsError, np.linalg.LinAlgError):
+                xy_est = None
+        if xy_est is None and len(refs) >= p.self_min_refs and self.last is not None:
+            xy_est = self.last[1] + self.predictor.velocity() * (now - self.last[0])
+            method = "self"
+            conf = 0.0
+        if xy_est is None:
+            self.is_reference = False
+            return
+        if method == "multilateration":
+            self.predictor.add(now, xy_est)
+        self.confidence = conf
+        self.is_reference = method == "multilateration" and conf >= p.delta
+        self.last = (now, np.asarray(xy_est, float))
+        self.log_estimate(xy_est[0], xy_est[1], depth, confidence=conf, is_reference=self.is_reference,
+                          method=method, n_refs=len(refs))
+
+    @classmethod
+    def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
+        return localization_metrics(tables, cls.name)

@@ -1,0 +1,272 @@
+"""STVF: spatial-temporal variational filtering localization (Hu et al., Sensors 18:2078, 2018).
+
+Every localization period (1 s):
+
+- beacon nodes (role ``anchor``) and unknown nodes promoted to references broadcast a beacon
+  signal carrying their position, depth, confidence eta and horizontal velocity; the packet's
+  MAC transmit stamp is the send timestamp;
+- an unknown node (role ``ordinary``) listens for ``listen_s``, turns each reception into a
+  one-way delay z = rx - tx (ms; the paper assumes synchronized clocks, so the scenario gives
+  perfect clocks), adds the ranging error of the paper's measurement model (std
+  ``noise_ratio`` x delay, drawn from the node's own stream), projects the neighbour onto its
+  own depth plane with its depth gauge, ranks the measurements by gamma (eqs 27-29), keeps the
+  best ``n_ref`` (none if fewer are heard), runs the variational prediction and update of
+  Algorithm 1 (:mod:`aquasim_py.estimation.variational`), computes its confidence (eqs 24-26)
+  and becomes a reference when eta >= ``delta``.
+
+Nothing here reads ground truth: positions come from the beacons' own position fix, depths
+from depth gauges, delays from MAC stamps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Generator, Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import BaseModel, ConfigDict, Field
+
+from aquasim_py.estimation import variational as vf
+from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
+from aquasim_py.estimation.lsq import multilaterate
+from aquasim_py.node import Node, Role, SensorUnavailable
+from aquasim_py.registry import register
+
+__all__ = ["STVFNode", "localization_metrics"]
+
+KIND = "stvf_beacon"
+
+
+class STVFParams(BaseModel):
+    """STVF parameters (Table 1 defaults; z in ms, see docs/sections/stvf.md)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    period_s: float = Field(1.0, gt=0, description="localization period (s)")
+    listen_s: float = Field(0.9, gt=0, description="time after the period start to collect beacons (s)")
+    n_ref: int = Field(3, ge=1, description="Nr: measurements used (and needed) per localization")
+    n_samples: int = Field(200, ge=2, description="Ns = Nv: importance samples")
+    delta: float = Field(0.9, ge=0, le=1, description="confidence threshold for promotion")
+    c1: float = Field(0.7, ge=0, description="gamma weight of the reference confidence")
+    c2: float = Field(0.2, ge=0, description="gamma weight of the normalized delay")
+    c3: float = Field(0.1, ge=0, description="gamma weight of the normalized reference speed")
+    penalize_far_fast: bool = Field(True, description="gamma uses 1 - f_z, 1 - f_v (text) instead of eq 27 as printed")
+    absolute_error: bool = Field(True, description="eq 26 sums |error| per reference instead of the signed sum")
+    transition_precision: float = Field(1 / 900, gt=0, description="Lambda = this * I (1/m^2)")
+    wishart_scale: float = Field(5.0, gt=0, description="W = this * I")
+    wishart_dof: float = Field(10.0, gt=0, description="n")
+    speed_mps: float = Field(1500.0, gt=0, description="v: prior mean sound speed (m/s)")
+    speed_precision: float = Field(0.01, gt=0, description="V: prior precision of the sound speed (1/(m/s)^2)")
+    noise_shape: float = Field(3.0, gt=0, description="alpha")
+    noise_rate_ms2: float = Field(200.0, gt=0, description="beta (ms^2): Gam(alpha, beta) on the precision (1/ms^2)")
+    tol_m: float = Field(0.1, gt=0, description="stop when mu* moves less than this (m)")
+    max_iter: int = Field(50, ge=1)
+    noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (measurement model)")
+    range_m: float = Field(80.0, gt=0, description="modem range (m): a first fix must lie within it of every reference")
+    initial_std_m: float = Field(10.0, gt=0, description="std of q(mu_0) around a first fix (m)")
+    keep_prior_across_gaps: bool = Field(
+        False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting")
+    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
+    send_window_s: float = Field(0.5, ge=0, description="references send at a uniform random offset in [0, this) of each period (s)")
+
+
+@register
+class STVFNode(Node):
+    """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
+
+    name = "stvf"
+    Params = STVFParams
+
+    def setup(self) -> None:
+        p: STVFParams = self.params
+        self.prior = vf.STVFPrior(
+            transition=np.eye(4) * p.transition_precision,
+            wishart_scale=np.eye(4) * p.wishart_scale,
+            wishart_dof=p.wishart_dof,
+            speed=p.speed_mps,
+            speed_precision=p.speed_precision,
+            noise_shape=p.noise_shape,
+            noise_rate=p.noise_rate_ms2,
+            n_state_samples=p.n_samples,
+            n_speed_samples=p.n_samples,
+            tol=p.tol_m,
+            max_iter=p.max_iter,
+        )
+        self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
+        self.confidence = 1.0 if self.is_beacon else 0.0
+        self.mu: np.ndarray | None = None
+        self.mu_precision: np.ndarray | None = None
+        self.last_fix: tuple[float, np.ndarray] | None = None  # (local time, (x, y))
+        self.speed_est = np.zeros(2)
+        self.missed = 0
+
+    # -- beacon side -------------------------------------------------------------------------
+
+    def beacon_payload(self) -> dict[str, Any] | None:
+        """What this node broadcasts this period, or None if it is not a reference."""
+        if self.is_beacon:
+            pos = np.asarray(self.position_fix(), float)
+            vel = np.asarray(self.velocity(), float)[:2]
+            return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
+                    "vel": (float(vel[0]), float(vel[1]))}
+        if self.last_fix is not None and self.confidence >= self.params.delta and self.missed == 0:
+            # the estimate is from the end of the last period: carry it to the send time
+            xy = self.last_fix[1] + self.speed_est * (self.local_time() - self.last_fix[0])
+            return {"xy": (float(xy[0]), float(xy[1])), "depth": self.depth(), "eta": self.confidence,
+                    "vel": (float(self.speed_est[0]), float(self.speed_est[1]))}
+        return None
+
+    def position_fix(self) -> np.ndarray:
+        """A beacon's own position fix (x, y, z) in m: GPS through the surface buoys in the
+        paper. Read from the node's position sensor ``known_position()``."""
+        fix = getattr(self, "known_position", None)
+        if fix is None:
+            raise SensorUnavailable(f"{self!r}: a beacon needs a position fix (Node.known_position())")
+        return np.asarray(fix(), float)
+
+    # -- process -----------------------------------------------------------------------------
+
+    def run(self) -> Generator[Any, Any, None]:
+        p: STVFParams = self.params
+        t_start = self.local_time()
+        k = 0
+        while True:
+            period_start = t_start + k * p.period_s
+            payload = self.beacon_payload()
+            if payload is not None:
+                # A random offset per period: all references sending at once would be deaf to
+                # each other (half-duplex modems); the paper's simulation has no MAC at all.
+                offset = self.rng.uniform(0.0, p.send_window_s)
+                yield self.sleep(max(0.0, period_start + offset - self.local_time()))
+                yield self.broadcast(KIND, payload, p.bits)
+            if not self.is_beacon:
+                yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
+                heard = []
+                while self.pending():
+                    rec = yield self.recv()
+                    if rec.packet.kind == KIND:
+                        heard.append(rec)
+                self.localize(heard)
+            k += 1
+            yield self.sleep(max(0.0, t_start + k * p.period_s - self.local_time()))
+
+    # -- localization ------------------------------------------------------------------------
+
+    def measurements(self, heard: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+        """(z ms projected, refs (n, 2), eta (n,), speed (n,), own depth) from receptions."""
+        p: STVFParams = self.params
+        depth = self.depth()
+        if not heard:
+            return np.empty(0), np.empty((0, 2)), np.empty(0), np.empty(0), depth
+        pay = [r.packet.payload for r in heard]
+        z = 1e3 * np.array([r.rx_local - r.packet.tx_local for r in heard])
+        if p.noise_ratio > 0:
+            z = z * (1.0 + p.noise_ratio * self.rng.standard_normal(z.size))
+        dz = np.array([q["depth"] for q in pay]) - depth
+        z = vf.project_delay(z, dz, p.speed_mps)
+        refs = np.array([q["xy"] for q in pay], float)
+        eta = np.array([q["eta"] for q in pay], float)
+        speed = np.hypot(*np.array([q["vel"] for q in pay], float).T)
+        return z, refs, eta, speed, depth
+
+    def localize(self, heard: list[Any]) -> None:
+        p: STVFParams = self.params
+        z, refs, eta, speed, depth = self.measurements(heard)
+        now = self.local_time()
+        if z.size < p.n_ref:
+            self.missed += 1
+            return
+        gamma = vf.measurement_confidence(eta, z, speed, (p.c1, p.c2, p.c3), penalize=p.penalize_far_fast)
+        sel = vf.select_references(gamma, p.n_ref)
+        z, refs, eta = z[sel], refs[sel], eta[sel]
+
+        fresh = self.mu is None or (self.missed > 0 and not p.keep_prior_across_gaps)
+        if fresh:
+            self.mu, self.mu_precision = vf.initial_prior(self.first_fix(z, refs), p.initial_std_m)
+            gaps = 1
+        else:
+            gaps = self.missed + 1
+        assert self.mu is not None and self.mu_precision is not None
+        mu_p, lp = vf.predict(self.mu, self.mu_precision, self.prior.transition / gaps)
+        out = vf.variational_update(z, refs, mu_p, lp, self.prior, self.rng)
+        self.mu, self.mu_precision = out.mu, out.mu_precision
+        self.missed = 0
+        xy = out.position
+        if self.last_fix is not None and not fresh and now > self.last_fix[0]:
+            self.speed_est = (xy - self.last_fix[1]) / (now - self.last_fix[0])
+        self.last_fix = (now, xy.copy())
+        self.confidence = vf.localization_confidence(
+            eta, xy, refs, z, out.speed, absolute=p.absolute_error)
+        is_ref = vf.promote(self.confidence, p.delta)
+        self.log_estimate(xy[0], xy[1], depth, confidence=self.confidence, is_reference=is_ref,
+                          iterations=out.iterations, converged=out.converged, n_heard=len(heard),
+                          fresh=fresh)
+
+    def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray:
+        """Coarse (x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given): multilateration on the
+        nominal-speed ranges, kept only if it lies within ``range_m`` of every reference heard
+        (a node hears only references in range); otherwise the references' centroid."""
+        p: STVFParams = self.params
+        r = z * p.speed_mps / 1e3
+        if len(r) >= 3:
+            try:
+                fix = multilaterate(refs, r)
+            except (DegenerateGeometryError, InsufficientMeasurementsError):
+                fix = None
+            if fix is not None and np.all(np.linalg.norm(refs - fix, axis=1) <= p.range_m):
+                return fix
+        return refs.mean(axis=0)
+
+    # -- metrics -----------------------------------------------------------------------------
+
+    @classmethod
+    def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
+        return localization_metrics(tables, cls.name, converge_within=5)
+
+
+def localization_metrics(tables: Mapping[str, Any], protocol: str, *, converge_within: int = 5,
+                         t_min: float | None = None) -> dict[str, float]:
+    """STVF Section 5 metrics from the trace tables of one run.
+
+    avg_rmse_m: mean over unknown nodes of each node's RMSE over its estimates (Sec. 5.2.3);
+    share_below_avg: share of those nodes whose RMSE is below that mean; mean_error_m: mean
+    distance error over all estimates ("localization accuracy", Sec. 5.1); coverage: mean over
+    periods of (unknown nodes localized in the period) / (unknown nodes); coverage_ever: share
+    localized at least once; converge_within_5: share of localizations whose iteration count
+    is <= ``converge_within`` (Fig. 6); mean_iterations; localizations.
+    Rows of every estimate of the protocol count, promoted references included."""
+    est = tables.get("estimates")
+    nodes = tables.get("nodes")
+    out: dict[str, float] = {}
+    if nodes is None or est is None or len(est) == 0:
+        return {"coverage": 0.0, "localizations": 0.0}
+    unknown = nodes[(nodes["protocol"] == protocol) & (nodes["role"].astype(str) == "ordinary")]["node"]
+    n_unknown = max(len(unknown), 1)
+    e = est[(est["protocol"] == protocol) & est["node"].isin(unknown)]
+    if t_min is not None:
+        e = e[e["time"] >= t_min]
+    if len(e) == 0:
+        return {"coverage": 0.0, "localizations": 0.0}
+    err2 = (e["x"] - e["true_x"]) ** 2 + (e["y"] - e["true_y"]) ** 2 + (e["z"] - e["true_z"]) ** 2
+    per_node = np.sqrt(err2.groupby(e["node"]).mean())
+    avg = float(per_node.mean())
+    out["avg_rmse_m"] = avg
+    out["share_below_avg"] = float((per_node < avg).mean())
+    out["mean_error_m"] = float(np.sqrt(err2).mean())
+    out["rmse_m"] = float(np.sqrt(err2.mean()))
+    periods = np.floor(e["time"].to_numpy() + 1e-9)
+    per_period = pd.Series(e["node"].to_numpy()).groupby(periods).nunique()
+    n_periods = int(np.ptp(periods)) + 1 if len(periods) else 1
+    out["coverage"] = float(per_period.sum() / (n_periods * n_unknown))
+    out["coverage_ever"] = float(e["node"].nunique() / n_unknown)
+    if "iterations" in e.columns:
+        it = pd.to_numeric(e["iterations"], errors="coerce").dropna()
+        if len(it):
+            out["converge_within_5"] = float((it <= converge_within).mean())
+            out["mean_iterations"] = float(it.mean())
+            out["max_iterations"] = float(it.max())
+    if "is_reference" in e.columns:
+        out["share_promoted"] = float(e["is_reference"].isin([True, "True", "true"]).mean())
+    out["localizations"] = float(len(e))
+    return out

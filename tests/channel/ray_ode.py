@@ -1,0 +1,260 @@
+"""Independent ray-tracing oracle: numerical integration of the ray equations plus shooting.
+
+Not used by the package; tests compare the closed forms (isogradient) and the layered solver
+against it. It knows nothing of circles or Snell invariants: for any depth-dependent speed
+c(z) (positive down) it integrates, in arc length s (so rays that turn in depth are fine),
+
+    dr/ds = cos(theta),  dz/ds = sin(theta),  dtheta/ds = -cos(theta) c'(z) / c(z),  dt/ds = 1/c(z)
+
+with ``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-12), and finds the launch angle that hits
+the receiver with ``scipy.optimize.brentq``. theta is the grazing angle from the horizontal,
+positive down.
+
+For a piecewise-linear c (kinks in c'(z) at layer interfaces) pass ``interfaces``: the
+integration stops exactly at every interface crossing (a terminal event) and restarts there, so
+the high-order integrator never steps across a discontinuity of the right-hand side.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy.integrate import quad, solve_ivp
+from scipy.optimize import brentq, minimize_scalar
+
+SpeedFn = Callable[[float], float]
+
+RTOL = 1e-12
+ATOL = 1e-12
+
+
+@dataclass(frozen=True)
+class OdeRay:
+    """One integrated ray from (0, z_src) to the vertical plane r = r_end."""
+
+    time: float  #: s
+    length: float  #: arc length, m
+    launch_angle: float  #: rad, positive down
+    arrival_angle: float  #: rad, positive down
+    r_end: float  #: m
+    z_end: float  #: m
+    z_min: float  #: shallowest depth along the ray, m (brute force on the dense output)
+    z_max: float  #: deepest depth along the ray, m
+    reached: bool  #: False if the ray left ``z_limits`` (or hit c -> 0) before r_end
+
+
+def _rhs(c: SpeedFn, dcdz: SpeedFn) -> Callable[[float, np.ndarray], list[float]]:
+    def f(s: float, y: np.ndarray) -> list[float]:
+        r, z, th, t = y
+        cz = c(z)
+        ct = math.cos(th)
+        return [ct, math.sin(th), -ct * dcdz(z) / cz, 1.0 / cz]
+
+    return f
+
+
+def _extrema(sol, s0: float, s1: float) -> tuple[float, float]:
+    """Brute-force min/max depth of one integrated segment: dense sampling, then a bounded
+    scalar refinement around the best sample (the dense output is a degree-7 interpolant)."""
+    if s1 <= s0:
+        z = float(sol(s0)[1])
+        return z, z
+    ss = np.linspace(s0, s1, 4001)
+    zz = sol(ss)[1]
+    out = []
+    for sign in (1.0, -1.0):
+        i = int(np.argmin(sign * zz))
+        lo, hi = ss[max(i - 1, 0)], ss[min(i + 1, ss.size - 1)]
+        best = sign * zz[i]
+        if hi > lo:
+            res = minimize_scalar(lambda s: sign * float(sol(s)[1]), bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 1e-9 * max(1.0, hi)})
+            best = min(best, float(res.fun))
+        out.append(sign * best)
+    return out[0], out[1]
+
+
+def trace(
+    c: SpeedFn,
+    dcdz: SpeedFn,
+    z_src: float,
+    theta0: float,
+    r_target: float,
+    *,
+    interfaces: Sequence[float] = (),
+    z_limits: tuple[float, float] | None = None,
+    c_floor: float = 1.0,
+    extrema: bool = False,
+) -> OdeRay:
+    """Integrate one ray launched at depth ``z_src`` (m) with angle ``theta0`` (rad) until r = r_target.
+
+    The ray stops early (``reached=False``) when it leaves ``z_limits`` or c drops below
+    ``c_floor`` (m/s). ``extrema=True`` also computes the brute-force min/max depth.
+    """
+    f = _rhs(c, dcdz)
+    ifs = np.asarray(sorted(interfaces), dtype=float)
+    y = np.array([0.0, float(z_src), float(theta0), 0.0])
+    s = 0.0
+    zmin = zmax = float(z_src)
+    # arc length budget: a ray never needs more than a few times the range plus the depth span
+    s_max = 20.0 * (r_target + 1.0) + 1e4
+    just_crossed: tuple[int, float] | None = None
+    while True:
+        events = []
+
+        def hit_r(s_, y_):
+            return y_[0] - r_target
+
+        hit_r.terminal = True
+        hit_r.direction = 1.0
+        events.append(hit_r)
+
+        def floor(s_, y_):
+            return c(y_[1]) - c_floor
+
+        floor.terminal = True
+        floor.direction = -1.0
+        events.append(floor)
+        if z_limits is not None:
+            def lo(s_, y_):
+                return y_[1] - z_limits[0]
+
+            def hi(s_, y_):
+                return y_[1] - z_limits[1]
+
+            lo.terminal = hi.terminal = True
+            lo.direction, hi.direction = -1.0, 1.0
+            events += [lo, hi]
+        n_fixed = len(events)
+        for k, zi in enumerate(ifs):
+            def cross(s_, y_, zi=zi):
+                return y_[1] - zi
+
+            cross.terminal = True
+            # right after crossing interface k, only a crossing back the other way can follow
+            cross.direction = -just_crossed[1] if just_crossed and just_crossed[0] == k else 0.0
+            events.append(cross)
+        sol = solve_ivp(f, (s, s_max), y, method="DOP853", rtol=RTOL, atol=ATOL, events=events,
+                        dense_output=True)
+        if extrema:
+            lo_z, hi_z = _extrema(sol.sol, s, float(sol.t[-1]))
+            zmin, zmax = min(zmin, lo_z), max(zmax, hi_z)
+        fired = [i for i, te in enumerate(sol.t_events) if te.size]
+        if sol.status != 1 or not fired:
+            y = sol.y[:, -1]
+            return OdeRay(y[3], sol.t[-1], theta0, y[2], y[0], y[1], zmin, zmax, False)
+        i = min(fired, key=lambda j: sol.t_events[j][0])
+        s = float(sol.t_events[i][0])
+        y = sol.y_events[i][0].copy()
+        if i == 0:
+            return OdeRay(y[3], s, theta0, y[2], y[0], y[1], zmin, zmax, True)
+        if i < n_fixed:
+            return OdeRay(y[3], s, theta0, y[2], y[0], y[1], zmin, zmax, False)
+        k = i - n_fixed
+        y[1] = ifs[k]  # snap onto the interface (the event root is within a few ulps)
+        just_crossed = (k, 1.0 if math.sin(y[2]) > 0.0 else -1.0)
+
+
+def _miss(ray: OdeRay, z_dst: float) -> float:
+    """Signed depth miss at the target range; a continuous surrogate for rays that stopped early."""
+    if ray.reached:
+        return ray.z_end - z_dst
+    # stopped early: it was heading away in depth, so count the missing range as extra depth
+    sign = 1.0 if math.sin(ray.arrival_angle) > 0.0 else -1.0
+    return ray.z_end - z_dst + sign * 1e3
+
+
+def shoot(
+    c: SpeedFn,
+    dcdz: SpeedFn,
+    src: Sequence[float],
+    dst: Sequence[float],
+    *,
+    interfaces: Sequence[float] = (),
+    z_limits: tuple[float, float] | None = None,
+    bracket: tuple[float, float] | None = None,
+    extrema: bool = False,
+) -> OdeRay:
+    """Eigenray from ``src`` to ``dst`` (x, y, z in m) by shooting on the launch angle.
+
+    Without ``bracket`` the launch angle is bracketed by stepping out from the chord's angle
+    (fine for profiles with a single eigenray, e.g. isogradient); with several eigenrays pass a
+    bracket (see :func:`fan`). The returned time is corrected to first order for the residual
+    depth miss (dt/dz = sin(theta)/c at the receiver), which is below 1e-10 m anyway.
+    """
+    src = np.asarray(src, dtype=float)
+    dst = np.asarray(dst, dtype=float)
+    R = float(math.hypot(dst[0] - src[0], dst[1] - src[1]))
+    z1, z2 = float(src[2]), float(dst[2])
+    if R == 0.0:
+        pts = [zi for zi in interfaces if min(z1, z2) < zi < max(z1, z2)]
+        t, _ = quad(lambda z: 1.0 / c(z), min(z1, z2), max(z1, z2), points=pts or None,
+                    epsabs=1e-14, epsrel=1e-13, limit=200)
+        ang = math.copysign(math.pi / 2, z2 - z1)
+        return OdeRay(t, abs(z2 - z1), ang, ang, 0.0, z2, min(z1, z2), max(z1, z2), True)
+
+    def miss(th: float) -> float:
+        return _miss(trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits), z2)
+
+    lim = math.pi / 2 - 1e-9
+    if bracket is None:
+        beta = math.atan2(z2 - z1, R)
+        f0 = miss(beta)
+        if f0 == 0.0:
+            bracket = (beta, beta)
+        else:
+            step = 1e-3
+            direction = -1.0 if f0 > 0.0 else 1.0
+            lo = beta
+            while True:
+                hi = min(max(beta + direction * step, -lim), lim)
+                fh = miss(hi)
+                if fh == 0.0 or (fh > 0.0) != (f0 > 0.0):
+                    break
+                if abs(hi) >= lim:
+                    raise RuntimeError("shoot: could not bracket the launch angle")
+                lo, f0 = hi, fh
+                step *= 2.0
+            bracket = (min(lo, hi), max(lo, hi))
+    if bracket[0] == bracket[1]:
+        th = bracket[0]
+    else:
+        th = brentq(miss, bracket[0], bracket[1], xtol=1e-16, rtol=8.9e-16, maxiter=200)
+    ray = trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, extrema=extrema)
+    if not ray.reached:
+        raise RuntimeError("shoot: converged launch angle does not reach the receiver")
+    dt = math.sin(ray.arrival_angle) / c(ray.z_end) * (z2 - ray.z_end)
+    return OdeRay(ray.time + dt, ray.length, th, ray.arrival_angle, ray.r_end, z2, ray.z_min, ray.z_max, True)
+
+
+def fan(
+    c: SpeedFn,
+    dcdz: SpeedFn,
+    src: Sequence[float],
+    dst: Sequence[float],
+    *,
+    n: int = 181,
+    interfaces: Sequence[float] = (),
+    z_limits: tuple[float, float] | None = None,
+    angle_range: tuple[float, float] = (-math.pi / 2 + 1e-6, math.pi / 2 - 1e-6),
+) -> list[OdeRay]:
+    """All eigenrays found by scanning ``n`` launch angles and refining every sign change of the
+    depth miss; sorted by travel time (the first is the first arrival). Brute force: slow."""
+    src = np.asarray(src, dtype=float)
+    dst = np.asarray(dst, dtype=float)
+    R = float(math.hypot(dst[0] - src[0], dst[1] - src[1]))
+    z1, z2 = float(src[2]), float(dst[2])
+    ths = np.linspace(angle_range[0], angle_range[1], n)
+    rays = [trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits) for th in ths]
+    out = []
+    for k in range(n - 1):
+        if not (rays[k].reached and rays[k + 1].reached):
+            continue
+        fa, fb = rays[k].z_end - z2, rays[k + 1].z_end - z2
+        if fa == 0.0 or (fa > 0.0) != (fb > 0.0):
+            out.append(shoot(c, dcdz, src, dst, interfaces=interfaces, z_limits=z_limits,
+                             bracket=(float(ths[k]), float(ths[k + 1]))))
+    return sorted(out, key=lambda r: r.time)

@@ -1,0 +1,325 @@
+"""The SimPy acoustic channel: delays, moving receivers, MAC stamps, losses, hand timelines.
+
+References are independent of the channel code: the ray tracer's own ``travel_time`` for a
+single pair (tested in its own module), a scipy root of the arrival-time equation written
+from the receiver's closed-form trajectory, and hand-computed timelines in a 1500 m/s medium.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from aquasim_py.channel import Constant, Isogradient, travel_time
+from aquasim_py.channel import acoustic
+from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.rays import Eigenray, PathKind
+from aquasim_py.clock import Clock
+from aquasim_py.kernel import Simulation
+from aquasim_py.mobility import Box, ConstantVelocity
+from aquasim_py.node import Node
+
+# Use the isogradient profile as soon as the ray tracer supports it; Constant only until then.
+_ISO = Isogradient(1480.0, 0.1)
+try:
+    travel_time(_ISO, [0.0, 0.0, 50.0], [800.0, 300.0, 120.0])
+    PROFILE = _ISO
+except NotImplementedError:
+    PROFILE = Constant(1500.0)
+
+BOX = Box([-10_000.0, -10_000.0, 0.0], [10_000.0, 10_000.0, 1000.0])
+
+
+class Script(Node):
+    """Transmits at given local times: params-free, the plan is set on the class by each test."""
+
+    name = "script"
+    plan: dict[int, list[tuple[float, int | None, int]]] = {}  # id -> [(local time, dst, bits)]
+
+    def run(self):
+        for t_local, dst, bits in self.plan.get(self.id, []):
+            wait = t_local - self.local_time()
+            if wait > 0:
+                yield self.sleep(wait)
+            if dst is None:
+                stamp = yield self.broadcast("data", {"from": self.id}, bits)
+            else:
+                stamp = yield self.send(dst, "data", {"from": self.id}, bits)
+            self.log("sent", stamp=stamp)
+
+
+class Listener(Node):
+    name = "listener"
+
+    def run(self):
+        while True:
+            rec = yield self.recv()
+            self.log("got", src=rec.packet.src, uid=rec.packet.uid, tx_local=rec.packet.tx_local,
+                     rx_local=rec.rx_local)
+
+
+def _plan(cls_plan: dict[int, list[tuple[float, int | None, int]]]) -> type[Node]:
+    return type("Planned", (Script,), {"plan": cls_plan, "name": "planned"})
+
+
+def _packets(sim: Simulation):
+    return sim.trace.frames()["packets"]
+
+
+def test_static_delay_equals_travel_time():
+    src, dst = [0.0, 0.0, 50.0], [800.0, 300.0, 120.0]
+    sim = Simulation(1, ssp=PROFILE, channel=ChannelConfig(collision="none"))
+    sim.add_group(_plan({0: [(0.3, None, 64)]}), 1, positions=[src])
+    sim.add_group(Listener, 1, positions=[dst])
+    sim.run(5.0)
+    p = _packets(sim)
+    tx = p[p.event == "tx"].iloc[0]
+    rx = p[p.event == "rx"].iloc[0]
+    expected = float(travel_time(PROFILE, src, dst))
+    assert abs((rx.time - tx.time) - expected) < 1e-9
+    assert abs(rx.tof - expected) < 1e-9
+    assert rx.path == "direct"
+
+
+def test_moving_receiver_delay_at_arrival_position():
+    """Receiver at 2 m/s, sender at 1.5 m/s: tof = T(p_src(t0), p_rx(t_arr)) to 1e-9 s."""
+    p_s0, v_s = np.array([0.0, 0.0, 100.0]), np.array([1.5, 0.0, 0.0])
+    p_r0, v_r = np.array([1200.0, 400.0, 160.0]), np.array([-1.2, 1.6, 0.0])  # |v| = 2 m/s
+    assert math.isclose(np.linalg.norm(v_r), 2.0)
+    sim = Simulation(2, ssp=PROFILE, volume=BOX, channel=ChannelConfig(collision="none"))
+    sim.add_group(_plan({0: [(5.0, None, 64), (40.0, None, 64)]}), 1,
+                  mobility=ConstantVelocity([p_s0], BOX, velocity=v_s))
+    sim.add_group(Listener, 1, mobility=ConstantVelocity([p_r0], BOX, velocity=v_r))
+    sim.run(60.0)
+    p = _packets(sim)
+    tx = p[p.event == "tx"].sort_values("uid")
+    rx = p[p.event == "rx"].sort_values("uid")
+    assert len(tx) == 2 and len(rx) == 2
+    for (_, t), (_, r) in zip(tx.iterrows(), rx.iterrows()):
+        t0 = t.time
+        ps = p_s0 + v_s * t0
+        # independent root of t = t0 + T(ps, p_r0 + v_r t) (scipy, not the channel's iteration)
+        f = lambda ta: ta - t0 - float(travel_time(PROFILE, ps, p_r0 + v_r * ta))  # noqa: E731
+        t_arr = brentq(f, t0, t0 + 10.0, xtol=1e-13, rtol=1e-15)
+        assert abs(r.time - t_arr) < 1e-9
+        assert abs(r.tof - float(travel_time(PROFILE, ps, p_r0 + v_r * r.time))) < 1e-9
+        # and the motion matters at this scale: the delay to the send-time position is off
+        assert abs(r.tof - float(travel_time(PROFILE, ps, p_r0 + v_r * t0))) > 1e-4
+
+
+def test_mac_timestamps_follow_local_clocks():
+    """Every stamp (trace and what the protocols saw) = (1 + skew) t + offset of its true time."""
+    skews, offsets = [40e-6, -25e-6, 0.0], [0.37, -1.25, 0.0]
+    clocks = [Clock(skew=s, offset=o) for s, o in zip(skews, offsets)]
+    positions = [[0.0, 0.0, 30.0], [1000.0, 0.0, 30.0], [0.0, 900.0, 60.0]]
+    cls = _plan({0: [(2.0, None, 100), (9.0, 1, 100)], 1: [(4.0, None, 80)]})
+
+    class Both(cls):  # sends its plan and logs what it receives
+        def run(self):
+            self.env.process(Script.run(self))
+            while True:
+                rec = yield self.recv()
+                self.log("got", src=rec.packet.src, tx_local=rec.packet.tx_local, rx_local=rec.rx_local,
+                         uid=rec.packet.uid)
+
+    sim = Simulation(3, ssp=PROFILE, channel=ChannelConfig(collision="none", jitter_std_s=0.0))
+    sim.add_group(Both, 3, positions=positions, clocks=clocks)
+    sim.run(20.0)
+    f = sim.trace.frames()
+    p = f["packets"]
+    stamped = p[p.event.isin(["tx", "rx"])]
+    assert len(stamped) >= 6
+    for _, r in stamped.iterrows():
+        n = int(r.node)
+        assert abs(r.local_time - ((1 + skews[n]) * r.time + offsets[n])) < 1e-12 * max(1, r.time)
+    got = f["got"]
+    tx_time = p[p.event == "tx"].set_index("uid")["time"]
+    rx = p[p.event == "rx"].set_index(["uid", "node"])["time"]
+    for _, g in got.iterrows():
+        s, n = int(g.src), int(g.node)
+        assert abs(g.tx_local - ((1 + skews[s]) * tx_time[g.uid] + offsets[s])) < 1e-12
+        assert abs(g.rx_local - ((1 + skews[n]) * rx[(g.uid, n)] + offsets[n])) < 1e-12
+    # the protocol's own notion of the transmit stamp (value of the send event) agrees too
+    sent = f["sent"]
+    assert np.allclose(sorted(sent.stamp), sorted(p[p.event == "tx"].local_time), rtol=0, atol=0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Hand-computed timelines in c = 1500 m/s, bitrate 1000 bps: 200 bits = 0.2 s on the air.
+
+C = Constant(1500.0)
+A, R, B_FAR = [-1500.0, 0.0, 10.0], [0.0, 0.0, 10.0], [1500.0, 0.0, 10.0]  # T(A,R) = T(B,R) = 1 s
+
+
+def _run_three(plan, positions, **cfg) -> tuple[Simulation, object]:
+    kw = dict(max_range_m=2000.0, snr_threshold_db=-1e9)
+    kw.update(cfg)
+    sim = Simulation(4, ssp=C, channel=ChannelConfig(**kw))
+    sim.add_group(_plan(plan), len(positions), positions=positions)
+    sim.run(10.0)
+    return sim, _packets(sim)
+
+
+def _at(p, node, event=None):
+    q = p[p.node == node]
+    return q if event is None else q[q.event == event]
+
+
+@pytest.mark.parametrize("t_b, collide", [(0.1, True), (0.25, False)])
+def test_destructive_collision_timeline(t_b, collide):
+    # A -> R occupies [1.0, 1.2]; B -> R occupies [t_b + 1, t_b + 1.2]; A and B are 3000 m apart
+    # (out of range), so only R sees both.
+    sim, p = _run_three({0: [(0.0, None, 200)], 2: [(t_b, None, 200)]}, [A, R, B_FAR], collision="destructive")
+    at_r = _at(p, 1)
+    if collide:
+        assert list(at_r.event) == ["drop", "drop"]
+        assert set(at_r.reason) == {"collision"}
+        assert np.allclose(sorted(at_r.time), [1.0, 1.0 + t_b])
+    else:
+        assert list(at_r.event) == ["rx", "rx"]
+        assert np.allclose(sorted(at_r.time), [1.0, 1.25])
+    assert len(_at(p, 0, "rx")) == 0 and len(_at(p, 2, "rx")) == 0  # out of each other's range
+
+
+def _spherical(ray: Eigenray, cfg: ChannelConfig):
+    """Test loss model: SNR = 100 dB - 20 log10(path length / 1 m)."""
+    return 100.0 - 20.0 * np.log10(ray.length)
+
+
+@pytest.mark.parametrize("threshold, b_survives", [(6.0, True), (6.1, False)])
+def test_capture_timeline(threshold, b_survives):
+    # R at 0; A 1500 m away (T = 1 s, SNR 100 - 20 log10 1500), B 750 m away (T = 0.5 s,
+    # SNR 100 - 20 log10 750): B is 20 log10 2 = 6.0206 dB stronger. A at R: [1.0, 1.2],
+    # B sent at 0.55: [1.05, 1.25]. A never survives; B survives iff threshold <= 6.0206 dB.
+    B_NEAR = [750.0, 0.0, 10.0]
+    kw = dict(max_range_m=2000.0, snr_threshold_db=-1e9, collision="capture", capture_threshold_db=threshold)
+    sim = Simulation(5, ssp=C, channel=ChannelConfig(**kw), loss_model=_spherical)
+    sim.add_group(_plan({0: [(0.0, None, 200)], 2: [(0.55, None, 200)]}), 3, positions=[A, R, B_NEAR])
+    sim.run(10.0)
+    at_r = _at(_packets(sim), 1).set_index("src")
+    assert at_r.loc[0, "event"] == "drop" and at_r.loc[0, "reason"] == "collision"
+    assert at_r.loc[2, "event"] == ("rx" if b_survives else "drop")
+    assert math.isclose(at_r.loc[2, "snr_db"] - at_r.loc[0, "snr_db"], 20 * math.log10(2), abs_tol=1e-9)
+    assert math.isclose(at_r.loc[0, "time"], 1.0) and math.isclose(at_r.loc[2, "time"], 1.05)
+
+
+@pytest.mark.parametrize("t_r, lost", [(1.1, True), (0.9, True), (0.7, False), (1.25, False)])
+def test_half_duplex_timeline(t_r, lost):
+    # A -> R occupies [1.0, 1.2] at R; R transmits 200 bits over [t_r, t_r + 0.2].
+    sim, p = _run_three({0: [(0.0, None, 200)], 1: [(t_r, None, 200)]}, [A, R], collision="none")
+    rec = _at(p, 1).query("src == 0").iloc[0]
+    if lost:
+        assert rec.event == "drop" and rec.reason == "half_duplex"
+    else:
+        assert rec.event == "rx"
+    # R's own packet reaches A at t_r + 1 while A is silent
+    back = _at(p, 0, "rx").iloc[0]
+    assert math.isclose(back.time, t_r + 1.0)
+
+
+def test_modem_queues_back_to_back_packets():
+    class Burst(Node):
+        name = "burst"
+
+        def run(self):
+            if self.id == 0:
+                e1 = self.broadcast("a", None, 200)
+                e2 = self.broadcast("b", None, 300)
+                yield e1 & e2
+                self.log("stamps", s1=e1.value, s2=e2.value)
+
+    sim = Simulation(6, ssp=C, channel=ChannelConfig(collision="none"))
+    sim.add_group(Burst, 2, positions=[A, R])
+    sim.run(5.0)
+    p = _packets(sim)
+    tx = p[p.event == "tx"]
+    assert np.allclose(tx.time, [0.0, 0.2])  # the second waits for the first to leave
+    assert np.allclose(_at(p, 1, "rx").time, [1.0, 1.2])
+    st = sim.trace.frames()["stamps"].iloc[0]
+    assert st.s1 == 0.0 and math.isclose(st.s2, 0.2)
+
+
+def test_unicast_range_and_overhearing():
+    # 0 sends to 1 (in range) and to 2 (2500 m away: out of range -> "range" drop). Node 3
+    # overhears the unicast to 1 but must not deliver it.
+    pos = [[0.0, 0.0, 10.0], [1000.0, 0.0, 10.0], [2500.0, 0.0, 10.0], [0.0, 1000.0, 10.0]]
+
+    class Uni(Node):
+        name = "uni"
+
+        def run(self):
+            if self.id == 0:
+                yield self.send(1, "x", None, 100)
+                yield self.send(2, "x", None, 100)
+            else:
+                while True:
+                    rec = yield self.recv()
+                    self.log("got", uid=rec.packet.uid)
+
+    sim = Simulation(7, ssp=C, channel=ChannelConfig(max_range_m=2000.0, collision="none"))
+    sim.add_group(Uni, 4, positions=pos)
+    sim.run(5.0)
+    p = _packets(sim)
+    assert list(_at(p, 1, "rx").uid) == [0]
+    drop = _at(p, 2, "drop")
+    assert list(drop.reason) == ["range"] and list(drop.uid) == [1]
+    assert len(_at(p, 3)) == 0
+    assert list(sim.trace.frames()["got"].node) == [1]
+
+
+def test_unicast_overheard_signal_still_collides():
+    # 0 -> 1 unicast arrives at node 2 too (same distance): it destroys a broadcast from 3 at 2.
+    pos = [[0.0, 0.0, 10.0], [0.0, 1500.0, 10.0], [1500.0, 0.0, 10.0], [3000.0, 0.0, 10.0]]
+    sim, p = _run_three({0: [(0.0, 1, 200)], 3: [(0.1, None, 200)]}, pos, collision="destructive")
+    at2 = _at(p, 2)
+    assert list(at2.event) == ["drop"] and list(at2.reason) == ["collision"] and list(at2.src) == [3]
+
+
+def test_snr_and_no_path_drops(monkeypatch):
+    weak = lambda ray, cfg: np.full(np.shape(ray.time), 3.0)  # noqa: E731
+    sim = Simulation(8, ssp=C, channel=ChannelConfig(snr_threshold_db=5.0), loss_model=weak)
+    sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[A, R])
+    sim.run(3.0)
+    d = _at(_packets(sim), 1, "drop").iloc[0]
+    assert d.reason == "snr" and d.snr_db == 3.0 and math.isclose(d.time, 1.0)
+
+    real = acoustic.eigenray
+
+    def shadow(ssp, s, d, reflections="fallback"):
+        r = real(ssp, s, d, reflections=reflections)
+        nan = np.full(np.shape(r.time), np.nan)
+        return Eigenray(nan, nan, nan, nan, nan, np.full(np.shape(r.time), PathKind.NONE, dtype=np.int8))
+
+    monkeypatch.setattr(acoustic, "eigenray", shadow)
+    sim = Simulation(8, ssp=C)
+    sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[A, R])
+    sim.run(3.0)
+    d = _at(_packets(sim), 1, "drop").iloc[0]
+    assert d.reason == "no_path" and d.path == "none"
+
+
+def test_mac_jitter_statistics():
+    """Jitter: rx stamp - true local stamp ~ N(0, sigma) (sample std within 10 % for 400 draws)."""
+    sigma = 1e-4
+
+    class Beacon(Node):
+        name = "beacon"
+
+        def run(self):
+            if self.id == 0:
+                while True:
+                    yield self.broadcast("b", None, 50)
+                    yield self.sleep(0.95)
+
+    sim = Simulation(9, ssp=C, channel=ChannelConfig(jitter_std_s=sigma, collision="none"))
+    sim.add_group(Beacon, 2, positions=[A, R])
+    sim.run(400.0)
+    p = _packets(sim)
+    rx = p[p.event == "rx"]
+    err = rx.local_time.to_numpy() - rx.time.to_numpy()  # perfect clocks: local = true + jitter
+    assert len(err) > 350
+    assert abs(err.mean()) < 4 * sigma / math.sqrt(len(err))
+    assert 0.9 * sigma < err.std() < 1.1 * sigma

@@ -1,0 +1,117 @@
+"""Trace tables: typed column store, DataFrames, CSV round trip, byte-stable float output."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from aquasim_py import trace
+from aquasim_py.trace import SCHEMAS, Table, Trace
+
+
+def test_design_tables_exist_with_design_columns_first():
+    tr = Trace()
+    frames = tr.frames()
+    assert list(frames["packets"].columns[:11]) == [
+        "time", "event", "reason", "node", "src", "dst", "uid", "kind", "bits", "tof", "snr_db"]
+    assert list(frames["positions"].columns) == ["time", "node", "x", "y", "z", "vx", "vy", "vz"]
+    assert list(frames["estimates"].columns) == [c for c, _ in SCHEMAS["estimates"]]
+    assert list(frames["clocks"].columns) == [
+        "time", "node", "protocol", "skew", "offset", "true_skew", "true_offset", "error"]
+
+
+def test_rows_with_new_and_missing_columns():
+    t = Table("custom")
+    t.append(time=0.0, node=1, label="a")
+    t.append(time=1.5, node=2, extra=3.25)
+    t.append(time=2.0, label="b", node=3)
+    df = t.frame()
+    assert list(df.columns) == ["time", "node", "label", "extra"]
+    assert df.node.tolist() == [1, 2, 3] and df.node.dtype == np.int64
+    assert df.label.tolist()[0] == "a" and pd.isna(df.label[1]) and df.label[2] == "b"
+    assert pd.isna(df.extra[0]) and df.extra[1] == 3.25 and pd.isna(df.extra[2])
+
+
+def test_columns_widen_instead_of_failing():
+    t = Table("w")
+    t.append(v=1)
+    t.append(v=2.5)  # int column meets a float
+    t.append(v=None)
+    t.append(w="x")
+    t.append(w=[1, 2])  # categorical meets an unhashable object
+    df = t.frame()
+    assert df.v.tolist()[:2] == [1.0, 2.5] and pd.isna(df.v[2])
+    assert df.w.tolist()[3] == "x" and df.w.tolist()[4] == [1, 2]
+
+
+def test_extend_vectorized_rows():
+    t = Table("positions", SCHEMAS["positions"])
+    n = 4
+    t.extend(time=np.full(n, 2.0), node=np.arange(n), x=np.arange(n) * 1.5, y=np.zeros(n), z=np.ones(n),
+             vx=np.zeros(n), vy=np.zeros(n), vz=np.zeros(n))
+    t.append(time=3.0, node=0, x=1.0, y=2.0, z=3.0, vx=0.0, vy=0.0, vz=0.0, flag="late")
+    df = t.frame()
+    assert df.x.tolist() == [0.0, 1.5, 3.0, 4.5, 1.0] and df.node.tolist() == [0, 1, 2, 3, 0]
+    assert df.flag.isna().sum() == 4 and df.flag.iloc[-1] == "late"
+    with pytest.raises(ValueError):
+        t.extend(time=np.zeros(2), node=np.zeros(3))
+
+
+def test_packets_sorted_by_time_stably():
+    tr = Trace()
+    row = tr.table("packets").append_fast
+    nan = math.nan
+    row((2.0, "rx", None, 1, 0, -1, 0, "a", 10, 2.0, nan, "direct", 2.0))
+    row((0.0, "tx", None, 0, 0, -1, 0, "a", 10, nan, nan, None, 0.0))
+    row((2.0, "rx", None, 2, 0, -1, 0, "a", 10, 2.0, nan, "direct", 2.0))
+    df = tr.frames()["packets"]
+    assert df.time.tolist() == [0.0, 2.0, 2.0] and df.node.tolist() == [0, 1, 2]
+
+
+def test_csv_round_trip_is_exact_and_byte_stable(tmp_path):
+    vals = [0.1 + 0.2, 1 / 3, 1e-300, -2.5e17, math.pi * 1e-9, 123456789.123456789]
+    tr = Trace()
+    for i, v in enumerate(vals):
+        tr.append("clocks", time=float(i), node=i, protocol="p", skew=v, offset=-v, true_skew=0.0,
+                  true_offset=v * 3, error=v / 7)
+    tr.append("events", time=1.0, node=0, what="x,y \"quoted\"", ok=True)
+    tr.write(tmp_path / "a")
+    tr.write(tmp_path / "b")
+    for name in ("clocks.csv", "events.csv", "packets.csv"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+    back = trace.load(tmp_path / "a")
+    assert back["clocks"]["skew"].tolist() == vals  # exact, not approximate
+    assert back["clocks"]["error"].tolist() == [v / 7 for v in vals]
+    assert back["events"].what[0] == 'x,y "quoted"'
+    assert b"\r" not in (tmp_path / "a" / "clocks.csv").read_bytes()
+
+
+def test_write_rejects_unknown_format_and_load_missing_dir(tmp_path):
+    with pytest.raises(ValueError, match="format"):
+        Trace().write(tmp_path, fmt="xlsx")
+    with pytest.raises(FileNotFoundError):
+        trace.load(tmp_path / "nope")
+
+
+def test_parquet_round_trip(tmp_path):
+    pytest.importorskip("pyarrow")
+    tr = Trace()
+    tr.append("clocks", time=1.0, node=0, protocol="p", skew=1e-5, offset=0.1, true_skew=0.0,
+              true_offset=0.0, error=0.1)
+    tr.write(tmp_path, fmt="parquet")
+    back = trace.load(tmp_path)
+    assert back["clocks"]["skew"].tolist() == [1e-5]
+
+
+def test_batched_fast_rows_widen_without_duplicates():
+    t = Table("fast", (("a", "i"), ("b", "f")))
+    rows = [(i, float(i)) for i in range(5)] + [(2.5, 1.0)] + [(i, 0.0) for i in range(3)]
+    for r in rows:
+        t.append_fast(r)
+    t.append(a=7, b=7.0, c="late")  # a generic row after buffered ones keeps the order
+    df = t.frame()
+    assert df["a"].tolist() == [0, 1, 2, 3, 4, 2.5, 0, 1, 2, 7]
+    assert df["b"].tolist()[-1] == 7.0 and df["c"].isna().sum() == 9 and t.n == 10

@@ -1,0 +1,115 @@
+"""Ray-tracer throughput benchmark: pairs per second on one core, with a same-run baseline.
+
+    python tools/bench_raytrace.py [--quick]
+
+Every case is a function returning a :class:`Case` (a label, a zero-argument callable that
+traces all its pairs, and the pair count); ``CASES`` lists them. The baseline is the plain
+straight-line delay ``np.linalg.norm(dst - src, axis=-1) / c`` over the same kind of pairs,
+timed in the same run, so the printed ratios are comparable across machines even when the
+absolute numbers are not (the machine is shared).
+"""
+
+from __future__ import annotations
+
+import os
+
+# one core: numpy's element-wise kernels are single-threaded, but keep BLAS pools out of it
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from typing import Callable  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from aquasim_py.channel import isogradient  # noqa: E402
+
+
+@dataclass(frozen=True)
+class Case:
+    label: str
+    run: Callable[[], object]
+    pairs: int
+
+
+def random_pairs(n: int, seed: int = 0, depth_m: float = 1000.0, span_m: float = 5000.0
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """n (src, dst) pairs uniform in a span x span x depth box (m)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([span_m, span_m, depth_m])
+    return rng.uniform(lo, hi, (n, 3)), rng.uniform(lo, hi, (n, 3))
+
+
+def case_baseline(n: int) -> Case:
+    src, dst = random_pairs(n)
+    return Case("baseline: norm(dst - src) / c", lambda: np.linalg.norm(dst - src, axis=-1) / 1500.0, n)
+
+
+def case_isogradient_time(n: int) -> Case:
+    src, dst = random_pairs(n)
+    return Case("isogradient travel_time (a = +0.1)", lambda: isogradient.travel_time(1480.0, 0.1, src, dst), n)
+
+
+def case_isogradient_time_checked(n: int) -> Case:
+    """Negative gradient plus a bottom: the surface/bottom (vertex) check is on."""
+    src, dst = random_pairs(n)
+    return Case("isogradient travel_time (a = -0.05, bottom)",
+                lambda: isogradient.travel_time(1520.0, -0.05, src, dst, bottom=1000.0), n)
+
+
+def case_isogradient_eigenray(n: int) -> Case:
+    src, dst = random_pairs(n)
+    return Case("isogradient eigenray (all fields)", lambda: isogradient.eigenray(1480.0, 0.1, src, dst), n)
+
+
+def case_isogradient_gradient(n: int) -> Case:
+    src, dst = random_pairs(n)
+    return Case("isogradient travel_time_gradient",
+                lambda: isogradient.travel_time_gradient(1480.0, 0.1, src, dst), n)
+
+
+#: (case function, number of pairs in a full run); the layered cases are appended here
+CASES: list[tuple[Callable[[int], Case], int]] = [
+    (case_isogradient_time, 1_000_000),
+    (case_isogradient_time_checked, 1_000_000),
+    (case_isogradient_eigenray, 1_000_000),
+    (case_isogradient_gradient, 1_000_000),
+]
+
+
+def best_seconds(fn: Callable[[], object], repeats: int) -> float:
+    """Best wall time of ``repeats`` calls after one warm-up (least disturbed by other load)."""
+    fn()
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, float | str]]:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="10x fewer pairs, fewer repeats")
+    args = ap.parse_args(argv)
+    scale, repeats = (10, 3) if args.quick else (1, 5)
+    rows = []
+    base = case_baseline(max(CASES[0][1] // scale, 1))
+    base_rate = base.pairs / best_seconds(base.run, repeats)
+    rows.append({"case": base.label, "pairs": base.pairs, "pairs_per_s": base_rate, "vs_baseline": 1.0})
+    for make, n in CASES:
+        case = make(max(n // scale, 1))
+        rate = case.pairs / best_seconds(case.run, repeats)
+        rows.append({"case": case.label, "pairs": case.pairs, "pairs_per_s": rate,
+                     "vs_baseline": base_rate / rate})
+    width = max(len(str(r["case"])) for r in rows)
+    print(f"{'case':<{width}}  {'pairs':>9}  {'pairs/s':>12}  {'time / baseline':>15}")
+    for r in rows:
+        print(f"{r['case']:<{width}}  {r['pairs']:>9d}  {r['pairs_per_s']:>12.3e}  {r['vs_baseline']:>15.2f}")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
