@@ -211,7 +211,10 @@ def _fmt(v: Any) -> str:
 def _console(stderr: bool = False) -> Any:
     from rich.console import Console
 
-    return Console(file=sys.stderr if stderr else sys.stdout, highlight=False)
+    stream = sys.stderr if stderr else sys.stdout
+    # a terminal sets its own width; a pipe or a file gets room for the sweep table
+    width = None if stream.isatty() or os.environ.get("COLUMNS") else 120
+    return Console(file=stream, highlight=False, width=width)
 
 
 def _metrics_table(m: Mapping[str, Any], title: str) -> Any:
@@ -303,7 +306,7 @@ def _run(argv: Sequence[str]) -> int:
                 r = report(frames)
                 if r is not None and r != "":
                     con.print(r)
-        con.print(f"output: {out}")
+        con.print(f"output: {out}", soft_wrap=True)
     return 0
 
 
@@ -363,7 +366,7 @@ def _sweep(argv: Sequence[str]) -> int:
     if not args.quiet:
         con = _console()
         con.print(_sweep_table(rows, jobs, cols))
-        con.print(f"{len(rows)} runs in {wall:.1f} s -> {out / 'sweep.csv'}")
+        con.print(f"{len(rows)} runs in {wall:.1f} s -> {out / 'sweep.csv'}", soft_wrap=True)
     return 0
 
 
@@ -376,12 +379,14 @@ def _sweep_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: S
     points: dict[tuple, list[Mapping[str, Any]]] = {}
     for job, row in zip(jobs, rows):
         points.setdefault(tuple(json.dumps(v) for _, v in job.point), []).append(row)
-    t = Table(title="sweep: mean over runs per grid point")
-    t.add_column("metric")
     shown = list(points)[:8]
+    caption = f"columns: {', '.join(grid_keys)}" if grid_keys else None
+    if len(points) > len(shown):
+        caption = f"{caption} (first {len(shown)} of {len(points)} grid points)"
+    t = Table(title="sweep: mean over runs per grid point", caption=caption)
+    t.add_column("metric", no_wrap=True)
     for p in shown:
-        label = ", ".join(f"{k}={v}" for k, v in zip(grid_keys, p)) or "all runs"
-        t.add_column(label, justify="right")
+        t.add_column(", ".join(p) or "all runs", justify="right")
     for c in cols:
         if c in grid_keys or c in ("run", "seed"):
             continue

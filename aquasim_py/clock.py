@@ -22,6 +22,8 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["Clock"]
 
+_SCALARS = (float, int, np.floating, np.integer)
+
 # Drift increments are drawn this many at a time, always, so the stream never depends on how
 # far the queries happened to reach.
 _BLOCK = 256
@@ -150,6 +152,17 @@ class Clock:
 
     def to_local(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Local time (s) at true time(s) ``t`` (s); exact, vectorized."""
+        if isinstance(t, _SCALARS):
+            # Per-packet hot path: plain floats, the same operations as the array branch.
+            tf = float(t)
+            if not math.isfinite(tf):
+                raise ValueError("true times must be finite")
+            if not self.drifts:
+                return (1.0 + self.skew) * tf + self.offset
+            k = max(math.floor(tf / self.drift_interval), 0)
+            if k >= self._count:
+                self._extend(k + 1)
+            return float(self._knots[k] + (1.0 + self._skews[k]) * (tf - k * self.drift_interval))
         ta = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(ta)):
             raise ValueError("true times must be finite")
@@ -162,6 +175,11 @@ class Clock:
 
     def to_true(self, local: ArrayLike) -> NDArray[np.float64] | float:
         """True time (s) at which the clock reads ``local`` (s): exact inverse of ``to_local``."""
+        if isinstance(local, _SCALARS) and not self.drifts:
+            lf = float(local)
+            if not math.isfinite(lf):
+                raise ValueError("local times must be finite")
+            return (lf - self.offset) / (1.0 + self.skew)
         la = np.asarray(local, dtype=float)
         if not np.all(np.isfinite(la)):
             raise ValueError("local times must be finite")
@@ -205,6 +223,8 @@ class Clock:
         local = self.to_local(t)
         if self.jitter_std == 0.0:
             return local
+        if isinstance(local, float):
+            return local + float(self._jitter_rng.normal(0.0, self.jitter_std))
         noise = self._jitter_rng.normal(0.0, self.jitter_std, np.shape(local))
         out = local + noise
         return float(out) if np.ndim(out) == 0 else out

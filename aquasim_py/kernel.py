@@ -68,9 +68,9 @@ class _NodeCore:
     """Kernel-side state of one node; the only bridge between a Node and ground truth."""
 
     __slots__ = (
-        "sim", "env", "channel", "index", "role", "params", "protocol", "group", "local",
+        "sim", "env", "channel", "index", "role", "params", "protocol", "group", "slot",
         "clock", "sensors", "has_velocity", "rng_protocol", "_rng_depth", "_rng_vel", "_rng_mac",
-        "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp",
+        "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp", "log_cap",
     )
 
     def __init__(self, sim: Simulation, index: int, group: Group, local: int, clock: Any,
@@ -83,7 +83,7 @@ class _NodeCore:
         self.params = params
         self.protocol = protocol
         self.group = group
-        self.local = local
+        self.slot = local
         self.clock = clock
         # A drift-free Clock is the affine map local = (1 + skew) t + offset: evaluate it on
         # Python floats (same IEEE operations as Clock.to_local) to skip numpy scalar overhead
@@ -104,11 +104,12 @@ class _NodeCore:
         self.tx_free_at = 0.0
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
         self.rx_log: list[tuple[float, float, float]] = []  # (arrival, end, snr_db) of signals here
+        self.log_cap = 8  # prune the two logs beyond this length (the channel adapts it)
 
     # -- truth ------------------------------------------------------------------------------------
 
     def position(self, t: float) -> np.ndarray:
-        return self.group.mobility.position(t)[self.local]
+        return self.group.mobility.position(t)[self.slot]
 
     def local(self, t: float) -> float:
         """The node's clock reading at true time ``t`` (no jitter)."""
@@ -204,7 +205,7 @@ class _NodeCore:
                 f"node {self.index} ({self.role.value}) has no velocity sensor; give its group "
                 "Sensors(velocity=True) to add one"
             )
-        v = np.array(self.group.mobility.velocity(self.env.now)[self.local], dtype=float)
+        v = np.array(self.group.mobility.velocity(self.env.now)[self.slot], dtype=float)
         std = self.sensors.velocity_std
         if std > 0.0:
             if self._rng_vel is None:
@@ -424,7 +425,7 @@ class Simulation:
         # one mobility query per (moving node, time): the few receivers of one packet
         for i, (j, t) in enumerate(zip(idx.tolist(), times.tolist())):
             c = cores[j]
-            out[i] = c.group.mobility.position(t)[c.local]
+            out[i] = c.group.mobility.position(t)[c.slot]
         return out
 
     def is_moving(self) -> np.ndarray:

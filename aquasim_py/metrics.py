@@ -176,32 +176,39 @@ def packet_counts(packets: pd.DataFrame | None) -> dict[str, int]:
     return out
 
 
-def positions_at(
-    positions: pd.DataFrame, node: ArrayLike, time: ArrayLike
-) -> NDArray[np.float64]:
-    """True positions (n, 3) of ``node[i]`` at ``time[i]``, linearly interpolated between samples.
+def positions_at(positions: pd.DataFrame, node: ArrayLike, time: ArrayLike) -> NDArray[np.float64]:
+    """True positions (n, 3) of ``node[i]`` at ``time[i]`` from the sampled ``positions`` table.
 
-    Exact for static and constant-velocity nodes; for curved motion the error is bounded by
-    the acceleration times the sampling interval squared / 8 (set ``trace.position_interval_s``
-    accordingly). Outside a node's sampled span the nearest sample is used. NaN for a node
-    that has no sample.
+    Between samples: linear interpolation, exact for straight motion; for curved motion the
+    error is at most |acceleration| * interval^2 / 8 (choose ``trace.position_interval_s``
+    accordingly). Before the first / after the last sample: extrapolation with that sample's
+    velocity (``vx, vy, vz``; held constant if the table has none), since a run's last events
+    (receptions still in flight) fall after its last sample. NaN for a node with no sample.
     """
     node = np.asarray(node, dtype=np.int64).ravel()
     time = np.asarray(time, dtype=float).ravel()
     out = np.full((node.size, 3), np.nan)
     if node.size == 0 or len(positions) == 0:
         return out
+    has_v = all(c in positions.columns for c in ("vx", "vy", "vz"))
     pos = positions.sort_values(["node", "time"], kind="stable")
     # one np.interp per node (not per query): the loop is over the few nodes, vectorized over queries
     for nid, grp in pos.groupby("node", sort=False):
-        sel = node == int(nid)
-        if not sel.any():
+        sel = np.flatnonzero(node == int(nid))
+        if sel.size == 0:
             continue
         t = grp["time"].to_numpy(float)
+        q = time[sel]
+        before, after = q < t[0], q > t[-1]
         for k, col in enumerate(_XYZ):
-            out[sel, k] = np.interp(time[sel], t, grp[col].to_numpy(float))
+            x = grp[col].to_numpy(float)
+            val = np.interp(q, t, x)
+            if has_v:
+                v = grp[f"v{col}"].to_numpy(float)
+                val = np.where(before, x[0] + v[0] * (q - t[0]), val)
+                val = np.where(after, x[-1] + v[-1] * (q - t[-1]), val)
+            out[sel, k] = val
     return out
-
 
 
 def summarize(

@@ -199,7 +199,8 @@ class Mobility:
     """Trajectories of a group of ``n`` nodes, built as ``Cls(initial_positions, box, rng, **params)``.
 
     Subclasses implement the unconstrained motion in ``_raw_position(t)`` and
-    ``_raw_velocity(t)`` (each (n, 3)); the base class folds it into the box.
+    ``_raw_velocity(t)`` (each (n, 3)); the base class folds it into the box. Returned arrays
+    may be read-only views of internal state (e.g. ``Static``): copy before modifying.
     """
 
     #: False for models whose unconstrained path provably stays in the (convex) box.
@@ -254,6 +255,40 @@ class Mobility:
         pos, sign = self.box.fold(raw_p)
         return pos, raw_v * sign
 
+    def position_at(self, idx: ArrayLike, t: ArrayLike) -> Array:
+        """Positions (m, 3) of nodes ``idx`` (m,) at their own times ``t`` (s, (m,) or scalar).
+
+        One call for a batch of (receiver, arrival time) pairs, e.g. a broadcast's receivers.
+        """
+        i, ts = self._pairs(idx, t)
+        raw = self._raw_position_at(i, ts)
+        return self.box.reflect(raw) if self._folds else raw
+
+    def velocity_at(self, idx: ArrayLike, t: ArrayLike) -> Array:
+        """Velocities (m, 3) in m/s of nodes ``idx`` at times ``t`` (see :meth:`position_at`)."""
+        i, ts = self._pairs(idx, t)
+        raw_v = self._raw_velocity_at(i, ts)
+        if not self._folds:
+            return raw_v
+        return raw_v * self.box.fold(self._raw_position_at(i, ts))[1]
+
+    def _pairs(self, idx: ArrayLike, t: ArrayLike) -> tuple[NDArray[np.intp], Array]:
+        i = np.asarray(idx)
+        if i.ndim != 1 or (i.size and i.dtype.kind not in "iu"):
+            raise ValueError("idx must be a 1-D array of node indices")
+        i = i.astype(np.intp, copy=False)
+        ts = np.asarray(t, dtype=float)
+        if ts.shape != i.shape:
+            ts = np.broadcast_to(ts, i.shape)
+        if i.size:
+            lo, hi = i.min(), i.max()
+            if lo < 0 or hi >= self.n:
+                raise ValueError(f"node indices must be in [0, {self.n}), got {lo}..{hi}")
+            # NaN fails both comparisons.
+            if not (ts.min() >= 0.0 and ts.max() < math.inf):
+                raise ValueError("times must be finite and >= 0 s")
+        return i, ts
+
     def track(self, times: ArrayLike) -> Array:
         """Positions (m, n, 3) at each of ``times`` (convenience, loops over times)."""
         ts = np.asarray(times, dtype=float).reshape(-1)
@@ -265,6 +300,12 @@ class Mobility:
         raise NotImplementedError
 
     def _raw_velocity(self, t: float) -> Array:
+        raise NotImplementedError
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        raise NotImplementedError
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         raise NotImplementedError
 
 
@@ -286,6 +327,12 @@ class Static(Mobility):
 
     def _raw_velocity(self, t: float) -> Array:
         return self._zero
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._p0[idx]
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return np.zeros((idx.size, 3))
 
 
 class ConstantVelocity(Mobility):
@@ -314,6 +361,12 @@ class ConstantVelocity(Mobility):
 
     def _raw_velocity(self, t: float) -> Array:
         return self._v
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._p0[idx] + self._v[idx] * t[:, None]
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._v[idx]
 
 
 class CoordinatedTurn(Mobility):
@@ -347,30 +400,43 @@ class CoordinatedTurn(Mobility):
         self.heading = _readonly(_per_node("heading", heading, n))
         self.vz = _readonly(_per_node("vz", vz, n))
 
-    def _raw_position(self, t: float) -> Array:
-        n = self.n
-        half = self.turn_rate * (0.5 * t)
-        mid = self.heading + half
+    @staticmethod
+    def _arc(p0: Array, speed: Array, rate: Array, heading: Array, vz: Array, t: float | Array) -> Array:
+        half = rate * (0.5 * t)
+        mid = heading + half
         # sin(h0 + w t) - sin(h0) = 2 cos(h0 + w t / 2) sin(w t / 2) (and likewise for cos):
         # chord = speed t sinc(w t / 2), no cancellation as w -> 0.
-        chord = np.ones(n)
+        chord = np.ones(len(p0))
         np.divide(np.sin(half), half, out=chord, where=half != 0.0)
-        chord *= self.speed * t
-        d = np.empty((3, n))
+        chord *= speed * t
+        d = np.empty((3, len(p0)))
         np.cos(mid, out=d[0])
         np.sin(mid, out=d[1])
         d[:2] *= chord
-        np.multiply(self.vz, t, out=d[2])
-        return self._p0 + d.T
+        np.multiply(vz, t, out=d[2])
+        return p0 + d.T
 
-    def _raw_velocity(self, t: float) -> Array:
-        h = self.heading + self.turn_rate * t
-        d = np.empty((3, self.n))
+    @staticmethod
+    def _tangent(speed: Array, rate: Array, heading: Array, vz: Array, t: float | Array) -> Array:
+        h = heading + rate * t
+        d = np.empty((3, len(speed)))
         np.cos(h, out=d[0])
         np.sin(h, out=d[1])
-        d[:2] *= self.speed
-        d[2] = self.vz
+        d[:2] *= speed
+        d[2] = vz
         return np.ascontiguousarray(d.T)
+
+    def _raw_position(self, t: float) -> Array:
+        return self._arc(self._p0, self.speed, self.turn_rate, self.heading, self.vz, t)
+
+    def _raw_velocity(self, t: float) -> Array:
+        return self._tangent(self.speed, self.turn_rate, self.heading, self.vz, t)
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._arc(self._p0[idx], self.speed[idx], self.turn_rate[idx], self.heading[idx], self.vz[idx], t)
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._tangent(self.speed[idx], self.turn_rate[idx], self.heading[idx], self.vz[idx], t)
 
 
 class RandomWalk(Mobility):
@@ -439,6 +505,19 @@ class RandomWalk(Mobility):
         k, _ = self._leg(t)
         return self._vels.data[k]
 
+    def _legs_at(self, t: Array) -> tuple[NDArray[np.intp], Array]:
+        k = np.floor(t / self.leg_duration).astype(np.intp)
+        self._leg(float(k.max()) * self.leg_duration if k.size else 0.0)
+        return k, t - k * self.leg_duration
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        k, dt = self._legs_at(t)
+        return self._starts.data[k, idx] + self._vels.data[k, idx] * dt[:, None]
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        k, _ = self._legs_at(t)
+        return self._vels.data[k, idx]
+
     def leg_velocities(self, count: int) -> Array:
         """Unconstrained velocities (count, n, 3) of the first ``count`` legs (for analysis)."""
         if count <= 0:
@@ -504,28 +583,41 @@ class Waypoints(Mobility):
         self._closed = self.path_length > 0.0
         self._safe_total = np.where(self._closed, self.path_length, 1.0)
 
-    def _locate(self, t: float) -> tuple[Array, NDArray[np.intp], Array]:
-        """(arc length travelled, flat segment index, speed now) per node."""
-        s = self.speed * t
-        total = self.path_length
+    def _locate(self, idx: NDArray[np.intp] | slice, t: float | Array) -> tuple[Array, NDArray[np.intp], Array]:
+        """(arc length travelled, flat segment index, speed now) for nodes ``idx`` at ``t``."""
+        speed = self.speed[idx]
+        s = speed * t
         if self.loop:
-            s = np.where(self._closed, np.mod(s, self._safe_total), 0.0)
-            speed_now = np.where(self._closed, self.speed, 0.0)
+            closed = self._closed[idx]
+            s = np.where(closed, np.mod(s, self._safe_total[idx]), 0.0)
+            speed_now = np.where(closed, speed, 0.0)
         else:
-            speed_now = np.where(s < total, self.speed, 0.0)
+            total = self.path_length[idx]
+            speed_now = np.where(s < total, speed, 0.0)
             np.minimum(s, total, out=s)
         # Last segment starting at or before s: skips zero-length segments.
-        k = np.count_nonzero(self._cum <= s[:, None], axis=1)
-        k += self._row_base  # row * M - 1
+        k = np.count_nonzero(self._cum[idx] <= s[:, None], axis=1)
+        k += self._row_base[idx]  # row * M - 1
         return s, k, speed_now
 
-    def _raw_position(self, t: float) -> Array:
-        s, k, _ = self._locate(t)
+    def _place(self, s: Array, k: NDArray[np.intp]) -> Array:
         along = s - np.take(self._cum_flat, k)
         return np.take(self._starts_flat, k, axis=0) + np.take(self._unit_flat, k, axis=0) * along[:, None]
 
+    def _raw_position(self, t: float) -> Array:
+        s, k, _ = self._locate(slice(None), t)
+        return self._place(s, k)
+
     def _raw_velocity(self, t: float) -> Array:
-        _, k, speed_now = self._locate(t)
+        _, k, speed_now = self._locate(slice(None), t)
+        return np.take(self._unit_flat, k, axis=0) * speed_now[:, None]
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        s, k, _ = self._locate(idx, t)
+        return self._place(s, k)
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        _, k, speed_now = self._locate(idx, t)
         return np.take(self._unit_flat, k, axis=0) * speed_now[:, None]
 
 
@@ -642,6 +734,38 @@ class MeanderingCurrent(Mobility):
         vel = self.field(pos, times[:, None])
         self._pos.append(pos)
         self._vel.append(vel)
+
+    def _knots_at(self, idx: NDArray[np.intp], t: Array) -> tuple[NDArray[np.intp], NDArray[np.intp], Array]:
+        """Flat row indices of (knot i, knot i + 1) per pair, and the fraction u (m, 1)."""
+        x = t * self._inv_h
+        i = x.astype(np.intp)  # t >= 0: truncation is floor
+        if i.size:
+            self._knot(float(t.max()))
+        flat = i * self.n + idx
+        return flat, flat + self.n, (x - i)[:, None]
+
+    def _flat(self) -> tuple[Array, Array]:
+        shape = (-1, 3)
+        return self._pos.data.reshape(shape), self._vel.data.reshape(shape)
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        a, b, u = self._knots_at(idx, t)
+        P, V = self._flat()
+        um = 1.0 - u
+        h00 = (1.0 + 2.0 * u) * um * um
+        h10 = u * um * um * self._h
+        h01 = u * u * (3.0 - 2.0 * u)
+        h11 = -u * u * um * self._h
+        return h00 * P.take(a, 0) + h10 * V.take(a, 0) + h01 * P.take(b, 0) + h11 * V.take(b, 0)
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        a, b, u = self._knots_at(idx, t)
+        P, V = self._flat()
+        um = 1.0 - u
+        d00 = 6.0 * u * um * self._inv_h
+        d10 = um * (1.0 - 3.0 * u)
+        d11 = u * (3.0 * u - 2.0)
+        return d00 * (P.take(b, 0) - P.take(a, 0)) + d10 * V.take(a, 0) + d11 * V.take(b, 0)
 
     def _knot(self, t: float) -> tuple[int, float]:
         x = t * self._inv_h

@@ -81,6 +81,7 @@ def register(cls: type) -> type:
                 f"protocol name {name!r} is already taken by {old.__module__}.{old.__qualname__}"
             )
         _registry[name] = cls
+    cls._aquasim_registered = True  # lets a reloaded registry find it again without re-import
     return cls
 
 
@@ -95,9 +96,14 @@ def _load_builtins() -> None:
             continue
         modname = f"{BUILTIN_PACKAGE}.{info.name}"
         try:
-            importlib.import_module(modname)
+            mod = importlib.import_module(modname)
         except Exception as exc:  # a half-written protocol must not hide the others
             _load_errors[info.name] = f"{modname} failed to import ({type(exc).__name__}: {exc})"
+            continue
+        # a module imported before the registry loaded registered itself then; collect again
+        for obj in list(vars(mod).values()):
+            if isinstance(obj, type) and obj.__dict__.get("_aquasim_registered") and obj.__module__ == modname:
+                _registry.setdefault(obj.name, obj)
 
 
 def _load_entry_points() -> None:

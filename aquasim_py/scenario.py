@@ -122,6 +122,8 @@ def parse_key_path(key: str) -> list[str | int]:
     key = key.strip()
     if not key:
         raise ValueError("empty key path")
+    if key.startswith(".") or key.endswith("."):
+        raise ValueError(f"malformed key path {key!r}")
     out: list[str | int] = []
     pos = 0
     while pos < len(key):
@@ -461,6 +463,9 @@ def _check(sc: Scenario, raw: dict[str, Any], file: Path | None) -> None:
                 raise ScenarioError(file, f'sweep.grid."{key}"', str(e)) from None
             if loc and loc[0] == "sweep":
                 raise ScenarioError(file, f'sweep.grid."{key}"', "a sweep cannot sweep its own settings")
+            if loc[:2] == ["simulation", "seed"]:
+                raise ScenarioError(file, f'sweep.grid."{key}"',
+                                    "seeds are derived per run from simulation.seed: set sweep.runs instead")
             base = {k: v for k, v in raw.items() if k != "sweep"}
             for v in values:
                 try:

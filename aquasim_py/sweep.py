@@ -91,7 +91,8 @@ def run_job(base: dict[str, Any], path: str | None, job: Job) -> dict[str, Any]:
     row: dict[str, Any] = {k: v for k, v in job.point}
     row["run"] = job.run
     row["seed"] = job.seed
-    row.update(m)
+    # plain Python numbers: a protocol's metrics may hand back numpy scalars
+    row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in m.items()})
     return row
 
 
@@ -109,7 +110,8 @@ def run_jobs(
     ``scheduler``: a Dask scheduler address ("tcp://host:8786"); then ``workers`` is ignored.
     ``progress(done, total)`` is called after each finished run (in this process).
     """
-    base = sc.to_dict()
+    # the runs need no [sweep] table (and re-checking its grid in every run would be wasted)
+    base = {k: v for k, v in sc.to_dict().items() if k != "sweep"}
     path = str(sc.path) if sc.path is not None else None
     total = len(jobs)
     results: list[dict[str, Any] | None] = [None] * total
@@ -179,7 +181,7 @@ def _cell(v: Any) -> Any:
     if v is None:
         return ""
     if isinstance(v, float):
-        return "nan" if math.isnan(v) else repr(v)  # repr round-trips exactly
+        return "nan" if math.isnan(v) else repr(float(v))  # repr round-trips exactly
     if isinstance(v, (list, dict)):
         return json.dumps(v)
     return v

@@ -111,11 +111,15 @@ class _Column:
 
     def push_many(self, values: tuple[Any, ...]) -> None:
         """Append a batch of values (C-level extend when they all fit)."""
-        n0 = len(self.data)
+        data = self.data
+        if isinstance(data, list):
+            data.extend(values)
+            return
         try:
-            self.data.extend(values)
+            # array(typecode, tuple) takes a fast path that array.extend(tuple) does not, and it
+            # fails as a whole (no partial append) when a value does not fit
+            data.extend(array(data.typecode, values))
         except (TypeError, OverflowError):
-            del self.data[n0:]  # array.extend keeps what it appended before the bad value
             for v in values:
                 self.push(v)
 
@@ -176,10 +180,10 @@ class Table:
         return self._n + len(self._buf)
 
     def _flush(self) -> None:
-        buf = self._buf
-        if not buf:
+        if not self._buf:
             return
-        self._buf = []
+        buf = self._buf[:]
+        self._buf.clear()  # the same list object: hot-path writers may hold it (see row_buffer)
         for key, values in zip(self._schema, zip(*buf)):
             self.columns[key].push_many(values)
         if len(self.columns) != len(self._schema):
@@ -202,6 +206,15 @@ class Table:
                 if key not in row:
                     col.fill_missing()
         self._n += 1
+
+    def row_buffer(self) -> list[tuple[Any, ...]]:
+        """The list that :meth:`append_fast` appends to, for writers that append row tuples
+        (schema order) themselves; they should call :meth:`flush_if_large` now and then."""
+        return self._buf
+
+    def flush_if_large(self) -> None:
+        if len(self._buf) >= self._BATCH:
+            self._flush()
 
     def append_fast(self, values: tuple[Any, ...]) -> None:
         """Append a row given in schema order (the kernel's hot path: no checks, no new columns)."""

@@ -5,8 +5,8 @@ two processes compete for the modem's inbox:
 
 - reference side (buoys, anchors, promoted ordinary nodes): a ``sync_req`` received at local
   ``T`` is answered after a random hold with a ``sync_res`` to its sender carrying
-  ``t2`` (receive stamp, reference time), ``t3`` (send stamp), the reference's position,
-  velocity and confidence;
+  ``t2`` (receive stamp, reference time), the reference's clock model (so that the frame's
+  MAC transmit stamp gives ``t3`` in reference time), position, velocity and confidence;
 - ordinary side: every ``round_period_s`` (local) broadcast ``sync_req``, collect the
   answers for ``collect_window_s``, then hand the round to :meth:`ReqResNode.process_round`;
 - TSHL's one-way beacons are the ``sync_res`` stamps themselves (``t3`` sent, ``T4`` received).
@@ -45,9 +45,9 @@ class ReqResParams(BaseModel):
 
     round_period_s: float = Field(30.0, gt=0, description="time between an ordinary node's Req broadcasts (s)")
     first_round_s: float = Field(10.0, ge=0, description="first Req at a uniform random time in [0, this) (s)")
-    collect_window_s: float = Field(8.0, gt=0, description="how long answers are collected after a Req (s)")
+    collect_window_s: float = Field(5.0, gt=0, description="how long answers are collected after a Req (s)")
     hold_min_s: float = Field(0.15, ge=0, description="a reference's minimum delay before answering (s)")
-    hold_spread_s: float = Field(5.0, ge=0, description="plus a uniform random delay up to this (s)")
+    hold_spread_s: float = Field(2.0, ge=0, description="plus a uniform random delay up to this (s)")
     req_bits: int = Field(96, ge=1, description="Req frame size (bits)")
     res_bits: int = Field(224, ge=1, description="Res frame size (bits)")
     min_refs: int = Field(3, ge=1, description="answers needed to localize (3 at known depth)")
@@ -184,8 +184,9 @@ class ReqResNode(Node):
             elif pkt.kind == RES and current is not None and pkt.dst == self.id \
                     and pkt.payload["round"] == current.index:
                 pl = pkt.payload
+                a_ref, b_ref = pl["clock"]
                 current.answers.append(Answer(
-                    pkt.src, current.T1, pl["t2"], pl["t3"], rec.rx_local,
+                    pkt.src, current.T1, pl["t2"], (pkt.tx_local - b_ref) / a_ref, rec.rx_local,
                     np.asarray(pl["pos"], float), np.asarray(pl["vel"], float), float(pl["conf"]),
                 ))
 
@@ -197,19 +198,19 @@ class ReqResNode(Node):
         due = [r for r in self._replies if r[0] <= now]
         self._replies = [r for r in self._replies if r[0] > now]
         for _, dst, info in sorted(due, key=lambda r: r[0]):
-            T3 = self.local_time()
             t2 = self.ref_time(info["T2_local"])
-            t3 = self.ref_time(T3)
             if self.is_anchor:
                 pos = self.own_position()
                 vel = self.own_velocity()
             else:
                 pos = self.estimated_position_at(t2)
                 vel = self.estimated_velocity()
-            payload = {"round": info["round"], "t2": t2, "t3": t3, "pos": tuple(map(float, pos)),
-                       "vel": tuple(map(float, vel)), "conf": float(self.confidence)}
-            # The modem is idle here (this loop waits for each transmission to end), so the MAC
-            # stamp of the first bit is the local time read just above.
+            # t3 is the frame's own MAC transmit stamp (``Packet.tx_local``, set by the modem as
+            # the first bit leaves); the frame carries the clock model that turns it into
+            # reference time (identity for buoys and anchors).
+            payload = {"round": info["round"], "t2": t2, "clock": (self.alpha, self.beta),
+                       "pos": tuple(map(float, pos)), "vel": tuple(map(float, vel)),
+                       "conf": float(self.confidence)}
             yield self.send(dst, RES, payload, self.params.res_bits)
 
     # -- subclasses -------------------------------------------------------------------------------

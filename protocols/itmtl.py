@@ -41,7 +41,16 @@ from aquasim_py.estimation.sync import Exchanges, half_round_trip_sync, itmtl_sy
 from aquasim_py.registry import register
 
 from ._reqres import ReqResNode, ReqResParams, Round
-from .itmtl_math import DelayModel, fix_confidence, initial_clock, multilaterate, position_fix, promote, tdoa_pivot
+from .itmtl_math import (
+    DelayModel,
+    fix_confidence,
+    initial_clock,
+    multilaterate,
+    position_fix,
+    promote,
+    reference_variance,
+    tdoa_pivot,
+)
 
 __all__ = ["ItmtlNode"]
 
@@ -57,7 +66,7 @@ class ItmtlParams(ReqResParams):
     min_skew_span_s: float = Field(20.0, ge=0, description="fit the skew only once the data span this long (s); before, offset only")
     max_outer_iter: int = Field(4, ge=1, description="phase 2-3 iterations per round")
     outer_tol_m: float = Field(0.01, gt=0, description="stop when the fix moves less (m)")
-    weighted: bool = Field(True, description="weight regression points by the reference's confidence")
+    weighted: bool = Field(True, description="weight references (fix and regression) by the variance their confidence stands for")
     residual_scale_m: float = Field(5.0, gt=0, description="range residual that drives confidence to 0 (m)")
     promotion: bool = Field(True, description="promote confident ordinary nodes to references")
     promote_threshold: float = Field(0.9, ge=0, le=1, description="confidence needed for promotion")
@@ -108,7 +117,8 @@ class ItmtlNode(ReqResNode):
         return self.p_est + v * (t - self.t_est)
 
     def estimated_velocity(self) -> np.ndarray:
-        return self.v_est if self.v_est is not None else np.zeros(3)
+        v = self._velocity_now()
+        return v if v is not None else np.zeros(3)
 
     # -- ordinary side ------------------------------------------------------------------------
 
@@ -154,6 +164,12 @@ class ItmtlNode(ReqResNode):
         if v is None or np.linalg.norm(v) > self.params.max_speed_mps:
             return None
         return v
+
+    def _ref_weight(self, conf: Any) -> Any:
+        """Weight of a reference in the fix and the regression: inverse of the position
+        variance its confidence stands for, 1 for a buoy / anchor (weighted least squares)."""
+        p = self.params
+        return p.fix_std_floor_m**2 / reference_variance(conf, p.fix_std_floor_m, p.residual_scale_m)
 
     def _ambiguous(self, ref_pos: np.ndarray, fix: Any, depth: float) -> bool:
         """Is the fix's mirror image across the references' horizontal principal axis an
@@ -201,7 +217,7 @@ class ItmtlNode(ReqResNode):
             return
         r = rnd.index
         for a in ans:
-            self._ex.append((a.T1, a.t2, a.t3, a.T4, max(a.conf, 1e-3)))
+            self._ex.append((a.T1, a.t2, a.t3, a.T4, self._ref_weight(a.conf)))
             self._ex_round.append(r)
             self._ref_pos.append(a.pos)
             self._ref_vel.append(a.vel)
@@ -262,7 +278,8 @@ class ItmtlNode(ReqResNode):
             ex = self._exchanges(*self._rates())
             sel = np.array(self._ex_round) == r
             tau_f, _ = split_delays(ex, self.alpha)
-            fix = position_fix(self.model, ref_pos, tau_f[sel], rough, depth=depth)
+            fix = position_fix(self.model, ref_pos, tau_f[sel], rough, depth=depth,
+                               weights=self._ref_weight(ref_conf) if p.weighted else None)
             moved = float(np.linalg.norm(fix.position - rough))
             rough = fix.position
             self._round_pos[r] = rough

@@ -40,6 +40,7 @@ __all__ = [
     "Fix",
     "position_fix",
     "fix_confidence",
+    "reference_variance",
     "promote",
 ]
 
@@ -231,6 +232,7 @@ def position_fix(
     tau: ArrayLike,
     p0: ArrayLike,
     depth: float | None = None,
+    weights: ArrayLike | None = None,
 ) -> Fix:
     """Phase 3: position whose modelled delays to the references best match ``tau`` (s).
 
@@ -238,7 +240,8 @@ def position_fix(
     analytic Jacobian from the delay model's gradient) started at ``p0``; with a known
     ``depth`` only ``(x, y)`` are solved. For ITMTL-wsc the start is the linear
     multilateration on ``c tau`` and the model is straight; for ITMTL the model is the
-    eigenray time (Ramezani et al.'s GNA on the ToF equations).
+    eigenray time (Ramezani et al.'s GNA on the ToF equations). ``weights`` (one per
+    reference, e.g. inverse variances) make it a weighted least squares.
     """
     ref = np.asarray(ref_pos, dtype=float).reshape(-1, 3)
     tau = np.asarray(tau, dtype=float).reshape(-1)
@@ -257,11 +260,13 @@ def position_fix(
         p[axes] = u
         return p
 
+    sw = np.ones(ref.shape[0]) if weights is None else np.sqrt(np.asarray(weights, dtype=float) / np.mean(weights))
+
     def res(u: FloatArray) -> FloatArray:
-        return model.delay(ref, full(u)) - tau
+        return sw * (model.delay(ref, full(u)) - tau)
 
     def jac(u: FloatArray) -> FloatArray:
-        return model.gradients(ref, full(u))[0][:, axes]
+        return sw[:, None] * model.gradients(ref, full(u))[0][:, axes]
 
     # scale: residuals in s, unknowns in m; x_scale keeps the trust region in metres
     sol = least_squares(res, p0[axes], jac=jac, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=50)
@@ -272,6 +277,13 @@ def position_fix(
         cov = np.full((len(axes), len(axes)), np.inf)
     rms = float(np.sqrt(np.mean(sol.fun**2)))
     return Fix(full(sol.x), cov, rms, bool(sol.success) and np.all(np.isfinite(sol.x)))
+
+
+def reference_variance(confidence: ArrayLike, floor_m: float, residual_scale_m: float) -> FloatArray:
+    """Position variance (m^2) a reference's confidence stands for: the confidence formula
+    inverted, ``(1 - c) * residual_scale`` of range doubt, on top of a floor."""
+    c = np.clip(np.asarray(confidence, dtype=float), 0.0, 1.0)
+    return floor_m**2 + ((1.0 - c) * residual_scale_m) ** 2
 
 
 def fix_confidence(ref_confidence: ArrayLike, rms_residual_m: float, residual_scale_m: float) -> float:

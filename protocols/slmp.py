@@ -32,7 +32,7 @@ from aquasim_py.registry import register
 
 from .slmp_math import DegenerateGeometryError, InsufficientMeasurementsError, MobilityPredictor, \
     multilaterate_2d, slmp_confidence
-from .stvf import localization_metrics
+from .stvf_metrics import localization_metrics
 
 __all__ = ["SLMPNode"]
 
@@ -139,11 +139,15 @@ class SLMPNode(Node):
             self.table[rec.packet.src] = (rec.rx_local, np.asarray(q["xy"], float), zh * p.speed_mps, q["eta"])
         self.table = {s: e for s, e in self.table.items() if now - e[0] <= p.validity_s}
         vel = self.predictor.velocity() if self.predictor.times else None
+        # Fresh beacons (this period) first; stale ones (within the validity window, newest
+        # first) only to make up the number multilateration needs.
+        entries = sorted(self.table.values(), key=lambda e: -e[0])
+        fresh = [e for e in entries if now - e[0] <= p.period_s]
+        stale = [e for e in entries if now - e[0] > p.period_s] if vel is not None else []
+        use = fresh + stale[: max(0, p.min_refs - len(fresh))]
         refs, ranges, etas = [], [], []
-        for t0, xy, r, eta in self.table.values():
+        for t0, xy, r, eta in use:
             if now - t0 > p.period_s:
-                if vel is None:
-                    continue
                 xy = xy + vel * (now - t0)  # own displacement since the beacon was heard
             refs.append(xy)
             ranges.append(r)
@@ -154,8 +158,13 @@ class SLMPNode(Node):
         if len(refs) >= p.min_refs:
             try:
                 xy_est = multilaterate_2d(np.array(refs), np.array(ranges))
-                conf = slmp_confidence(etas, xy_est, np.array(refs), np.array(ranges))
-                method = "multilateration"
+                # A node hears only nodes within range: a fix farther than that from a
+                # reference is a failed one (ill-conditioned geometry), not an estimate.
+                if np.all(np.linalg.norm(np.array(refs) - xy_est, axis=1) <= p.range_m):
+                    conf = slmp_confidence(etas, xy_est, np.array(refs), np.array(ranges))
+                    method = "multilateration"
+                else:
+                    xy_est = None
             except (DegenerateGeometryError, InsufficientMeasurementsError, np.linalg.LinAlgError):
                 xy_est = None
         if xy_est is None and len(refs) >= p.self_min_refs and self.last is not None:
@@ -165,7 +174,8 @@ class SLMPNode(Node):
         if xy_est is None:
             self.is_reference = False
             return
-        if method == "multilateration":
+        if method == "multilateration" and conf >= p.delta:
+            # the mobility pattern is learnt from trusted fixes only
             self.predictor.add(now, xy_est)
         self.confidence = conf
         self.is_reference = method == "multilateration" and conf >= p.delta

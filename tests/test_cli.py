@@ -319,3 +319,26 @@ def test_real_subprocess(scen, tmp_path):
                           capture_output=True, text=True, env=env, timeout=120)
     assert good.returncode == 0, good.stderr
     assert "beacon.range_rmse_m" in good.stdout and (tmp_path / "y" / "summary.json").exists()
+
+
+def test_progress_bar_follows_simulated_time(scen, tmp_path, capsys, monkeypatch):
+    from aquasim_py import kernel
+
+    seen: list[tuple[float, float]] = []
+    real = kernel.Simulation.run
+
+    def spy(self, until, progress=None):
+        def p(t, u):
+            seen.append((t, u))
+            progress(t, u)
+
+        return real(self, until, progress=p if progress is not None else None)
+
+    monkeypatch.setattr(kernel.Simulation, "run", spy)
+    monkeypatch.setattr(cli, "_progress_wanted", lambda quiet: not quiet)  # as on a terminal
+    assert run(capsys, scen, "--out", tmp_path / "a")[0] == 0
+    times = [t for t, _ in seen]
+    assert len(times) >= 50 and times == sorted(times) and seen[-1] == (60.0, 60.0)
+    seen.clear()
+    assert run(capsys, scen, "--out", tmp_path / "b", "--quiet")[0] == 0
+    assert seen == []

@@ -25,6 +25,7 @@ arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_s
 from __future__ import annotations
 
 import math
+from bisect import bisect_left, insort
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -128,10 +129,14 @@ class AcousticChannel:
         self.config = config
         self.loss_model: LossModel = loss_model if loss_model is not None else default_loss_model()
         self._uid = 0
-        self._row = sim.trace.table("packets").append_fast
+        self._table = sim.trace.table("packets")
+        self._row = self._table.row_buffer().append  # rows go in as tuples, moved to columns in batches
         self._range2 = float(config.max_range_m) ** 2
         self._max_duration = 0.0
         self._collision = config.collision
+        self._static_links: dict[int, tuple[int, Any]] = {}
+        self._destructive = config.collision == "destructive"
+        self._capture = config.collision == "capture"
 
     # -- transmit ---------------------------------------------------------------------------------
 
@@ -172,52 +177,73 @@ class AcousticChannel:
         dst_code = -1 if dst is None else dst
         nan = math.nan
         row = self._row
+        self._table.flush_if_large()
         core.tx_log.append((t0, t0 + duration))
-        if len(core.tx_log) > 32:
+        if len(core.tx_log) > core.log_cap:
             self._prune(core)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
+        in_range, links = self._links(src, t0)
+        if dst is not None and dst not in in_range:
+            row((t0, "drop", "range", dst, src, dst, uid, kind, bits, nan, nan, None, nan))
+        # a unicast is heard (and interferes) everywhere in range, but only its addressee delivers
+        only_dst = dst is not None and self._collision == "none"
+        track = self._destructive or self._capture
+
+        cores = sim._cores
+        thr = self.config.snr_threshold_db
+        finish = self._finish
+        for rid, T, path, s in links:
+            intended = dst is None or dst == rid
+            if only_dst and not intended:
+                continue
+            if T != T:  # NaN: no eigenray (shadow zone)
+                if intended:
+                    row((t0, "drop", "no_path", rid, src, dst_code, uid, kind, bits, nan, nan, path, nan))
+                continue
+            arr = t0 + T
+            if s < thr:  # NaN (no loss model) compares False: never dropped on SNR
+                if intended:
+                    row((arr, "drop", "snr", rid, src, dst_code, uid, kind, bits, T, s, path, nan))
+                continue
+            end = arr + duration
+            rcore = cores[rid]
+            entry = (arr, end, s)
+            if track:  # overlaps matter only with a collision model
+                insort(rcore.rx_log, entry)
+            if intended:
+                env.timeout(end - t0).callbacks.append(
+                    partial(finish, rcore, pkt, entry, T, path, dst_code))
+        return tx_local
+
+    def _links(self, src: int, t0: float) -> tuple[frozenset[int], list[tuple[int, float, str, float]]]:
+        """Nodes in range of ``src`` at ``t0`` and, per candidate, (id, delay s, path name, SNR dB).
+
+        When no node moves the answer never changes, so it is cached per sender (and recomputed
+        if nodes are added).
+        """
+        sim = self._sim
+        n = len(sim.nodes)
+        static = not sim.is_moving().any()
+        if static:
+            hit = self._static_links.get(src)
+            if hit is not None and hit[0] == n:
+                return hit[1]
         pos = sim.positions(t0)
         p_src = pos[src]
         diff = pos - p_src
         d2 = np.einsum("ij,ij->i", diff, diff)
         d2[src] = np.inf
         cand = np.flatnonzero(d2 <= self._range2)
-        if dst is not None and not (d2[dst] <= self._range2):
-            row((t0, "drop", "range", dst, src, dst, uid, kind, bits, nan, nan, None, nan))
-        if cand.size == 0:
-            return tx_local
-        if dst is not None:
-            # only the addressee delivers; the others matter only as places where it interferes
-            if self._collision == "none":
-                cand = cand[cand == dst]
-                if cand.size == 0:
-                    return tx_local
-
-        times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
-
-        cores = sim._cores
-        thr = self.config.snr_threshold_db
-        finish = self._finish
-        for rid, T, path, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
-            intended = dst is None or dst == rid
-            if T != T:  # NaN: no eigenray (shadow zone)
-                if intended:
-                    row((t0, "drop", "no_path", rid, src, dst_code, uid, kind, bits, nan, nan, "none", nan))
-                continue
-            arr = t0 + T
-            if s < thr:  # NaN (no loss model) compares False: never dropped on SNR
-                if intended:
-                    row((arr, "drop", "snr", rid, src, dst_code, uid, kind, bits, T, s, PATH_NAMES[path], nan))
-                continue
-            end = arr + duration
-            rcore = cores[rid]
-            entry = (arr, end, s)
-            rcore.rx_log.append(entry)
-            if intended:
-                env.timeout(end - t0).callbacks.append(
-                    partial(finish, rcore, pkt, entry, T, path, dst_code))
-        return tx_local
+        if cand.size:
+            times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            links = list(zip(cand.tolist(), times.tolist(), [PATH_NAMES[p] for p in paths.tolist()], snr.tolist()))
+        else:
+            links = []
+        out = (frozenset(cand.tolist()), links)
+        if static:
+            self._static_links[src] = (n, out)
+        return out
 
     def _arrivals(self, t0: float, p_src: NDArray[np.float64], cand: NDArray[np.intp],
                   p_rx: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int8], NDArray[np.float64]]:
@@ -250,7 +276,7 @@ class AcousticChannel:
     # -- receive ----------------------------------------------------------------------------------
 
     def _finish(self, rcore: _NodeCore, pkt: Packet, entry: tuple[float, float, float], tof: float,
-                path: int, dst_code: int, _ev: simpy.Event) -> None:
+                path: str, dst_code: int, _ev: simpy.Event) -> None:
         """The last bit of ``pkt`` has arrived at ``rcore``: decide, stamp, deliver, trace."""
         arr, end, snr = entry
         reason = None
@@ -258,35 +284,48 @@ class AcousticChannel:
             if a < end and b > arr:
                 reason = "half_duplex"
                 break
-        if reason is None and self._collision != "none":
+        if reason is None and (self._destructive or self._capture):
+            # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
+            # (arr - longest packet, end), so only that slice is examined
+            log = rcore.rx_log
+            i = bisect_left(log, (arr - self._max_duration,))
+            n = len(log)
             power = 0.0
             hit = False
-            for e in rcore.rx_log:
-                if e is not entry and e[0] < end and e[1] > arr:
+            while i < n:
+                e = log[i]
+                i += 1
+                if e[0] >= end:
+                    break
+                if e[1] > arr and e is not entry:
                     hit = True
+                    if self._destructive:
+                        break
                     power += 10.0 ** (e[2] / 10.0)
-            if hit:
-                if self._collision == "destructive":
-                    reason = "collision"
-                elif not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db):
-                    reason = "collision"
-        if len(rcore.rx_log) > 32:
-            self._prune(rcore)
+            if hit and (self._destructive or
+                        not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
+                reason = "collision"
+            # forget signals that ended before anything still pending could start: arrival
+            # earlier than now - 2 * longest packet implies that
+            k = bisect_left(log, (self._env.now - 2.0 * self._max_duration,))
+            if k:
+                del log[:k]
         if reason is not None:
             self._row((arr, "drop", reason, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits,
-                       tof, snr, PATH_NAMES[path], math.nan))
+                       tof, snr, path, math.nan))
             return
         rx_local = rcore.stamp(arr)
         rcore.deliver(Reception(pkt, rx_local, snr))
         self._row((arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits,
-                   tof, snr, PATH_NAMES[path], rx_local))
+                   tof, snr, path, rx_local))
 
     def _prune(self, core: _NodeCore) -> None:
-        """Forget signals and transmissions that can no longer overlap a pending reception.
+        """Forget own transmissions that can no longer overlap a pending reception.
 
         A pending reception ends at or after now and lasts at most the longest packet so far,
         so it began after now - max_duration; anything that ended before cannot touch it.
         """
         cutoff = self._env.now - self._max_duration
-        core.rx_log = [e for e in core.rx_log if e[1] >= cutoff]
         core.tx_log = [e for e in core.tx_log if e[1] >= cutoff]
+        # next prune when the log has doubled: amortized O(1) per entry, short scans
+        core.log_cap = max(8, 2 * len(core.tx_log))

@@ -12,10 +12,10 @@ arcs of the paper, and the travel time is the hyperbolic distance over |a|:
 
     t = (2/|a|) asinh(|a| D / (2 sqrt(c1 c2)))                      (equivalent to eq 13)
 
-with D the Euclidean distance and c1, c2 the end-point speeds. Written as
-t = D / sqrt(c1 c2) * asinh(y)/y it has no division by a and no difference of large numbers,
-so equal depths (eq 12), one node above the other (eq 14), a -> 0 (t -> D / c) and a < 0
-all come out of one expression to rounding error. The angles follow from the circle through
+with D the Euclidean distance and c1, c2 the end-point speeds. It has no difference of large
+numbers: asinh(y) ~ y keeps full relative precision for tiny y, so the factor a cancels in
+floating point too, and equal depths (eq 12), one node above the other (eq 14), a -> 0
+(t -> D / c) and a < 0 all come out of one expression to a few ulps. The angles follow from the circle through
 both end points (centre on the c = 0 line): with R the horizontal range, dz = z2 - z1 and
 S = c1 + c2,
 
@@ -66,14 +66,27 @@ def _ratio(num: FloatArray, den: FloatArray, at_zero: float = 1.0) -> FloatArray
     return out
 
 
+# Below this |a| the arc equals the straight line to far beyond double precision
+# ((a D / c)^2 < 1e-390), and 2/|a| could overflow: treat it as a = 0.
+_A_TINY = 1e-200
+
+
 def _time(a: ArrayLike, D: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatArray:
-    """Arc travel time (s): D / sqrt(c1 c2) * asinh(y) / y, y = |a| D / (2 sqrt(c1 c2)) (eq 13)."""
-    with np.errstate(invalid="ignore"):
+    """Arc travel time (s): (2/|a|) asinh(y), y = |a| D / (2 sqrt(c1 c2)) (equivalent to eq 13).
+
+    No cancellation: asinh keeps full relative precision for tiny y, so for |a| -> 0 this is
+    D / sqrt(c1 c2) to a few ulps (the products and quotients only add rounding).
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
         g = np.sqrt(c1 * c2)
-        y = np.abs(a) * D / (2.0 * g)
-        # asinh(y)/y -> 1 as y -> 0; numpy's asinh keeps full relative precision for tiny y,
-        # so |a| <= 1e-9 gives D / sqrt(c1 c2) to rounding error (no series needed).
-        return D / g * _ratio(np.arcsinh(y), y)
+        if np.ndim(a) == 0:
+            aa = abs(float(a))
+            if aa < _A_TINY:
+                return D / g
+            return np.arcsinh(D * (0.5 * aa) / g) * (2.0 / aa)
+        aa = np.abs(np.asarray(a, dtype=float))
+        aa = np.where(aa < _A_TINY, 0.0, aa)
+        return np.where(aa > 0.0, 2.0 * np.arcsinh(aa * D / (2.0 * g)) / aa, D / g)
 
 
 def _turning(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, S: FloatArray
@@ -93,12 +106,29 @@ def _turning(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: F
     return np.where(has, zv, np.nan), has
 
 
-def _blocked(a: ArrayLike, z1: FloatArray, z2: FloatArray, zv: FloatArray, c1: FloatArray, c2: FloatArray,
-             bottom: float | None) -> NDArray[np.bool_]:
-    """True where the direct arc is not in the water column [0, bottom] or the speed is not positive."""
-    bad = (z1 < 0.0) | (z2 < 0.0) | ~(c1 > 0.0) | ~(c2 > 0.0)
+def _blocked(a: ArrayLike, b: ArrayLike, z1: FloatArray, z2: FloatArray, zv: FloatArray | float,
+             c1: FloatArray, c2: FloatArray, bottom: float | None) -> NDArray[np.bool_]:
+    """True where the direct arc is not in the water column [0, bottom] or the speed is not positive.
+
+    ``zv`` is the turning depth (NaN where none; NaN compares False).
+    """
     with np.errstate(invalid="ignore"):
-        bad |= zv < 0.0  # NaN (no vertex) compares False
+        if np.ndim(a) == 0 and np.ndim(b) == 0 and float(b) > 0.0:
+            # scalar profile: c > 0 <=> z above the depth -b/a where c vanishes (a < 0 only)
+            a, b = float(a), float(b)
+            bad = np.minimum(z1, z2) < 0.0
+            if a < 0.0 or bottom is not None:
+                z_hi = np.maximum(z1, z2)
+                if a < 0.0:
+                    bad |= z_hi >= -b / a
+                    bad |= zv < 0.0  # with a < 0 the vertex is the shallowest point
+                if bottom is not None:
+                    bad |= z_hi > bottom
+                    if a > 0.0:
+                        bad |= zv > bottom  # with a > 0 it is the deepest
+            return bad
+        bad = (z1 < 0.0) | (z2 < 0.0) | ~(c1 > 0.0) | ~(c2 > 0.0)
+        bad |= zv < 0.0
         if bottom is not None:
             bad |= (z1 > bottom) | (z2 > bottom) | (zv > bottom)
     return bad
@@ -127,7 +157,7 @@ def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bott
     c2 = b + np.multiply(a, z2)
     D = np.sqrt(R2 + dz * dz)
     t = _time(a, D, c1, c2)
-    bad = _blocked(a, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
+    bad = _blocked(a, b, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
     return np.where(bad, np.nan, t)
 
 
@@ -195,7 +225,7 @@ def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom:
     t = _time(a, D, c1, c2)
     th1, th2, length = _angles_length(a, R2, dz, c1, c2)
     zv, _ = _turning(a, R2, dz, z1, c1, c1 + c2)
-    bad = _blocked(a, z1, z2, zv, c1, c2, bottom)
+    bad = _blocked(a, b, z1, z2, zv, c1, c2, bottom)
     shape = bad.shape
     nan = np.nan
     return Eigenray(
@@ -229,7 +259,7 @@ def travel_time_gradient(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayL
         ux, uy, uz = _ratio(dx, D, 0.0), _ratio(dy, D, 0.0), _ratio(dz, D, 0.0)
         gz = uz - np.multiply(a, D) / (2.0 * c2)
     gz = np.where(D == 0.0, 0.0, gz)
-    bad = _blocked(a, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
+    bad = _blocked(a, b, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
     k = np.where(bad, np.nan, k)
     return np.stack(np.broadcast_arrays(k * ux, k * uy, k * gz), axis=-1)
 

@@ -15,7 +15,9 @@ them without leaving the water and with at most one turning point:
 The eigenray invariant solves X_family(p) = horizontal distance. The solver samples each
 family on a grid of the grazing angle phi (p = p_max cos phi, which makes the grazing
 singularities smooth), brackets every sign change and refines it with a vectorized
-Illinois (modified regula falsi) iteration to ~1e-13 relative range, all pairs at once.
+Newton iteration (analytic d X / d p, bisection whenever a step leaves the bracket) to
+~1e-13 relative range, all pairs at once; the time is then corrected to first order for the
+residual (t = p X + tau(p) is stationary in p at an eigenray).
 Several eigenrays (caustics) give several roots: the earliest arrival is kept. Rays whose
 turning point would lie above the surface or below the bottom are not direct paths
 (eqs 21-22); the boundary-reflected arrivals come from the same solver applied to the
@@ -63,8 +65,8 @@ REASON_OUTSIDE = "point outside the water column"
 #: positive gradient: a ray turning deeper than this reaches hundreds of km, far beyond
 #: any acoustic network
 _OPEN_DEPTH_M = 1.0e5
-_GRID = 17  # phi samples per turning family (brackets the roots; caustics need >1 sample)
-_CHUNK = 4096  # pairs per block, bounds the (pairs, samples, layers) work arrays
+_GRID = 9  # phi samples per turning family (brackets the roots; caustics need >1 sample)
+_CHUNK = 16384  # pairs per block, bounds the (pairs, samples, layers) work arrays
 _RTOL = 1e-13  # relative tolerance on horizontal range
 _MAXIT = 80
 _FAM_D, _FAM_L, _FAM_U = 0, 1, 2
@@ -99,6 +101,21 @@ class _Stack:
 
     def layer(self, zq: NDArray[np.float64]) -> NDArray[np.intp]:
         return np.clip(np.searchsorted(self.z, zq, side="right") - 1, 0, self.g.size - 1)
+
+    def extended(self, depth: float = 1.0e4) -> tuple[_Stack, float]:
+        """The stack continued beyond the surface (and the bottom) with the end gradients,
+        shifted down by the returned offset: where would a direct ray leave the water?"""
+        g0, gl = self.g[0], self.g[-1]
+        up = min(depth, 0.5 * self.c[0] / g0) if g0 > 0.0 else depth
+        z = [self.z + up]
+        c = [self.c]
+        z.insert(0, np.array([0.0]))
+        c.insert(0, np.array([self.c[0] - g0 * up]))
+        if self.bottom:
+            down = min(depth, 0.5 * self.c[-1] / -gl) if gl < 0.0 else depth
+            z.append(np.array([self.zmax + up + down]))
+            c.append(np.array([self.c[-1] + gl * down]))
+        return _Stack.from_points(np.concatenate(z), np.concatenate(c), bottom=False), up
 
     def mirrored(self, boundary: Literal["surface", "bottom"]) -> _Stack:
         """The profile unfolded about a boundary: one reflection becomes a direct path."""
@@ -148,27 +165,44 @@ def _asinc(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.where(v == 0.0, 1.0, r)
 
 
-def _cos_sin(p: NDArray[np.float64], c: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(cos theta, |sin theta|) = (p c, sqrt(1 - p^2 c^2)) without cancellation near grazing."""
-    s = p * c
-    return s, np.sqrt(np.maximum((1.0 - s) * (1.0 + s), 0.0))
+def _inv(pmax, phi):
+    """The Snell invariant p = p_max cos(phi) with its angle: (p, p_max, sin phi, cos phi)."""
+    cp = np.cos(phi)
+    return (pmax * cp, pmax, np.sin(phi), cp)
 
 
-def _seg(p, c1, c2, dz, g, full: bool, turn1: bool = False, turn2: bool = False):
+def _expand(inv):
+    return tuple(np.asarray(v)[..., None] for v in inv)
+
+
+def _cos_sin(inv, c: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(cos theta, |sin theta|) at speed c for the invariant ``inv``.
+
+    sin^2 = sin^2 phi + cos^2 phi (1 - u)(1 + u), u = c / c_max: exact near grazing (where
+    1 - (p c)^2 would lose half the digits), and sin theta = sin phi where c = c_max.
+    """
+    _, pm, sp, cp = inv
+    u = c * pm
+    return cp * u, np.sqrt(np.maximum(sp * sp + cp * cp * ((1.0 - u) * (1.0 + u)), 0.0))
+
+
+def _seg(inv, c1, c2, dz, g, full: bool, deriv: bool = False):
     """Range (and time, arc length) of a monotone ray piece from speed c1 down to c2, dz >= 0.
 
     Range  X = (sin th1 - sin th2) / (p g) = p (c1 + c2) dz / (sin th1 + sin th2)   (eq 6)
     Time   T = [ln(c2/c1) + ln((1 + sin th1)/(1 + sin th2))] / g                   (eq 13)
     Length L = (arcsin(p c2) - arcsin(p c1)) / (p g)                              (eq 19)
     each written as dz times a bounded factor, so g = 0 (straight line) is exact.
-    ``turn1`` / ``turn2``: that end is a turning point (sin theta = 0 exactly; p c rounds).
     """
-    w1 = np.where(turn1, 0.0, _cos_sin(p, c1)[1])
-    w2 = np.where(turn2, 0.0, _cos_sin(p, c2)[1])
+    p = inv[0]
+    _, w1 = _cos_sin(inv, c1)
+    _, w2 = _cos_sin(inv, c2)
     den = w1 + w2
     pos = dz > 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         x = np.where(pos, p * (c1 + c2) * dz / den, 0.0)
+        if deriv:  # d X / d p, with d sin(th) / d p = -p c^2 / sin(th)
+            return x, np.where(pos, x / p + x * p * (c1 * c1 / w1 + c2 * c2 / w2) / den, 0.0), None
         if not full:
             return x, None, None
         q = p * p * (c1 + c2) * dz / (den * (1.0 + w2))
@@ -224,30 +258,50 @@ def _geometry(st: _Stack, za: NDArray[np.float64], zb: NDArray[np.float64]) -> _
 class _Layers:
     """Full-layer closed forms for one array of invariants p (shape S), layers on the last axis."""
 
-    def __init__(self, st: _Stack, p: NDArray[np.float64], full: bool) -> None:
-        self.st, self.p, self.full = st, p, full
-        self.pc = p[..., None] * st.c
-        pe = p[..., None]
-        x, t, arc = _seg(pe, st.c[:-1], st.c[1:], st.h, st.g, full)
-        self.x, self.t, self.arc = x, t, arc
+    def __init__(self, st: _Stack, inv, full: bool, deriv: bool = False) -> None:
+        self.st, self.p, self.full, self.deriv = st, inv, full, deriv
+        ie = _expand(inv)
+        pe = ie[0]
+        if full:
+            self.pc = pe * st.c
+            self.x, self.t, self.arc = _seg(ie, st.c[:-1], st.c[1:], st.h, st.g, True)
+        else:
+            # range only (the hot path of the root finder): sin theta once per breakpoint
+            self.pc, w = _cos_sin(ie, st.c)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                den = w[..., :-1] + w[..., 1:]
+                self.x = pe * ((st.c[:-1] + st.c[1:]) * st.h) / den
+                if deriv:
+                    q = st.c**2 / w
+                    self.dx = self.x / pe + self.x * pe * (q[..., :-1] + q[..., 1:]) / den
 
-    def interval(self, z1, k1, z2, k2, c1=None, c2=None):
-        """Range (time, length) of the monotone piece z1 (layer k1) -> z2 (layer k2), z1 <= z2."""
-        st, p, full = self.st, self.p, self.full
+    def interval(self, z1, k1, z2, k2, turn: str | None = None):
+        """Range (time, length) of the monotone piece z1 (layer k1) -> z2 (layer k2), z1 <= z2.
+
+        ``turn="bottom"``: z2 is the ray's turning point (only its layer k2 is used);
+        ``turn="top"``: z1 is. The turning piece uses its own closed form, which needs no
+        turning depth (so no rounding of p * (1/p) enters it)."""
+        st, p, full, dv = self.st, self.p, self.full, self.deriv
         same = k1 == k2
-        e1 = np.where(same, z2, st.z[k1 + 1])
         g1, g2 = st.g[k1], st.g[k2]
-        cs = st.c[k1] + g1 * (z1 - st.z[k1]) if c1 is None else c1
-        ce = st.c[k1] + g1 * (e1 - st.z[k1])
-        cz2 = st.c[k2] + g2 * (z2 - st.z[k2]) if c2 is None else c2
-        if c2 is not None:
-            ce = np.where(same, c2, ce)
-        # a turning end has sin theta = 0 exactly (p * (1/p) need not round to 1)
-        xa, ta, la = _seg(p, cs, ce, e1 - z1, g1, full, turn1=c1 is not None, turn2=same & (c2 is not None))
-        xb, tb, lb = _seg(p, st.c[k2], cz2, np.where(same, 0.0, z2 - st.z[k2]), g2, full, turn2=c2 is not None)
+        c1 = st.c[k1] + g1 * (z1 - st.z[k1])
+        c2 = st.c[k2] + g2 * (z2 - st.z[k2])
+        if turn is None:
+            e1 = np.where(same, z2, st.z[k1 + 1])
+            ce = np.where(same, c2, st.c[k1 + 1])
+            xa, ta, la = _seg(p, c1, ce, e1 - z1, g1, full, dv)
+            xb, tb, lb = _seg(p, st.c[k2], c2, np.where(same, 0.0, z2 - st.z[k2]), g2, full, dv)
+        elif turn == "bottom":
+            xa, ta, la = _seg(p, c1, st.c[k1 + 1], np.where(same, 0.0, st.z[k1 + 1] - z1), g1, full, dv)
+            xb, tb, lb = _turning(p, np.where(same, c1, st.c[k2]), g2, full, dv)
+        else:
+            xa, ta, la = _turning(p, np.where(same, c2, st.c[k1 + 1]), g1, full, dv)
+            xb, tb, lb = _seg(p, st.c[k2], c2, np.where(same, 0.0, z2 - st.z[k2]), g2, full, dv)
         kk = np.arange(st.g.size)
         mid = (kk > k1[..., None]) & (kk < k2[..., None])
         x = xa + xb + np.where(mid, self.x, 0.0).sum(axis=-1)
+        if dv:
+            return x, ta + tb + np.where(mid, self.dx, 0.0).sum(axis=-1), None
         if not full:
             return x, None, None
         t = ta + tb + np.where(mid, self.t, 0.0).sum(axis=-1)
@@ -255,42 +309,59 @@ class _Layers:
         return x, t, arc
 
 
+def _turning(inv, c, g, full: bool, deriv: bool = False):
+    """Range, time and arc length from speed c to the turning point c = 1/p in a layer of
+    gradient g: X = sin th / (p |g|), T = artanh(sin th) / |g|, L = th / (p |g|) (eqs 6, 13, 19
+    with the turning angle 0)."""
+    p = inv[0]
+    s, w = _cos_sin(inv, c)
+    ag = np.abs(g)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = w / (p * ag)
+        if deriv:
+            return x, -1.0 / (w * p * p * ag), None
+        if not full:
+            return x, None, None
+        return x, np.arctanh(w) / ag, np.arctan2(w, s) / (p * ag)
 
 
-def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False):
+def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False,
+            deriv: bool = False):
     """Range X(phi) (NaN where the family has no ray), and when ``full`` also time, arc
-    length and turning depth, for invariants p = p_max cos(phi)."""
-    p = geo.pmax * np.cos(phi)
-    lay = _Layers(st, p, full)
+    length and turning depth, for invariants p = p_max cos(phi). With ``deriv`` the second
+    value is d X / d phi instead."""
+    inv = _inv(geo.pmax, phi)
+    p = inv[0]
+    lay = _Layers(st, inv, full, deriv)
     xd, td, ld = lay.interval(geo.za, geo.ka, geo.zb, geo.kb)
+    dpdphi = -geo.pmax * np.sin(phi)
     if fam == _FAM_D:
+        if deriv:
+            return xd, td * dpdphi, None, None
         turn = np.full(np.shape(xd), np.nan)
         return xd, td, ld, turn
-    with np.errstate(divide="ignore"):
-        ip = 1.0 / p
     blocked = lay.pc >= 1.0
     nk = st.g.size
     if fam == _FAM_L:
+        # the turning layer lies above the first breakpoint below B that the ray cannot pass
         cand = blocked & (st.z > geo.zb[..., None])
         ok = cand.any(axis=-1)
-        kt = np.clip(np.argmax(cand, axis=-1) - 1, 0, nk - 1)
-        kt = np.maximum(kt, geo.kb)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zt = st.z[kt] + (ip - st.c[kt]) / st.g[kt]
-        zt = np.clip(np.nan_to_num(zt, nan=geo.zb), np.maximum(geo.zb, st.z[kt]), st.z[kt + 1])
-        xe, te, le = lay.interval(geo.zb, geo.kb, zt, kt, c2=ip)
+        kt = np.maximum(np.clip(np.argmax(cand, axis=-1) - 1, 0, nk - 1), geo.kb)
+        xe, te, le = lay.interval(geo.zb, geo.kb, geo.zb, kt, turn="bottom")
+        lo, hi = np.maximum(geo.zb, st.z[kt]), st.z[kt + 1]
     else:
         cand = blocked & (st.z < geo.za[..., None])
         ok = cand.any(axis=-1)
-        ku = np.clip(nk - np.argmax(cand[..., ::-1], axis=-1), 0, nk - 1)
-        ku = np.minimum(ku, geo.ka)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zt = st.z[ku] + (ip - st.c[ku]) / st.g[ku]
-        zt = np.clip(np.nan_to_num(zt, nan=geo.za), st.z[ku], np.minimum(geo.za, st.z[ku + 1]))
-        xe, te, le = lay.interval(zt, ku, geo.za, geo.ka, c1=ip)
+        kt = np.minimum(np.clip(nk - np.argmax(cand[..., ::-1], axis=-1), 0, nk - 1), geo.ka)
+        xe, te, le = lay.interval(geo.za, kt, geo.za, geo.ka, turn="top")
+        lo, hi = st.z[kt], np.minimum(geo.za, st.z[kt + 1])
     x = np.where(ok, xd + 2.0 * xe, np.nan)
+    if deriv:
+        return x, (td + 2.0 * te) * dpdphi, None, None
     if not full:
         return x, None, None, None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zt = np.clip(st.z[kt] + (1.0 / p - st.c[kt]) / st.g[kt], lo, hi)
     return x, td + 2.0 * te, ld + 2.0 * le, np.where(ok, zt, np.nan)
 
 
@@ -298,40 +369,48 @@ def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: boo
 # root finding
 
 
-def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi):
-    """Vectorized Illinois iteration on h(phi) = X(phi) - target inside brackets [lo, hi]
-    with h(lo) h(hi) <= 0; returns (phi, |h|) at the best end point."""
+def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi, guess=None):
+    """Safeguarded Newton iteration on h(phi) = X(phi) - target inside brackets [lo, hi]
+    with h(lo) h(hi) <= 0 (bisection whenever a step leaves the bracket or stalls), all
+    brackets at once; returns (phi, |h|) at the best point seen."""
     a, b, fa, fb = lo.copy(), hi.copy(), hlo.copy(), hhi.copy()
     tol = _RTOL * np.maximum(target, 1.0)
-    width0 = np.abs(b - a)
-    stale = np.zeros(a.shape, dtype=np.int8)
-    active = (np.abs(fb) > tol) & (np.abs(fa) > tol)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = a - fa * (b - a) / (fb - fa)  # regula falsi start
+    if guess is not None:
+        x = guess
+    x = np.where(np.isfinite(x) & (x > np.minimum(a, b)) & (x < np.maximum(a, b)), x, 0.5 * (a + b))
+    best = np.where(np.abs(fa) <= np.abs(fb), a, b)
+    fbest = np.minimum(np.abs(fa), np.abs(fb))
+    prev = np.full(a.shape, np.inf)
+    active = fbest > tol
     for _ in range(_MAXIT):
         idx = np.flatnonzero(active)
         if idx.size == 0:
             break
-        A, B, FA, FB = a[idx], b[idx], fa[idx], fb[idx]
+        X = x[idx]
+        fx, dfx, _, _ = _family(st, geo.take(idx), fam, X, deriv=True)
+        fx = fx - target[idx]
+        A, B, FA = a[idx], b[idx], fa[idx]
+        same_as_a = np.sign(fx) == np.sign(FA)
+        A, FA, B = np.where(same_as_a, X, A), np.where(same_as_a, fx, FA), np.where(same_as_a, B, X)
+        a[idx], fa[idx], b[idx] = A, FA, B
+        afx = np.abs(fx)
+        improved = afx < fbest[idx]
+        best[idx] = np.where(improved, X, best[idx])
+        fbest[idx] = np.where(improved, afx, fbest[idx])
         with np.errstate(divide="ignore", invalid="ignore"):
-            x = (A * FB - B * FA) / (FB - FA)
+            nx = X - fx / dfx
         lo_, hi_ = np.minimum(A, B), np.maximum(A, B)
-        bis = ~np.isfinite(x) | (x <= lo_) | (x >= hi_) | (stale[idx] >= 3)
-        x = np.where(bis, 0.5 * (A + B), x)
-        fx = _family(st, geo.take(idx), fam, x)[0] - target[idx]
-        fx = np.where(np.isnan(fx), -np.inf, fx)  # cannot happen inside a valid bracket
-        flip = np.sign(fx) != np.sign(FB)
-        # Illinois: keep the bracket, halve the stale end's value when it is kept twice
-        A = np.where(flip, B, A)
-        FA = np.where(flip, FB, 0.5 * FA)
-        B, FB = x, fx
-        w = np.abs(B - A)
-        shrunk = w <= 0.5 * width0[idx]
-        stale[idx] = np.where(shrunk | bis, 0, stale[idx] + 1)
-        width0[idx] = np.where(shrunk | bis, w, width0[idx])
-        a[idx], b[idx], fa[idx], fb[idx] = A, B, FA, FB
-        done = (np.abs(FB) <= tol[idx]) | (w <= 4.0 * np.finfo(float).eps * np.maximum(np.abs(B), 1e-300))
+        slow = afx > 0.5 * prev[idx]
+        bis = ~np.isfinite(nx) | (nx <= lo_) | (nx >= hi_) | (slow & (prev[idx] < np.inf))
+        nx = np.where(bis, 0.5 * (A + B), nx)
+        prev[idx] = np.where(bis, np.inf, afx)
+        x[idx] = nx
+        width = hi_ - lo_
+        done = (afx <= tol[idx]) | (width <= 4.0 * np.finfo(float).eps * np.maximum(hi_, 1e-300)) | ~np.isfinite(fx)
         active[idx] = ~done
-    better_b = np.abs(fb) <= np.abs(fa)
-    return np.where(better_b, b, a), np.where(better_b, np.abs(fb), np.abs(fa))
+    return best, fbest
 
 
 def _pick_brackets(h: NDArray[np.float64]):
@@ -371,8 +450,8 @@ class _Arrivals:
         return cls(np.full(n, np.inf), nan.copy(), nan.copy(), nan.copy(), nan.copy(), np.zeros(n, bool))
 
 
-def _angles(p, c, w_sign):
-    s, w = _cos_sin(p, c)
+def _angles(inv, c, w_sign):
+    s, w = _cos_sin(inv, c)
     return w_sign * np.arctan2(w, s)
 
 
@@ -390,15 +469,16 @@ def _finish(st, geo, fam, phi, target, idx, best: _Arrivals, resid) -> None:
     sa, sb = {_FAM_D: (1.0, 1.0), _FAM_L: (1.0, -1.0), _FAM_U: (-1.0, 1.0)}[fam]
     # several candidates may share a pair: sort so the earliest is written last
     order = np.argsort(-t, kind="stable")
-    idx, t, arc, turn, p = idx[order], t[order], arc[order], turn[order], p[order]
-    ca, cb = g.ca[order], g.cb[order]
+    idx, t, arc, turn, phi = idx[order], t[order], arc[order], turn[order], phi[order]
+    ca, cb, pm = g.ca[order], g.cb[order], g.pmax[order]
     better = t < best.time[idx]
-    idx, t, arc, turn, p, ca, cb = (v[better] for v in (idx, t, arc, turn, p, ca, cb))
+    idx, t, arc, turn, phi, ca, cb, pm = (v[better] for v in (idx, t, arc, turn, phi, ca, cb, pm))
+    inv = _inv(pm, phi)
     best.time[idx] = t
     best.length[idx] = arc
     best.turn[idx] = turn
-    best.ang_a[idx] = _angles(p, ca, sa)
-    best.ang_b[idx] = _angles(p, cb, sb)
+    best.ang_a[idx] = _angles(inv, ca, sa)
+    best.ang_b[idx] = _angles(inv, cb, sb)
     best.ok[idx] = True
 
 
@@ -437,7 +517,9 @@ def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
         i, xg = i[reach], xg[reach]
         if i.size:
             lo, hi = np.zeros(i.size), np.full(i.size, 0.5 * np.pi)
-            phi, res = _refine(st, geo.take(i), _FAM_D, x[i], lo, hi, xg - x[i], -x[i])
+            # the chord's angle is the root for a uniform speed: a good Newton start
+            guess = np.arctan2(zb[i] - za[i], x[i])
+            phi, res = _refine(st, geo.take(i), _FAM_D, x[i], lo, hi, xg - x[i], -x[i], guess)
             _finish(st, geo, _FAM_D, phi, x[i], i, best, res)
 
     # turning families: sample phi, bracket every usable sign change, refine
@@ -629,10 +711,12 @@ def reflected_eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, boundar
     return _to_eigenray(_reflected(st, s[:, 2], d[:, 2], x, boundary), kind, shape)
 
 
-def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDArray[np.object_]:
+def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike, *, assume_no_direct: bool = False
+                ) -> NDArray[np.object_]:
     """Why there is no direct eigenray, per pair ("" where there is one): a point outside
     the water; the rays that would connect the points leave the water (only a reflected
-    path exists: the reason names the boundary of the earliest one); or a shadow zone."""
+    path exists: the reason names the boundary of the earliest one); or a shadow zone.
+    ``assume_no_direct``: the caller already knows there is no direct path (skip the solve)."""
     shape, s, d, x = _pairs(src, dst)
     st = _stack(profile, _deepest(s, d))
     out = np.full(x.size, "", dtype=object)
@@ -640,15 +724,14 @@ def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDArray[np.
     outside = ~((np.minimum(zs, zr) >= 0.0) & (np.maximum(zs, zr) <= st.zmax))
     outside |= ~(np.isfinite(s).all(axis=1) & np.isfinite(d).all(axis=1))
     out[outside] = REASON_OUTSIDE
-    direct = _direct(st, zs, zr, x)
-    i = np.flatnonzero(~direct.ok & ~outside)
+    has_direct = np.zeros(x.size, bool) if assume_no_direct else _direct(st, zs, zr, x).ok
+    i = np.flatnonzero(~has_direct & ~outside)
     if i.size:
-        ts = _reflected(st, zs[i], zr[i], x[i], "surface")
-        tb = _reflected(st, zs[i], zr[i], x[i], "bottom")
-        t_s = np.where(ts.ok, ts.time, np.inf)
-        t_b = np.where(tb.ok, tb.time, np.inf)
-        r = np.where(np.isfinite(t_s) & (t_s <= t_b), REASON_SURFACE, np.where(np.isfinite(t_b), REASON_BOTTOM, REASON_SHADOW))
-        out[i] = r
+        # the direct ray in the profile continued past the boundaries: where does it turn?
+        ext, off = st.extended()
+        a = _direct(ext, zs[i] + off, zr[i] + off, x[i])
+        out[i] = np.where(a.ok & (a.turn < off), REASON_SURFACE,
+                          np.where(a.ok & (a.turn > st.zmax + off), REASON_BOTTOM, REASON_SHADOW))
     return out.reshape(shape)
 
 

@@ -17,7 +17,7 @@ from .errors import (
     InsufficientMeasurementsError,
     SingularMatrixError,
 )
-from .gauss_newton import GNResult, gauss_newton, gauss_newton_batch, tof_model
+from .gauss_newton import GNResult, constant_speed_tof, gauss_newton, gauss_newton_batch, tof_model
 from .imm import IMM, IMMModel
 from .kalman import UpdateResult, ekf_predict, ekf_update, kf_predict, kf_update
 from .lsq import TDOAResult, multilaterate, tdoa_ls
@@ -40,7 +40,7 @@ __all__ = [
     "UpdateResult", "kf_predict", "kf_update", "ekf_predict", "ekf_update",
     "MotionModel", "ConstantVelocity", "CoordinatedTurn", "cv_matrices", "cwna_noise",
     "IMM", "IMMModel",
-    "GNResult", "gauss_newton", "gauss_newton_batch", "tof_model",
+    "GNResult", "gauss_newton", "gauss_newton_batch", "tof_model", "constant_speed_tof",
     "TDOAResult", "multilaterate", "tdoa_ls",
     "fisher_information", "crb", "crb_trace", "measurement_information", "pcrb_information", "pcrb_position",
     "propagate", "gaussian_log_likelihood", "normalize_log_weights", "update_log_weights",

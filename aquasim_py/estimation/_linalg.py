@@ -32,19 +32,27 @@ def cho_solve(c: tuple[NDArray[np.float64], bool], b: ArrayLike) -> NDArray[np.f
 
 
 def spd_inverse(A: ArrayLike, what: str = "matrix") -> NDArray[np.float64]:
-    """Inverse of a symmetric positive-definite matrix (..., n, n), batched over leading axes."""
+    """Inverse of a symmetric positive-definite matrix (..., n, n), batched over leading axes.
+
+    The matrix is first scaled to unit diagonal, so mixed units (m vs m/s in a PCRB) do not
+    count as ill-conditioning; SingularMatrixError if the scaled matrix is numerically singular.
+    """
     A = np.asarray(A, dtype=float)
     if not np.all(np.isfinite(A)):
         raise SingularMatrixError(f"{what} has non-finite entries")
+    d = np.diagonal(A, axis1=-2, axis2=-1)
+    if np.any(d <= 0):
+        raise SingularMatrixError(f"{what} has a non-positive diagonal entry")
+    s = 1.0 / np.sqrt(d)
+    As = A * s[..., :, None] * s[..., None, :]
     try:
-        L = np.linalg.cholesky(A)
+        L = np.linalg.cholesky(As)
     except np.linalg.LinAlgError:
         raise SingularMatrixError(f"{what} is not positive definite") from None
-    n = A.shape[-1]
-    eye = np.broadcast_to(np.eye(n), A.shape)
     # numpy's cholesky does not reject a numerically singular matrix: check the pivots
-    d = np.diagonal(L, axis1=-2, axis2=-1)
-    if np.any(d <= np.finfo(float).eps ** 0.5 * np.sqrt(np.max(np.abs(np.diagonal(A, axis1=-2, axis2=-1)), axis=-1, keepdims=True))):
+    if np.any(np.diagonal(L, axis1=-2, axis2=-1) <= np.sqrt(np.finfo(float).eps)):
         raise SingularMatrixError(f"{what} is numerically singular")
-    Linv = np.linalg.solve(L, eye)
-    return symmetrize(np.swapaxes(Linv, -1, -2) @ Linv)
+    n = A.shape[-1]
+    Linv = np.linalg.solve(L, np.broadcast_to(np.eye(n), A.shape))
+    inv = np.swapaxes(Linv, -1, -2) @ Linv
+    return symmetrize(inv * s[..., :, None] * s[..., None, :])

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, EstimationError, InsufficientMeasurementsError
 
-__all__ = ["GNResult", "gauss_newton", "gauss_newton_batch", "tof_model"]
+__all__ = ["GNResult", "gauss_newton", "gauss_newton_batch", "tof_model", "constant_speed_tof"]
 
 Array = NDArray[np.float64]
 ResidualFn = Callable[[Array], tuple[Array, Array]]
@@ -69,10 +69,11 @@ def gauss_newton(
     the step norm ||x_{k+1} - x_k|| < ``tol``; units of x, e.g. m).
 
     Falls back to Levenberg-Marquardt (``scipy.optimize.least_squares(method="lm")``), started
-    from the best Gauss-Newton iterate, when a step leaves the model's domain (non-finite
-    residuals even after halving it 12 times: a halved step is tried first), increases the cost, the
-    Jacobian is ill-conditioned (cond(J) > ``cond_max``), or GN has not converged within
-    ``max_iter``. The LM answer is kept only if its cost is not higher.
+    from the best Gauss-Newton iterate, when a step leaves the model's domain (residuals still
+    non-finite after halving the step 12 times), increases the cost, the Jacobian is
+    ill-conditioned (cond(J) > ``cond_max``), or GN has not converged within ``max_iter``. The
+    LM answer is kept only if its cost is not higher. ``fallback=False`` is the paper's plain
+    algorithm (plus the step halving, which never triggers while the model is defined).
 
     Raises :class:`InsufficientMeasurementsError` if there are fewer residuals than unknowns,
     :class:`DegenerateGeometryError` if the Jacobian at the answer is rank-deficient (the
@@ -144,7 +145,7 @@ def gauss_newton(
             return cache["last"][1]
 
         try:
-            sol = sopt.least_squares(res, xb, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15,
+            sol = sopt.least_squares(res, xb, jac=jac, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12,
                                      max_nfev=200 * (x.size + 1))
             lm_ok = bool(np.all(np.isfinite(sol.x)))
         except (ValueError, np.linalg.LinAlgError):
@@ -229,7 +230,8 @@ def tof_model(
     """Whitened residual function of the ToF model (eq 27; with depth, eq 37).
 
     ``anchors`` (N, 3) are the ray sources, the unknown x the receiver. ``measured`` ToFs (s),
-    shape (N,) or (B, N) for a batch; ``sigma`` (s) scalar or per anchor; ``depth`` (m, z
+    shape (N,) or (B, N) for a batch; ``sigma`` (s) broadcasting to ``measured`` (scalar, per
+    anchor, or per draw and anchor for distance-dependent noise); ``depth`` (m, z
     positive down) scalar or (B,) with its std ``sigma_depth`` (m). ``time_fn(src, dst)`` (s)
     and ``grad_fn(src, dst)`` (s/m, d time / d dst) broadcast over leading axes.
 
@@ -242,7 +244,7 @@ def tof_model(
     t = np.asarray(measured, dtype=float)
     if t.shape[-1] != A.shape[0]:
         raise ValueError(f"measured ToFs must end with N = {A.shape[0]}, got {t.shape}")
-    sig = np.broadcast_to(np.asarray(sigma, dtype=float), (A.shape[0],))
+    sig = np.broadcast_to(np.asarray(sigma, dtype=float), t.shape)
     if np.any(~np.isfinite(sig)) or np.any(sig <= 0):
         raise ValueError("sigma must be positive")
     if depth is not None:
@@ -254,7 +256,7 @@ def tof_model(
         x = np.asarray(x, dtype=float)
         dst = x[..., None, :]
         r = (time_fn(A, dst) - t) / sig
-        J = np.asarray(grad_fn(A, dst), dtype=float) / sig[:, None]
+        J = np.asarray(grad_fn(A, dst), dtype=float) / sig[..., None]
         if depth is not None:
             rz = ((x[..., 2] - zd) / sigma_depth)[..., None]
             Jz = np.broadcast_to(np.array([0.0, 0.0, 1.0 / sigma_depth]), J.shape[:-2] + (1, 3))
@@ -263,3 +265,20 @@ def tof_model(
         return r, J
 
     return fun
+
+
+def constant_speed_tof(speed: float) -> tuple[Callable[[Array, Array], Array], Callable[[Array, Array], Array]]:
+    """(time_fn, grad_fn) of the straight-ray, one-speed model t = |dst - src| / speed: the
+    "without stratification compensation" baseline (Ramezani's GNA-ASSP with speed = v_bar,
+    footnote 1; ITMTL-wsc). Pass them to :func:`tof_model`."""
+    if not (np.isfinite(speed) and speed > 0):
+        raise ValueError("speed must be positive")
+
+    def time_fn(src: Array, dst: Array) -> Array:
+        return np.linalg.norm(np.asarray(dst, dtype=float) - src, axis=-1) / speed
+
+    def grad_fn(src: Array, dst: Array) -> Array:
+        diff = np.asarray(dst, dtype=float) - src
+        return diff / (np.linalg.norm(diff, axis=-1, keepdims=True) * speed)
+
+    return time_fn, grad_fn

@@ -51,7 +51,16 @@ def propagate(
     """x' = f(x) + w, w ~ N(0, Q), for all particles at once (``f`` maps (M, n) -> (M, n))."""
     X = np.asarray(particles, dtype=float)
     L = _psd_sqrt(np.asarray(Q, dtype=float))
-    return np.asarray(f(X), dtype=float) + rng.standard_normal(X.shape) @ L.T
+    return np.asarray(f(X), dtype=float) + _rows_times(rng.standard_normal(X.shape), L.T)
+
+
+def _rows_times(X: Array, A: Array) -> Array:
+    """X @ A for tall X (M, n) and small A (n, m): n axpy passes over the particles. BLAS
+    GEMM on such shapes is slow (and thread-contended on shared machines)."""
+    out = X[:, :1] * A[0]
+    for k in range(1, A.shape[0]):
+        out += X[:, k : k + 1] * A[k]
+    return out
 
 
 def gaussian_log_likelihood(z: ArrayLike, z_pred: ArrayLike, R: ArrayLike) -> Array:
@@ -59,10 +68,11 @@ def gaussian_log_likelihood(z: ArrayLike, z_pred: ArrayLike, R: ArrayLike) -> Ar
     z = np.asarray(z, dtype=float).reshape(-1)
     Zp = np.asarray(z_pred, dtype=float).reshape(-1, z.size)
     c, _ = cho_factor(np.atleast_2d(np.asarray(R, dtype=float)), "measurement covariance R")
-    # whiten with the Cholesky factor: ||L^-1 (z - z_pred)||^2 for all particles in one solve
-    E = solve_triangular(c, (z - Zp).T, lower=True, check_finite=False)
+    # whiten with the Cholesky factor: ||L^-1 (z - z_pred)||^2 for all particles at once
+    Linv = solve_triangular(c, np.eye(z.size), lower=True, check_finite=False)
+    E = _rows_times(z - Zp, Linv.T)
     logdet = 2.0 * np.sum(np.log(np.diag(c)))
-    return -0.5 * (np.sum(E * E, axis=0) + logdet + z.size * np.log(2.0 * np.pi))
+    return -0.5 * (np.einsum("ij,ij->i", E, E) + logdet + z.size * np.log(2.0 * np.pi))
 
 
 def normalize_log_weights(logw: ArrayLike) -> tuple[Array, Array]:

@@ -216,15 +216,17 @@ def mean_update(
 
 def wishart_update(
     second_moment: ArrayLike, state: ArrayLike, mu: ArrayLike, mu_second_moment: ArrayLike,
-    scale: ArrayLike,
+    scale: ArrayLike, *, scale_inv: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Wishart scale of q(lam_t) (eqs 14, 18):
-    W* = (<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1)^-1 (dof n* = n + 1)."""
+    W* = (<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1)^-1 (dof n* = n + 1).
+    ``scale_inv`` (W^-1) may be passed to save an inversion per iteration."""
     s = np.asarray(state, float)
     m = np.asarray(mu, float)
+    w_inv = np.linalg.inv(np.asarray(scale, float)) if scale_inv is None else scale_inv
     mat = (
         np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s)
-        + np.asarray(mu_second_moment, float) + np.linalg.inv(np.asarray(scale, float))
+        + np.asarray(mu_second_moment, float) + w_inv
     )
     return _sym(np.linalg.inv(_sym(mat)))
 
@@ -254,7 +256,8 @@ def variational_update(
 
     mu_prec = 2.0 * lp
     mu = mu_p.copy()
-    w_star = _sym(np.linalg.inv(np.linalg.inv(2.0 * lp) + np.linalg.inv(prior.wishart_scale)))
+    w_inv = np.linalg.inv(prior.wishart_scale)
+    w_star = _sym(np.linalg.inv(np.linalg.inv(2.0 * lp) + w_inv))
     shape = prior.noise_shape + 0.5 * nr
     rate = 0.5 * prior.noise_rate
     speed = prior.speed
@@ -278,7 +281,7 @@ def variational_update(
         )
         # Parameters from the current expectations, then the expectations (Algorithm 1 order).
         new_mu, mu_prec = mean_update(lam, s1, mu_p, lp)
-        w_star = wishart_update(s2, s1, mu, mu_mu, prior.wishart_scale)
+        w_star = wishart_update(s2, s1, mu, mu_mu, prior.wishart_scale, scale_inv=w_inv)
         shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed,
                                    prior.z_scale)
         step = float(np.linalg.norm(new_mu[POS] - mu[POS]))

@@ -129,6 +129,7 @@ def test_gradient_matches_central_differences() -> None:
     # near-surface / near-vertex points can lose a neighbour: compare where both sides exist
     ok &= ~np.isnan(fd).any(axis=1)
     err = np.linalg.norm(g[ok] - fd[ok], axis=1) / np.linalg.norm(g[ok], axis=1)
+    print(f"\ngradient vs central differences: max rel err {err.max():.2e} over {ok.sum()} pairs")
     assert err.max() <= 1e-6
 
 
@@ -354,3 +355,60 @@ def test_strongly_bent_arcs() -> None:
         assert ray.time[i] == pytest.approx(ode.time, abs=1e-9)
         assert ray.length[i] == pytest.approx(ode.length, abs=1e-6)
         assert ray.turning_depth[i] == pytest.approx(ode.z_max, abs=1e-5)
+
+
+def test_gradient_matches_paper_eqs_15_to_18() -> None:
+    """The paper's route: solve the linear systems (16), (17) for the angle derivatives, then (15), (18)."""
+    rng = np.random.default_rng(21)
+    src, dst = _random_pairs(rng, 400)
+    b, a = _profiles(rng, 400)
+    ray = iso.eigenray(b, a, src, dst)
+    thA, thT = ray.launch_angle, ray.arrival_angle
+    # keep pairs where the paper's forms are well conditioned (sin(theta_T) and 1 - cos(dtheta) not tiny)
+    ok = (ray.path == PathKind.DIRECT) & (np.abs(np.sin(thT)) > 0.02) & (np.abs(thT - thA) > 1e-3)
+    assert ok.sum() > 100
+    src, dst, a, b, thA, thT = src[ok], dst[ok], a[ok], b[ok], thA[ok], thT[ok]
+    r = np.hypot(*(dst - src)[:, :2].T)
+    zA, zT = src[:, 2], dst[:, 2]
+    cA, cT = b + a * zA, b + a * zT
+    q = (np.sin(thT) - np.sin(thA)) ** 2 / (1.0 - np.cos(thT - thA))
+    P = cT / cA * np.sin(thA) / np.sin(thT)
+    rhs16 = -(zT - zA) / r**2 * q  # (16a); (16b): x - P y = 0
+    y = rhs16 / (1.0 + P)
+    x = P * y
+    rhs17a = q / r
+    rhs17b = -a / cA * np.cos(thA) / np.sin(thT)
+    v = (rhs17a - rhs17b) / (1.0 + P)
+    u = rhs17a - v
+    dt_dr = -(1.0 / a) * (x / np.cos(thT) - y / np.cos(thA))  # (15a)
+    dt_dz = -(1.0 / a) * (u / np.cos(thT) - v / np.cos(thA))  # (15b)
+    e_h = (dst - src)[:, :2] / r[:, None]
+    paper = np.column_stack([dt_dr * e_h[:, 0], dt_dr * e_h[:, 1], dt_dz])  # (18)
+    g = iso.travel_time_gradient(b, a, src, dst)
+    err = np.linalg.norm(g - paper, axis=1) / np.linalg.norm(g, axis=1)
+    print(f"\npaper eqs 15-18 vs gradient: max rel err {err.max():.2e} over {ok.sum()} pairs")
+    assert err.max() <= 1e-7
+
+
+# ---------------------------------------------------------------- the oracle itself
+
+
+def test_oracle_interfaces() -> None:
+    """Stops at interfaces must not change a smooth profile; across real kinks Snell's invariant holds."""
+    b, a = 1500.0, 0.05
+    src, dst = np.array([0.0, 0.0, 120.0]), np.array([3500.0, 0.0, 640.0])
+    c, dc, ifs = ray_ode.piecewise_linear([0.0, 200.0, 450.0, 2000.0], [b, b + a * 200, b + a * 450, b + a * 2000])
+    assert ifs == [200.0, 450.0]
+    ode = ray_ode.shoot(c, dc, src, dst, interfaces=ifs)
+    assert ode.time == pytest.approx(float(iso.travel_time(b, a, src, dst)), abs=1e-11)
+    # a sound-speed minimum at 300 m; a ray that turns inside a layer and recrosses an interface
+    c, dc, _ = ray_ode.piecewise_linear([0.0, 300.0, 1000.0], [1510.0, 1490.0, 1505.0])
+    for dst in (np.array([4000.0, 0.0, 350.0]), np.array([2500.0, 1000.0, 50.0])):
+        ode = ray_ode.shoot(c, dc, [0.0, 0.0, 280.0], dst, interfaces=[300.0], extrema=True)
+        assert ode.z_end == pytest.approx(dst[2], abs=1e-9)
+        xi0 = math.cos(ode.launch_angle) / c(280.0)
+        assert math.cos(ode.arrival_angle) / c(dst[2]) == pytest.approx(xi0, rel=1e-11)
+    # the brute-force fan finds this eigenray among its arrivals, and none earlier
+    rays = ray_ode.fan(c, dc, [0.0, 0.0, 280.0], dst, n=21, interfaces=[300.0])
+    assert rays and min(abs(r.time - ode.time) for r in rays) < 1e-11
+    assert rays[0].time <= ode.time + 1e-12

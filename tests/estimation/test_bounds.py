@@ -113,3 +113,17 @@ def test_pcrb_expectation_averages_information_over_trajectories() -> None:
         np.testing.assert_allclose(per[m], pcrb_information(J0, F, Q, info[m]), rtol=1e-12)
     avg = pcrb_information(J0, F, Q, info, expectation=True)
     np.testing.assert_allclose(avg, pcrb_information(J0, F, Q, info.mean(axis=0)), rtol=1e-12)
+
+
+def test_information_with_mixed_units_is_not_called_singular() -> None:
+    """A FIM whose entries span 20 orders of magnitude (units, not rank) still inverts; a
+    rank-deficient one raises."""
+    from aquasim_py.estimation import SingularMatrixError
+    from aquasim_py.estimation._linalg import spd_inverse
+
+    s = np.array([1e-10, 1.0, 1e10])
+    C = np.array([[1.0, 0.5, 0.2], [0.5, 1.0, 0.3], [0.2, 0.3, 1.0]])
+    A = C * np.outer(s, s)
+    np.testing.assert_allclose(spd_inverse(A) * np.outer(s, s), np.linalg.inv(C), rtol=1e-12)
+    with pytest.raises(SingularMatrixError):
+        spd_inverse(np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0]))

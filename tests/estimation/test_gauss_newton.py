@@ -9,6 +9,7 @@ from aquasim_py.channel import Constant, travel_time, travel_time_gradient
 from aquasim_py.estimation import (
     DegenerateGeometryError,
     InsufficientMeasurementsError,
+    constant_speed_tof,
     crb,
     gauss_newton,
     gauss_newton_batch,
@@ -84,6 +85,22 @@ def test_target_on_the_anchor_plane_raises() -> None:
     x = np.array([30.0, 60.0, 10.0])
     with pytest.raises(DegenerateGeometryError):
         gauss_newton(tof_model(A, tt(A, x), tt, tg), [50.0, 50.0, 10.0])
+
+
+def test_constant_speed_model_equals_channel_straight_rays() -> None:
+    t_fn, g_fn = constant_speed_tof(C.speed_mps)
+    X = np.random.default_rng(0).uniform(0, 150, (20, 1, 3))  # in the water (z >= 0)
+    np.testing.assert_allclose(t_fn(ANCHORS, X), tt(ANCHORS, X), rtol=1e-15)
+    np.testing.assert_allclose(g_fn(ANCHORS, X), tg(ANCHORS, X), rtol=1e-15)
+
+
+def test_per_draw_sigma_broadcasts() -> None:
+    x = np.array([[40.0, 60.0, 50.0], [55.0, 45.0, 52.0]])
+    t = tt(ANCHORS, x[:, None, :])
+    sig = np.array([[1e-4, 2e-4, 3e-4, 4e-4], [1e-3, 1e-3, 2e-3, 2e-3]])
+    r, J = tof_model(ANCHORS, t, tt, tg, sigma=sig)(x + 1.0)
+    np.testing.assert_allclose(J, tg(ANCHORS, (x + 1.0)[:, None, :]) / sig[..., None])
+    np.testing.assert_allclose(r, (tt(ANCHORS, (x + 1.0)[:, None, :]) - t) / sig)
 
 
 def test_too_few_measurements_raise() -> None:

@@ -109,3 +109,69 @@ def test_imm_rejects_bad_transition() -> None:
     cv = ConstantVelocity(2, 1.0)
     with pytest.raises(ValueError):
         IMM([cv, cv], [[0.5, 0.6], [0.5, 0.5]], np.zeros(4), np.eye(4))
+
+
+def test_imm_nonlinear_measurement_path_matches_direct_ekf() -> None:
+    """Range measurements to three anchors (h, H_jac on the joint state): each model-matched
+    update must be the EKF update of that model seen through its embedding."""
+    from aquasim_py.estimation import ekf_update
+
+    anchors = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0]])
+
+    def h(s):
+        return np.linalg.norm(s[:2] - anchors, axis=1)
+
+    def H_jac(s):
+        J = np.zeros((3, s.size))
+        J[:, :2] = (s[:2] - anchors) / h(s)[:, None]
+        return J
+
+    cv = ConstantVelocity(2, 1.0, q=0.1)
+    ct = CoordinatedTurn(2, 1.0, q=0.1, q_turn=1e-3)
+    x0 = np.array([40.0, 30.0, 1.0, -0.5, 0.02])
+    P0 = np.diag([25.0, 25.0, 1.0, 1.0, 1e-3])
+    Pi = np.array([[0.9, 0.1], [0.1, 0.9]])
+    imm = IMM([cv, ct], Pi, x0, P0, [0.6, 0.4])
+    imm.predict()
+    xs_pred = [x.copy() for x in imm.xs]
+    Ps_pred = [P.copy() for P in imm.Ps]
+    z = np.array([52.0, 70.0, 76.0])
+    R = 0.5 * np.eye(3)
+    imm.update(z, R, h=h, H_jac=H_jac)
+    # CV: the joint state with omega = 0; CT: the joint state itself
+    pad = lambda s: np.append(s, 0.0)
+    u_cv = ekf_update(xs_pred[0], Ps_pred[0], z, lambda s: h(pad(s)), lambda s: H_jac(pad(s))[:, :4], R)
+    u_ct = ekf_update(xs_pred[1], Ps_pred[1], z, h, H_jac, R)
+    np.testing.assert_allclose(imm.xs[0], u_cv.x, rtol=1e-13)
+    np.testing.assert_allclose(imm.xs[1], u_ct.x, rtol=1e-13)
+    np.testing.assert_allclose(imm.log_likelihoods, [u_cv.log_likelihood, u_ct.log_likelihood], rtol=1e-13)
+    # mode probabilities: Bayes with the predicted probabilities c_j = sum_i mu_i Pi_ij
+    c = np.array([0.6, 0.4]) @ Pi
+    post = c * np.exp(imm.log_likelihoods)
+    np.testing.assert_allclose(imm.mu, post / post.sum(), rtol=1e-12)
+
+
+def test_imm_mixing_matches_textbook_formulas() -> None:
+    """Two CV models (different q): the mixed initial condition of model j is
+    x0j = sum_i w_ij x_i, P0j = sum_i w_ij (P_i + (x_i - x0j)(x_i - x0j)^T),
+    w_ij = mu_i Pi_ij / c_j (Bar-Shalom et al. 11.6.6)."""
+    rng = np.random.default_rng(9)
+    m1, m2 = ConstantVelocity(2, 1.0, q=0.01), ConstantVelocity(2, 1.0, q=1.0)
+    Pi = np.array([[0.8, 0.2], [0.3, 0.7]])
+    imm = IMM([m1, m2], Pi, np.zeros(4), np.eye(4), [0.35, 0.65])
+    xs = [rng.normal(size=4), rng.normal(size=4)]
+    Ps = []
+    for _ in range(2):
+        A = rng.normal(size=(4, 4))
+        Ps.append(A @ A.T + np.eye(4))
+    imm.xs, imm.Ps = [x.copy() for x in xs], [P.copy() for P in Ps]
+    mu = imm.mu.copy()
+    imm.predict()
+    c = mu @ Pi
+    for j, m in enumerate((m1, m2)):
+        w = mu * Pi[:, j] / c[j]
+        x0 = w[0] * xs[0] + w[1] * xs[1]
+        P0 = sum(w[i] * (Ps[i] + np.outer(xs[i] - x0, xs[i] - x0)) for i in range(2))
+        np.testing.assert_allclose(imm.xs[j], m.F @ x0, rtol=1e-12)
+        np.testing.assert_allclose(imm.Ps[j], m.F @ P0 @ m.F.T + m.Q, rtol=1e-12)
+    np.testing.assert_allclose(imm.mu, c, rtol=1e-12)

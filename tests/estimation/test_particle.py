@@ -29,7 +29,7 @@ F, Q = cv_matrices(1, 1.0, 0.5)
 H = np.array([[1.0, 0.0]])
 R = np.array([[2.0]])
 X0, P0 = np.array([0.0, 1.0]), np.diag([4.0, 1.0])
-STEPS = 8
+STEPS = 5
 
 
 def _data():
@@ -92,7 +92,7 @@ TOL = 0.03  # at 1e5 particles, in posterior standard deviations
 
 
 def test_particle_mean_converges_to_kalman_like_inverse_sqrt_n() -> None:
-    seeds = range(12)
+    seeds = range(8)
     Ms = np.array([1_000, 10_000, 100_000])
     errs = np.array([_err(int(M), seeds) for M in Ms])
     slope = np.polyfit(np.log(Ms), np.log(errs), 1)[0]
@@ -103,7 +103,7 @@ def test_particle_mean_converges_to_kalman_like_inverse_sqrt_n() -> None:
 
 @pytest.mark.parametrize("weigh", [_squared, _unnormalized])
 def test_broken_weighting_fails_the_same_tolerance(weigh: Callable) -> None:
-    assert _err(100_000, range(3), weigh) > 3 * TOL
+    assert _err(100_000, range(2), weigh) > 3 * TOL
 
 
 def test_systematic_counts_are_floor_or_ceil() -> None:
@@ -118,7 +118,7 @@ def test_systematic_counts_are_floor_or_ceil() -> None:
 def test_residual_resampling_is_unbiased() -> None:
     rng = np.random.default_rng(1)
     w = rng.dirichlet(np.ones(10))
-    M, draws = 10, 20_000
+    M, draws = 10, 5_000
     counts = np.zeros(M)
     for _ in range(draws):
         idx = residual_resample(w, rng)
