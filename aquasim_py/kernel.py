@@ -8,6 +8,7 @@ noisy sensor readings, receptions with local MAC stamps.
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import inspect
 import math
@@ -103,8 +104,8 @@ class _NodeCore:
         self.waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
         self.tx_free_at = 0.0
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
-        self.rx_log: list[tuple[float, float, float]] = []  # (arrival, end, snr_db) of signals here
-        self.log_cap = 8  # prune the two logs beyond this length (the channel adapts it)
+        self.rx_log: list[tuple[Any, ...]] = []  # signals here, sorted by arrival (see channel.acoustic)
+        self.log_cap = 8  # prune tx_log beyond this length (the channel adapts it)
 
     # -- truth ------------------------------------------------------------------------------------
 
@@ -286,6 +287,7 @@ class Simulation:
         self.groups: list[Group] = []
         self._cores: list[_NodeCore] = []
         self._moving = np.zeros(0, dtype=bool)
+        self._group_of = np.zeros(0, dtype=np.intp)
         self._pos_t = math.nan
         self._pos_cache = np.zeros((0, 3))
         self._static_pos: np.ndarray | None = None
@@ -380,6 +382,7 @@ class Simulation:
             self.trace.append("nodes", node=start + i, role=role.value, protocol=protocol, group=gname)
         self.groups.append(group)
         self._moving = np.concatenate([self._moving, np.full(count, not group.static)])
+        self._group_of = np.concatenate([self._group_of, np.full(count, len(self.groups) - 1)])
         self._static_pos = None
         self._pos_t = math.nan
         for node in new:
@@ -421,11 +424,19 @@ class Simulation:
     def positions_at(self, idx: np.ndarray, times: np.ndarray) -> np.ndarray:
         """True positions (k, 3) of nodes ``idx[i]`` at true times ``times[i]``."""
         out = np.empty((len(idx), 3))
-        cores = self._cores
-        # one mobility query per (moving node, time): the few receivers of one packet
-        for i, (j, t) in enumerate(zip(idx.tolist(), times.tolist())):
-            c = cores[j]
-            out[i] = c.group.mobility.position(t)[c.slot]
+        gids = self._group_of[idx]
+        for g in np.unique(gids).tolist():
+            group = self.groups[g]
+            sel = np.flatnonzero(gids == g)
+            mob = group.mobility
+            hook = getattr(mob, "positions_at", None)
+            if hook is not None:
+                # optional vectorized hook of a mobility model: (local ids, times) -> (k, 3)
+                out[sel] = hook(idx[sel] - group.start, times[sel])
+                continue
+            # one mobility query per (moving node, time): the few receivers of one packet
+            for i, j, t in zip(sel.tolist(), (idx[sel] - group.start).tolist(), times[sel].tolist()):
+                out[i] = mob.position(t)[j]
         return out
 
     def is_moving(self) -> np.ndarray:
@@ -471,6 +482,14 @@ class Simulation:
                 self.env.process(self._sample_positions(float(interval)))
         if progress is not None:
             self.env.process(self._progress(until, progress))
-        self.env.run(until=until)
+        # Objects that exist before the run (imported modules, the scenario, earlier tables) are
+        # kept out of the garbage collector's full scans while it runs: a long run triggers many
+        # of them, and rescanning a large, unchanging heap each time costs more than the events.
+        # unfreeze() hands them back afterwards, so nothing is leaked.
+        gc.freeze()
+        try:
+            self.env.run(until=until)
+        finally:
+            gc.unfreeze()
         if progress is not None:
             progress(until, until)

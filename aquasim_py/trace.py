@@ -25,24 +25,24 @@ import pandas as pd
 
 __all__ = ["TraceConfig", "Trace", "Table", "SCHEMAS", "load"]
 
-#: Column kinds: "f" float64, "i" int64, "o" any object (strings, None for missing).
+#: Column kinds: "f" float64, "i" int64, "c" string category (None = missing), "o" any object.
 SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
     "packets": (
-        ("time", "f"), ("event", "o"), ("reason", "o"), ("node", "i"), ("src", "i"),
-        ("dst", "i"), ("uid", "i"), ("kind", "o"), ("bits", "i"), ("tof", "f"),
-        ("snr_db", "f"), ("path", "o"), ("local_time", "f"),
+        ("time", "f"), ("event", "c"), ("reason", "c"), ("node", "i"), ("src", "i"),
+        ("dst", "i"), ("uid", "i"), ("kind", "c"), ("bits", "i"), ("tof", "f"),
+        ("snr_db", "f"), ("path", "c"), ("local_time", "f"),
     ),
     "positions": (
         ("time", "f"), ("node", "i"), ("x", "f"), ("y", "f"), ("z", "f"),
         ("vx", "f"), ("vy", "f"), ("vz", "f"),
     ),
     "estimates": (
-        ("time", "f"), ("node", "i"), ("protocol", "o"), ("x", "f"), ("y", "f"), ("z", "f"),
+        ("time", "f"), ("node", "i"), ("protocol", "c"), ("x", "f"), ("y", "f"), ("z", "f"),
         ("true_x", "f"), ("true_y", "f"), ("true_z", "f"), ("error", "f"),
         ("confidence", "f"), ("is_reference", "o"),
     ),
     "clocks": (
-        ("time", "f"), ("node", "i"), ("protocol", "o"), ("skew", "f"), ("offset", "f"),
+        ("time", "f"), ("node", "i"), ("protocol", "c"), ("skew", "f"), ("offset", "f"),
         ("true_skew", "f"), ("true_offset", "f"), ("error", "f"),
     ),
 }
@@ -64,16 +64,20 @@ class TraceConfig:
 
 
 class _Column:
-    """One typed column. Degrades to a plain list when a value does not fit its type.
+    """One typed column: "f" float64 and "i" int64 in ``array.array``, "c" strings as int32
+    codes into a category list, "o" anything in a list. Degrades ("i" -> "f", anything -> "o")
+    when a value does not fit.
 
-    Strings live in plain lists: a list slot is one pointer, as small as an integer code, and
-    the repeated strings of a table ("rx", "direct", a kind) are shared objects.
+    Numbers and codes live outside Python containers, so a trace of millions of rows costs the
+    garbage collector nothing to traverse (a list of strings would be rescanned on every full
+    collection of a long run).
     """
 
-    __slots__ = ("kind", "data", "append")
+    __slots__ = ("kind", "data", "append", "cats")
 
     def __init__(self, kind: str, n_missing: int = 0) -> None:
         self.kind = kind
+        self.cats: dict[Any, int] = {}
         if kind == "f":
             self.data: Any = array("d", [math.nan]) * n_missing
         elif kind == "i" and not n_missing:
@@ -81,14 +85,34 @@ class _Column:
         elif kind == "i":  # an int column with earlier missing rows starts as float (NaN)
             self.kind = "f"
             self.data = array("d", [math.nan]) * n_missing
+        elif kind == "c":
+            self.data = array("i", [self._code(None)]) * n_missing
         else:
             self.kind = "o"
             self.data = [None] * n_missing
-        self.append = self.data.append
+        self.append = self._append_cat if self.kind == "c" else self.data.append
+
+    def _code(self, v: Any) -> int:
+        c = self.cats.get(v)
+        if c is None:
+            if not (v is None or isinstance(v, str)):
+                raise TypeError("categorical columns hold strings")
+            c = self.cats[v] = len(self.cats)
+        return c
+
+    def _append_cat(self, v: Any) -> None:
+        self.data.append(self._code(v))
+
+    def values(self) -> list[Any]:
+        if self.kind == "c":
+            inv = list(self.cats)
+            return [inv[c] for c in self.data]
+        return list(self.data)
 
     def _to_kind(self, kind: str) -> None:
-        old = list(self.data)
+        old = self.values()
         self.kind = kind
+        self.cats = {}
         if kind == "f":
             self.data = array("d", [math.nan if v is None else float(v) for v in old])
         else:
@@ -116,9 +140,14 @@ class _Column:
             data.extend(values)
             return
         try:
-            # array(typecode, tuple) takes a fast path that array.extend(tuple) does not, and it
-            # fails as a whole (no partial append) when a value does not fit
-            data.extend(array(data.typecode, values))
+            if self.kind == "c":
+                cats = self.cats
+                codes = [cats[v] if v in cats else self._code(v) for v in values]
+                data.extend(array("i", codes))
+            else:
+                # array(typecode, tuple) takes a fast path that array.extend(tuple) does not,
+                # and it fails as a whole (no partial append) when a value does not fit
+                data.extend(array(data.typecode, values))
         except (TypeError, OverflowError):
             for v in values:
                 self.push(v)
@@ -129,6 +158,8 @@ class _Column:
         elif self.kind == "i":
             self._to_kind("f")
             self.data.extend([math.nan] * count)
+        elif self.kind == "c":
+            self.data.extend(array("i", [self._code(None)]) * count)
         else:
             self.data.extend([None] * count)
 
@@ -145,6 +176,11 @@ class _Column:
             return pd.Series(np.frombuffer(self.data, dtype=np.float64).copy(), name=name)
         if self.kind == "i":
             return pd.Series(np.frombuffer(self.data, dtype=np.int64).copy(), name=name)
+        if self.kind == "c":
+            inv = np.empty(len(self.cats), dtype=object)
+            inv[:] = list(self.cats)
+            codes = np.frombuffer(self.data, dtype=np.int32) if len(self.data) else np.zeros(0, np.int32)
+            return pd.Series(inv[codes] if len(inv) else np.empty(0, dtype=object), name=name, dtype=object)
         return pd.Series(self.data, name=name, dtype=object)
 
 
@@ -155,6 +191,8 @@ def _kind_of(v: Any) -> str:
         return "i"
     if isinstance(v, (float, np.floating)):
         return "f"
+    if isinstance(v, str):
+        return "c"
     return "o"
 
 

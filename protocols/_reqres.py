@@ -54,6 +54,8 @@ class ReqResParams(BaseModel):
     mean_speed_mps: float = Field(1500.0, gt=0, description="sound speed of straight-line models (m/s)")
     ssp_depths_m: list[float] = Field(default_factory=list, description="depths of the node's sound-speed profile (m)")
     ssp_speeds_mps: list[float] = Field(default_factory=list, description="speeds at those depths (m/s)")
+    velocity_sensor_std_mps: float = Field(0.02, ge=0, description="assumed std of a velocity sensor reading, per axis (m/s)")
+    stamp_std_s: float = Field(2e-5, gt=0, description="assumed MAC timestamp precision (s)")
     surveyed_positions: dict[str, list[float]] = Field(
         default_factory=dict, description="node id -> surveyed (x, y, z) of static references (m)")
 
@@ -70,6 +72,9 @@ class Answer:
     pos: np.ndarray  #: reference position at t2 (m)
     vel: np.ndarray  #: reference velocity (m/s)
     conf: float  #: reference confidence (1 for buoys / anchors)
+    pos_std: float = 0.0  #: announced position std (m)
+    vel_std: float = 0.0  #: announced velocity std per axis (m/s)
+    time_std: float = 0.0  #: announced reference-time std (s)
 
 
 @dataclass
@@ -142,6 +147,19 @@ class ReqResNode(Node):
     def estimated_velocity(self) -> np.ndarray:
         return np.zeros(3)
 
+    # uncertainties a reference announces with its answer (buoys / anchors: sensor grade)
+    def position_std(self) -> float:
+        """Std of the announced position (m)."""
+        return 0.0
+
+    def velocity_std(self) -> float:
+        """Std of the announced velocity, per axis (m/s)."""
+        return self.params.velocity_sensor_std_mps
+
+    def time_std(self, t: float) -> float:
+        """Std of the announced reference time at ``t`` (s)."""
+        return 0.0
+
     # -- main loop --------------------------------------------------------------------------------
 
     def run(self) -> Generator[Any, Any, None]:
@@ -188,6 +206,7 @@ class ReqResNode(Node):
                 current.answers.append(Answer(
                     pkt.src, current.T1, pl["t2"], (pkt.tx_local - b_ref) / a_ref, rec.rx_local,
                     np.asarray(pl["pos"], float), np.asarray(pl["vel"], float), float(pl["conf"]),
+                    float(pl["pos_std"]), float(pl["vel_std"]), float(pl["time_std"]),
                 ))
 
     def answers_requests(self) -> bool:
@@ -210,7 +229,8 @@ class ReqResNode(Node):
             # reference time (identity for buoys and anchors).
             payload = {"round": info["round"], "t2": t2, "clock": (self.alpha, self.beta),
                        "pos": tuple(map(float, pos)), "vel": tuple(map(float, vel)),
-                       "conf": float(self.confidence)}
+                       "conf": float(self.confidence), "pos_std": self.position_std(),
+                       "vel_std": self.velocity_std(), "time_std": self.time_std(t2)}
             yield self.send(dst, RES, payload, self.params.res_bits)
 
     # -- subclasses -------------------------------------------------------------------------------

@@ -48,7 +48,6 @@ from .itmtl_math import (
     multilaterate,
     position_fix,
     promote,
-    reference_variance,
     tdoa_pivot,
 )
 
@@ -66,15 +65,21 @@ class ItmtlParams(ReqResParams):
     min_skew_span_s: float = Field(20.0, ge=0, description="fit the skew only once the data span this long (s); before, offset only")
     max_outer_iter: int = Field(4, ge=1, description="phase 2-3 iterations per round")
     outer_tol_m: float = Field(0.01, gt=0, description="stop when the fix moves less (m)")
-    weighted: bool = Field(True, description="weight references (fix and regression) by the variance their confidence stands for")
+    weighted: bool = Field(True, description="weighted least squares: fix by announced position std, regression by time-point variance")
     residual_scale_m: float = Field(5.0, gt=0, description="range residual that drives confidence to 0 (m)")
     promotion: bool = Field(True, description="promote confident ordinary nodes to references")
     promote_threshold: float = Field(0.9, ge=0, le=1, description="confidence needed for promotion")
+    ref_max_std_m: float = Field(3.0, gt=0, description="a promoted node answers only while its position std stays below this (m)")
     promote_min_rounds: int = Field(3, ge=1, description="consecutive confident rounds before promotion")
     imm_q_cv: float = Field(1e-3, gt=0, description="CV acceleration noise density (m^2/s^3)")
     imm_q_ct: float = Field(1e-3, gt=0, description="CT acceleration noise density (m^2/s^3)")
     imm_q_turn: float = Field(1e-6, gt=0, description="CT turn-rate noise density (rad^2/s^3)")
     imm_switch: float = Field(0.05, gt=0, lt=1, description="IMM mode switching probability per round")
+    max_coast_rounds: int = Field(2, ge=0, description="rounds without a fix after which the track is dropped from use")
+    speed_prior_mps: float = Field(1.5, gt=0, description="velocity std per axis when the node's velocity is unknown (m/s)")
+    ref_time_weight: float = Field(1.0, ge=0, description="factor on the reference's announced time variance in the regression weights")
+    gate_chi2: float = Field(13.8, gt=0, description="innovation gate (chi-square, 2 dof; 13.8 = 99.9 %)")
+    fix_max_std_m: float = Field(20.0, gt=0, description="fixes less determined than this are not used (m)")
     max_speed_mps: float = Field(5.0, gt=0, description="a track faster than this is not used for the motion split (m/s)")
     fix_std_floor_m: float = Field(0.5, gt=0, description="floor of the fix noise std fed to the IMM (m)")
 
@@ -100,12 +105,15 @@ class ItmtlNode(ReqResNode):
         # per round: node position estimate at t1 and velocity estimate (None = unknown yet)
         self._round_pos: dict[int, np.ndarray] = {}
         self._round_vel: dict[int, np.ndarray | None] = {}
+        self._round_vstd: dict[int, float] = {}  # node velocity std per round (m/s)
         self.imm_filter: IMM | None = None
         self.t_est: float = np.nan  # true time (estimated) of the last position estimate
         self.p_est = np.zeros(3)
         self.v_est: np.ndarray | None = None
         self._last_fix: tuple[float, np.ndarray] | None = None
         self._n_fixes = 0
+        self._coast = 0
+        self._pos_cov: np.ndarray | None = None
 
     # -- reference side -----------------------------------------------------------------------
 
@@ -123,9 +131,20 @@ class ItmtlNode(ReqResNode):
     # -- ordinary side ------------------------------------------------------------------------
 
     def _exchanges(self, k_node: np.ndarray, k_ref: np.ndarray) -> Exchanges:
+        """All exchanges so far, weighted by the inverse variance of their time points
+        (weighted least squares, as the paper's abstract says): MAC stamp precision, the
+        motion split's doubt ``sigma_v (t3 - t2 + S) / (2 c)`` from the node's and the
+        reference's velocity uncertainty, and the reference's own time uncertainty."""
+        p = self.params
         a = np.asarray(self._ex, dtype=float)
-        w = a[:, 4] if self.params.weighted else np.ones(len(a))
-        return Exchanges.build(a[:, 0], a[:, 1], a[:, 2], a[:, 3], k_node, k_ref, w)
+        if not p.weighted:
+            return Exchanges.build(a[:, 0], a[:, 1], a[:, 2], a[:, 3], k_node, k_ref)
+        S = (a[:, 3] - a[:, 0]) / self.alpha - (a[:, 2] - a[:, 1])
+        span = a[:, 2] - a[:, 1] + S
+        sv_node = np.array([self._round_vstd.get(r, p.speed_prior_mps) for r in self._ex_round])
+        sv = np.hypot(sv_node, a[:, 5]) if p.motion_split else np.full(len(a), p.speed_prior_mps)
+        var = p.stamp_std_s**2 + (sv * span / (2.0 * p.mean_speed_mps)) ** 2 + p.ref_time_weight * a[:, 6] ** 2
+        return Exchanges.build(a[:, 0], a[:, 1], a[:, 2], a[:, 3], k_node, k_ref, p.stamp_std_s**2 / var)
 
     def _rates(self) -> tuple[np.ndarray, np.ndarray]:
         """Delay rates of every stored exchange from its round's position / velocity estimate."""
@@ -151,6 +170,32 @@ class ItmtlNode(ReqResNode):
         self.alpha, self.beta = fit.alpha, fit.beta
         self.synced = True
 
+    def position_std(self) -> float:
+        """Std of this node's position estimate (m): the IMM's (or the last fix's) covariance."""
+        P = self._pos_cov
+        return float(np.sqrt(np.trace(P) / 2.0)) if P is not None else 1e3
+
+    def velocity_std(self) -> float:
+        """Std per axis of the velocity this node uses (m/s)."""
+        if self.is_anchor or self.params.own_velocity == "sensor":
+            return self.params.velocity_sensor_std_mps
+        if self.params.own_velocity == "track" and self.imm_filter is not None and self._n_fixes >= 2:
+            return float(np.sqrt(np.trace(self.imm_filter.P[2:4, 2:4]) / 2.0))
+        return self.params.speed_prior_mps
+
+    def time_std(self, t: float) -> float:
+        """Standard error (s) of this node's synchronized time at ``t``: the weighted
+        regression's error of the fitted line there (weights are inverse variances)."""
+        if self.is_anchor or not self._ex:
+            return 0.0
+        ex = self._exchanges(*self._rates())
+        tt = np.concatenate([ex.t2, ex.t3])
+        w = np.concatenate([ex.weight, ex.weight]) / self.params.stamp_std_s**2
+        sw = w.sum()
+        tm = (w * tt).sum() / sw
+        sxx = (w * (tt - tm) ** 2).sum()
+        return float(np.sqrt(1.0 / sw + ((t - tm) ** 2 / sxx if sxx > 0 else 0.0)))
+
     def _velocity_now(self) -> np.ndarray | None:
         src = self.params.own_velocity
         if src == "sensor":
@@ -165,11 +210,31 @@ class ItmtlNode(ReqResNode):
             return None
         return v
 
-    def _ref_weight(self, conf: Any) -> Any:
-        """Weight of a reference in the fix and the regression: inverse of the position
-        variance its confidence stands for, 1 for a buoy / anchor (weighted least squares)."""
+    def _fix_cov(self, fix: Any) -> np.ndarray:
         p = self.params
-        return p.fix_std_floor_m**2 / reference_variance(conf, p.fix_std_floor_m, p.residual_scale_m)
+        sigma = max(fix.rms_residual, p.fix_std_floor_m / p.mean_speed_mps)
+        return fix.cov_unit * sigma**2
+
+    def _accept(self, fix: Any) -> bool:
+        """Validation gate: a fix too poorly determined (std above ``fix_max_std_m``) or
+        inconsistent with the track (Mahalanobis distance^2 of the innovation above
+        ``gate_chi2``) is not used; after ``max_coast_rounds`` rejections in a row the track is
+        restarted from the next well-determined fix."""
+        p = self.params
+        R = self._fix_cov(fix)
+        if not np.all(np.isfinite(R)) or np.sqrt(np.max(np.linalg.eigvalsh(R))) > p.fix_max_std_m:
+            return False
+        if self._coast >= p.max_coast_rounds:
+            self._restart = True
+            return True
+        if p.imm and self.imm_filter is not None:
+            prior, P = self.imm_filter.x[:2], self.imm_filter.P[:2, :2]
+        elif self.v_est is not None:
+            prior, P = self.p_est[:2], np.eye(2) * (p.speed_prior_mps * 10.0) ** 2
+        else:
+            return True
+        d = fix.position[:2] - prior
+        return float(d @ np.linalg.solve(P + R, d)) <= p.gate_chi2
 
     def _ambiguous(self, ref_pos: np.ndarray, fix: Any, depth: float) -> bool:
         """Is the fix's mirror image across the references' horizontal principal axis an
@@ -217,13 +282,14 @@ class ItmtlNode(ReqResNode):
             return
         r = rnd.index
         for a in ans:
-            self._ex.append((a.T1, a.t2, a.t3, a.T4, self._ref_weight(a.conf)))
+            self._ex.append((a.T1, a.t2, a.t3, a.T4, a.conf, a.vel_std, a.time_std))
             self._ex_round.append(r)
             self._ref_pos.append(a.pos)
             self._ref_vel.append(a.vel)
         depth = self.depth()
         ref_pos = np.array([a.pos for a in ans])
         ref_conf = np.array([a.conf for a in ans])
+        ref_pstd = np.array([a.pos_std for a in ans])
         can_fix = len(ans) >= p.min_refs
 
         # phase 1 / rough position
@@ -268,7 +334,9 @@ class ItmtlNode(ReqResNode):
                 rough[2] = depth
         self._round_pos[r] = rough
         self._round_vel[r] = self._velocity_now()
+        self._round_vstd[r] = self.velocity_std() if self._round_vel[r] is not None else p.speed_prior_mps
 
+        rough_prior = rough.copy()
         # phases 2-3, iterated
         fix = None
         for _ in range(p.max_outer_iter):
@@ -279,7 +347,7 @@ class ItmtlNode(ReqResNode):
             sel = np.array(self._ex_round) == r
             tau_f, _ = split_delays(ex, self.alpha)
             fix = position_fix(self.model, ref_pos, tau_f[sel], rough, depth=depth,
-                               weights=self._ref_weight(ref_conf) if p.weighted else None)
+                               weights=1.0 / (p.fix_std_floor_m**2 + ref_pstd**2) if p.weighted else None)
             moved = float(np.linalg.norm(fix.position - rough))
             rough = fix.position
             self._round_pos[r] = rough
@@ -293,6 +361,11 @@ class ItmtlNode(ReqResNode):
             self._round_pos.pop(r, None)
             return
 
+        if fix is not None and self.localized and not self._accept(fix):
+            fix = None
+            self._round_pos[r] = rough_prior
+            self._sync()
+
         if fix is not None:
             res_m = fix.rms_residual * p.mean_speed_mps
             sigma = max(fix.rms_residual, p.fix_std_floor_m / p.mean_speed_mps)
@@ -301,6 +374,9 @@ class ItmtlNode(ReqResNode):
         else:
             R, conf, res_m = None, self.confidence * 0.9, np.nan
 
+        if getattr(self, "_restart", False) and fix is not None:
+            self.imm_filter, self._last_fix, self.v_est, self._n_fixes = None, None, None, 0
+            self._restart = False
         if p.imm:
             if self.imm_filter is None or fix is not None:
                 if self.imm_filter is None:
@@ -325,28 +401,50 @@ class ItmtlNode(ReqResNode):
                 self.p_est = self.p_est + v * (t1 - self.t_est)
         self.t_est = t1
         self.localized = True
+        if p.imm and self.imm_filter is not None:
+            self._pos_cov = self.imm_filter.P[:2, :2].copy()
+        elif R is not None:
+            self._pos_cov = R
         if fix is not None:
             self._n_fixes += 1
+            self._coast = 0
+        else:
+            self._coast += 1
+        # coasting is useless before the track has a velocity (two fixes)
+        lost = self._coast > p.max_coast_rounds or (self._coast > 0 and self._n_fixes < 2)
         self._round_pos[r] = self.p_est.copy()
-        if p.own_velocity == "track":
+        if lost:
+            # a track coasting this long is not trusted: no motion correction from it, no
+            # position estimate, and no reference duty (until fixes come back)
+            self._round_vel[r] = np.zeros(3)
+            self._round_vstd[r] = p.speed_prior_mps
+            if not self.is_anchor:
+                self.is_reference = False
+        elif p.own_velocity == "track":
             # the round's velocity is the track's after this round's fix; rounds before the
             # track had two fixes get the first velocity it gave, and the clock is refitted
             mature = self._plausible(self.v_est) is not None and self._n_fixes >= 2
             self._round_vel[r] = self.v_est.copy() if mature else None
+            self._round_vstd[r] = self.velocity_std() if mature else p.speed_prior_mps
             if mature:
                 for k, v in self._round_vel.items():
                     if v is None:
                         self._round_vel[k] = self.v_est.copy()
+                        self._round_vstd[k] = self.velocity_std()
                 self._sync()
 
         # network-wide
         self.confidence = conf
         self.conf_hist.append(conf)
-        if p.promotion and not self.is_reference and promote(self.conf_hist, p.promote_threshold, p.promote_min_rounds):
+        if self.is_reference and not self.is_anchor and self.position_std() > p.ref_max_std_m:
+            self.is_reference = False  # demoted: its position is no longer good enough to share
+        if p.promotion and not self.is_reference and not lost and self.position_std() <= p.ref_max_std_m and promote(self.conf_hist, p.promote_threshold, p.promote_min_rounds):
             self.is_reference = True
 
         now = self.ref_time(self.local_time())
         pos_now = self.estimated_position_at(now)
         self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
-        self.log_estimate(pos_now[0], pos_now[1], depth, confidence=conf, is_reference=self.is_reference,
-                          round=r, n_refs=len(ans), residual_m=res_m)
+        if not lost:
+            self.log_estimate(pos_now[0], pos_now[1], depth, confidence=conf, is_reference=self.is_reference,
+                              round=r, n_refs=len(ans), residual_m=res_m, fixed=fix is not None,
+                              promoted_refs=int(sum(a.conf < 1.0 for a in ans)))

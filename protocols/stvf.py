@@ -65,6 +65,7 @@ class STVFParams(BaseModel):
     max_iter: int = Field(50, ge=1)
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (measurement model)")
     range_m: float = Field(80.0, gt=0, description="modem range (m): a first fix must lie within it of every reference")
+    first_fix_refs: int = Field(3, ge=1, description="references needed to start the filter (prior from multilateration)")
     initial_std_m: float = Field(10.0, gt=0, description="std of q(mu_0) around a first fix (m)")
     keep_prior_across_gaps: bool = Field(
         False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting")
@@ -178,13 +179,20 @@ class STVFNode(Node):
         if z.size < p.n_ref:
             self.missed += 1
             return
+        fresh = self.mu is None or (self.missed > 0 and not p.keep_prior_across_gaps)
+        if fresh and z.size < p.first_fix_refs:
+            # No prior and too few references for an unambiguous fix (two circles cross
+            # twice): wait rather than start the filter on a mirror image.
+            self.missed += 1
+            return
+        if fresh:
+            fix = self.first_fix(z, refs)
         gamma = vf.measurement_confidence(eta, z, speed, (p.c1, p.c2, p.c3), penalize=p.penalize_far_fast)
         sel = vf.select_references(gamma, p.n_ref)
         z, refs, eta = z[sel], refs[sel], eta[sel]
 
-        fresh = self.mu is None or (self.missed > 0 and not p.keep_prior_across_gaps)
         if fresh:
-            self.mu, self.mu_precision = vf.initial_prior(self.first_fix(z, refs), p.initial_std_m)
+            self.mu, self.mu_precision = vf.initial_prior(fix, p.initial_std_m)
             gaps = 1
         else:
             gaps = self.missed + 1
@@ -206,8 +214,8 @@ class STVFNode(Node):
 
     def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray:
         """Coarse (x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given): multilateration on the
-        nominal-speed ranges, kept only if it lies within ``range_m`` of every reference heard
-        (a node hears only references in range); otherwise the references' centroid."""
+        nominal-speed ranges to every reference heard, kept only if it lies within ``range_m``
+        of each (a node hears only references in range); otherwise their centroid."""
         p: STVFParams = self.params
         r = z * p.speed_mps / 1e3
         if len(r) >= 3:

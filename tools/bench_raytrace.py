@@ -111,5 +111,55 @@ def main(argv: list[str] | None = None) -> list[dict[str, float | str]]:
     return rows
 
 
+# ---------------------------------------------------------------- layered solver (layered.py)
+
+#: a 10-layer profile with a sound-speed minimum (channel axis at 300 m) and a sea floor
+LAYERED_DEPTHS = (0.0, 50.0, 120.0, 200.0, 300.0, 420.0, 550.0, 700.0, 850.0, 1000.0, 1200.0)
+LAYERED_SPEEDS = tuple(1500.0 + d for d in (0.0, -5.0, -12.0, -20.0, -24.0, -20.0, -14.0, -8.0, -2.0, 4.0, 8.0))
+
+
+def _layered_profile():
+    from aquasim_py.channel import Layered
+
+    return Layered(LAYERED_DEPTHS, LAYERED_SPEEDS, bottom=1200.0)
+
+
+def case_layered_time(n: int) -> Case:
+    """Direct path only (the solver's own cost)."""
+    from aquasim_py.channel import layered
+
+    prof = _layered_profile()
+    src, dst = random_pairs(n)
+    return Case("layered travel_time, 10 layers (direct only)",
+                lambda: layered.travel_time(prof, src, dst, reflections="none"), n)
+
+
+def case_layered_time_fallback(n: int) -> Case:
+    """What the channel calls: reflected arrivals where there is no direct path."""
+    from aquasim_py.channel import layered
+
+    prof = _layered_profile()
+    src, dst = random_pairs(n)
+    return Case("layered travel_time, 10 layers (reflection fallback)",
+                lambda: layered.travel_time(prof, src, dst, reflections="fallback"), n)
+
+
+def case_layered_gradient(n: int) -> Case:
+    from aquasim_py.channel import layered
+
+    prof = _layered_profile()
+    src, dst = random_pairs(n)
+    return Case("layered travel_time_gradient, 10 layers",
+                lambda: layered.travel_time_gradient(prof, src, dst), n)
+
+
+def layered_cases() -> list[tuple[Callable[[int], Case], int]]:
+    """The layered solver's cases (target: >= 20 000 pairs/s on one core for 10 layers)."""
+    return [(case_layered_time, 50_000), (case_layered_time_fallback, 50_000), (case_layered_gradient, 50_000)]
+
+
+CASES.extend(layered_cases())
+
+
 if __name__ == "__main__":
     main()

@@ -28,7 +28,7 @@ import math
 from bisect import bisect_left, insort
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
+from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -43,11 +43,14 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..kernel import Simulation, _NodeCore
     from .ssp import SoundSpeedProfile
 
-__all__ = ["ChannelConfig", "AcousticChannel", "LossModel", "no_snr", "default_loss_model", "PATH_NAMES"]
+__all__ = ["ChannelConfig", "AcousticChannel", "LossModel", "no_snr", "physical_snr", "default_loss_model",
+           "PATH_NAMES"]
 
 #: path kind code -> name in the packets table
 PATH_NAMES = {int(PathKind.NONE): "none", int(PathKind.DIRECT): "direct",
               int(PathKind.SURFACE): "surface", int(PathKind.BOTTOM): "bottom"}
+
+_ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver core, packet, tof, path, dst)
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
@@ -66,7 +69,9 @@ class ChannelConfig:
     shipping, wind_mps: ambient noise parameters (shipping activity 0..1, wind speed m/s).
     snr_threshold_db: receptions below this SNR are dropped ("snr").
     collision: "none" (signals never interfere), "destructive" (any overlap destroys both),
-        "capture" (a signal survives if it beats the others' total power by capture_threshold_db).
+        "capture" (a signal survives if its SNR beats the summed power of the signals overlapping
+        it by capture_threshold_db; without an SNR model nothing can be captured, so "capture"
+        then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
     """
@@ -108,14 +113,24 @@ def no_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     return np.full(np.shape(ray.time), np.nan)
 
 
+def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
+    """SNR (dB) along each eigenray: SL - A(l, f) - N(f) - 10 log10 B (``channel.loss.snr_db``),
+    with l the ray's arc length and the config's source level, carrier, band, spreading
+    exponent and ambient-noise parameters."""
+    from . import loss
+
+    return loss.snr_db(config.source_level_db, ray.length, config.frequency_khz,
+                       config.bandwidth_khz * 1e3, k=config.spreading, shipping=config.shipping,
+                       wind_mps=config.wind_mps)
+
+
 def default_loss_model() -> LossModel:
-    """``aquasim_py.channel.loss`` when it provides an SNR model for the channel, else :func:`no_snr`."""
+    """:func:`physical_snr` when ``aquasim_py.channel.loss`` is available, else :func:`no_snr`."""
     try:
-        from . import loss
-    except ImportError:
+        from . import loss  # noqa: F401
+    except ImportError:  # pragma: no cover - the loss module ships with the package
         return no_snr
-    fn = getattr(loss, "channel_snr_db", None)
-    return fn if callable(fn) else no_snr
+    return physical_snr
 
 
 class AcousticChannel:
@@ -183,44 +198,59 @@ class AcousticChannel:
             self._prune(core)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
-        in_range, links = self._links(src, t0)
+        in_range, heard, lost = self._links(src, t0)
         if dst is not None and dst not in in_range:
             row((t0, "drop", "range", dst, src, dst, uid, kind, bits, nan, nan, None, nan))
-        # a unicast is heard (and interferes) everywhere in range, but only its addressee delivers
-        only_dst = dst is not None and self._collision == "none"
-        track = self._destructive or self._capture
-
-        cores = sim._cores
-        thr = self.config.snr_threshold_db
-        finish = self._finish
-        for rid, T, path, s in links:
-            intended = dst is None or dst == rid
-            if only_dst and not intended:
-                continue
-            if T != T:  # NaN: no eigenray (shadow zone)
+        for rid, reason, T, path, s in lost:
+            if dst is None or dst == rid:
+                if reason == "no_path":
+                    row((t0, "drop", reason, rid, src, dst_code, uid, kind, bits, nan, nan, path, nan))
+                else:
+                    row((t0 + T, "drop", reason, rid, src, dst_code, uid, kind, bits, T, s, path, nan))
+        track = self._destructive or self._capture  # overlaps matter only with a collision model
+        # A pending reception ends after now, so it began after now - longest packet, and a
+        # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
+        forget = t0 - 2.0 * self._max_duration
+        finish = self._on_delivery
+        if dst is None:
+            for rcore, T, path, s in heard:
+                arr = t0 + T
+                end = arr + duration
+                # one tuple is both the receiver's signal record (sorted by arrival) and the
+                # delivery's context, riding as the timeout's value (cheaper than a closure)
+                sig = (arr, end, s, rcore, pkt, T, path, -1)
+                if track:
+                    log = rcore.rx_log
+                    insort(log, sig, key=_ARRIVAL)
+                    if log[0][0] < forget:
+                        del log[:bisect_left(log, forget, key=_ARRIVAL)]
+                env.timeout(end - t0, sig).callbacks.append(finish)
+        else:
+            # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
+            for rcore, T, path, s in heard:
+                intended = rcore.index == dst
+                if not (track or intended):
+                    continue
+                arr = t0 + T
+                end = arr + duration
+                sig = (arr, end, s, rcore, pkt, T, path, dst)
+                if track:
+                    log = rcore.rx_log
+                    insort(log, sig, key=_ARRIVAL)
+                    if log[0][0] < forget:
+                        del log[:bisect_left(log, forget, key=_ARRIVAL)]
                 if intended:
-                    row((t0, "drop", "no_path", rid, src, dst_code, uid, kind, bits, nan, nan, path, nan))
-                continue
-            arr = t0 + T
-            if s < thr:  # NaN (no loss model) compares False: never dropped on SNR
-                if intended:
-                    row((arr, "drop", "snr", rid, src, dst_code, uid, kind, bits, T, s, path, nan))
-                continue
-            end = arr + duration
-            rcore = cores[rid]
-            entry = (arr, end, s)
-            if track:  # overlaps matter only with a collision model
-                insort(rcore.rx_log, entry)
-            if intended:
-                env.timeout(end - t0).callbacks.append(
-                    partial(finish, rcore, pkt, entry, T, path, dst_code))
+                    env.timeout(end - t0, sig).callbacks.append(finish)
         return tx_local
 
-    def _links(self, src: int, t0: float) -> tuple[frozenset[int], list[tuple[int, float, str, float]]]:
-        """Nodes in range of ``src`` at ``t0`` and, per candidate, (id, delay s, path name, SNR dB).
+    def _links(self, src: int, t0: float) -> tuple[frozenset[int], list[tuple[Any, float, str, float]],
+                                                   list[tuple[int, str, float, str, float]]]:
+        """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
 
-        When no node moves the answer never changes, so it is cached per sender (and recomputed
-        if nodes are added).
+        heard: (receiver core, delay s, path name, SNR dB) of signals that reach the receiver;
+        lost: (id, "no_path" | "snr", delay, path name, SNR) of those that do not. When no node
+        moves the answer never changes, so it is cached per sender (recomputed if nodes are
+        added; the loss model must be a pure function of the eigenray and the config).
         """
         sim = self._sim
         n = len(sim.nodes)
@@ -235,12 +265,20 @@ class AcousticChannel:
         d2 = np.einsum("ij,ij->i", diff, diff)
         d2[src] = np.inf
         cand = np.flatnonzero(d2 <= self._range2)
+        heard: list[tuple[Any, float, str, float]] = []
+        lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
-            links = list(zip(cand.tolist(), times.tolist(), [PATH_NAMES[p] for p in paths.tolist()], snr.tolist()))
-        else:
-            links = []
-        out = (frozenset(cand.tolist()), links)
+            cores = sim._cores
+            thr = self.config.snr_threshold_db
+            for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
+                if T != T:  # NaN: no eigenray (shadow zone)
+                    lost.append((rid, "no_path", T, PATH_NAMES[p], s))
+                elif s < thr:  # NaN SNR (no loss model) compares False: never dropped on SNR
+                    lost.append((rid, "snr", T, PATH_NAMES[p], s))
+                else:
+                    heard.append((cores[rid], T, PATH_NAMES[p], s))
+        out = (frozenset(cand.tolist()), heard, lost)
         if static:
             self._static_links[src] = (n, out)
         return out
@@ -256,6 +294,21 @@ class AcousticChannel:
             time = np.array(ray.time, dtype=float)
             fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
             active = np.flatnonzero(moving & np.isfinite(time))
+            # Start from the fixed point of the receivers' straight-line motion at t0 (vectorized,
+            # no mobility queries): for constant velocity it is already the answer, and the exact
+            # iteration below then stops after one query per receiver.
+            p0 = p_rx[active]
+            v0 = self._sim.velocities(t0)[cand[active]]
+            t_lin = time[active]
+            for _ in range(_MAX_ITER):
+                r = eigenray(ssp, p_src, p0 + v0 * t_lin[:, None], reflections=refl)
+                t_new = np.where(np.isfinite(r.time), r.time, t_lin)
+                done = not np.any(np.abs(t_new - t_lin) > 0.1 * FIXED_POINT_TOL_S)
+                t_lin = t_new
+                if done:
+                    break
+            time[active] = t_lin
+            # exact fixed point t_a = t0 + T(p_src(t0), p_rx(t_a)) on the true trajectories
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
@@ -275,10 +328,10 @@ class AcousticChannel:
 
     # -- receive ----------------------------------------------------------------------------------
 
-    def _finish(self, rcore: _NodeCore, pkt: Packet, entry: tuple[float, float, float], tof: float,
-                path: str, dst_code: int, _ev: simpy.Event) -> None:
-        """The last bit of ``pkt`` has arrived at ``rcore``: decide, stamp, deliver, trace."""
-        arr, end, snr = entry
+    def _on_delivery(self, ev: simpy.Event) -> None:
+        """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
+        sig = ev.value
+        arr, end, snr, rcore, pkt, tof, path, dst_code = sig
         reason = None
         for a, b in rcore.tx_log:
             if a < end and b > arr:
@@ -288,7 +341,7 @@ class AcousticChannel:
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
             log = rcore.rx_log
-            i = bisect_left(log, (arr - self._max_duration,))
+            i = bisect_left(log, arr - self._max_duration, key=_ARRIVAL)
             n = len(log)
             power = 0.0
             hit = False
@@ -297,7 +350,7 @@ class AcousticChannel:
                 i += 1
                 if e[0] >= end:
                     break
-                if e[1] > arr and e is not entry:
+                if e[1] > arr and e is not sig:
                     hit = True
                     if self._destructive:
                         break
@@ -305,11 +358,6 @@ class AcousticChannel:
             if hit and (self._destructive or
                         not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
-            # forget signals that ended before anything still pending could start: arrival
-            # earlier than now - 2 * longest packet implies that
-            k = bisect_left(log, (self._env.now - 2.0 * self._max_duration,))
-            if k:
-                del log[:k]
         if reason is not None:
             self._row((arr, "drop", reason, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits,
                        tof, snr, path, math.nan))

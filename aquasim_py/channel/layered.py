@@ -30,7 +30,6 @@ network ranges (a few km) multi-turn rays exist only for pairs close to a channe
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -66,7 +65,8 @@ REASON_OUTSIDE = "point outside the water column"
 #: any acoustic network
 _OPEN_DEPTH_M = 1.0e5
 _GRID = 9  # phi samples per turning family (brackets the roots; caustics need >1 sample)
-_CHUNK = 16384  # pairs per block, bounds the (pairs, samples, layers) work arrays
+_SAME_DEPTH_M = 1e-9
+_CHUNK_ELEMS = 1 << 21  # elements of one (pairs, samples, layers) work array per block
 _RTOL = 1e-13  # relative tolerance on horizontal range
 _MAXIT = 80
 _FAM_D, _FAM_L, _FAM_U = 0, 1, 2
@@ -357,7 +357,8 @@ def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: boo
         lo, hi = st.z[kt], np.minimum(geo.za, st.z[kt + 1])
     x = np.where(ok, xd + 2.0 * xe, np.nan)
     if deriv:
-        return x, (td + 2.0 * te) * dpdphi, None, None
+        with np.errstate(invalid="ignore"):
+            return x, (td + 2.0 * te) * dpdphi, None, None
     if not full:
         return x, None, None, None
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -482,6 +483,48 @@ def _finish(st, geo, fam, phi, target, idx, best: _Arrivals, resid) -> None:
     best.ok[idx] = True
 
 
+_CUSP_JUMP = 1.05  # gradient ratio across a breakpoint that gets the extra samples
+_CUSP_MAX = 8  # at most this many breakpoints per family (the largest jumps)
+
+
+def _cusp_samples(st: _Stack, geo: _Geo, fam: int, ext) -> NDArray[np.float64] | None:
+    """Extra samples where a turning family folds back (a triplication, several eigenrays).
+
+    When the turning point crosses a breakpoint into a layer of steeper gradient (|g_new| >
+    |g_old|), the range gains the term -beta sin(th_j), beta = 2 (1/|g_old| - 1/|g_new|) / p,
+    with sin(th_j) ~ sqrt(2 tan(phi_j) u), u = phi - phi_j: a dip right after phi_j that a
+    uniform grid can step over. Sampling phi_j and the dip's bottom, u* = beta^2 tan(phi_j) /
+    (2 S'^2) (S' the range slope just before phi_j), brackets both of its eigenrays."""
+    g = st.g
+    if fam == _FAM_L:  # breakpoint j between layers j-1 (above, old) and j (below, new)
+        j = np.flatnonzero((g[:-1] > 0.0) & (g[1:] > _CUSP_JUMP * g[:-1])) + 1
+        g_old, g_new = g[j - 1], g[j]
+    else:
+        j = np.flatnonzero((g[1:] < 0.0) & (g[:-1] < _CUSP_JUMP * g[1:])) + 1
+        g_old, g_new = -g[j], -g[j - 1]
+    if j.size == 0:
+        return None
+    if j.size > _CUSP_MAX:
+        keep = np.argsort(g_new / g_old)[-_CUSP_MAX:]
+        j, g_old, g_new = j[keep], g_old[keep], g_new[keep]
+    zj, cj = st.z[j], st.c[j]
+    side = (zj > geo.zb[:, None]) if fam == _FAM_L else (zj < geo.za[:, None])
+    ratio = 1.0 / (geo.pmax[:, None] * cj)  # cos(phi_j) = c_max / c_j
+    with np.errstate(invalid="ignore"):
+        phj = np.where(side & (ratio < 1.0), np.arccos(np.clip(ratio, -1.0, 1.0)), np.nan)
+    phj = np.where(phj < ext[:, None], phj, np.nan)
+    if not np.any(np.isfinite(phj)):
+        return None
+    col = geo.col()
+    probe = np.where(np.isfinite(phj), phj * (1.0 - 1e-12), 0.0)  # just before: old layer turns
+    _, slope, _, _ = _family(st, col, fam, probe, deriv=True)
+    beta = 2.0 * (1.0 / g_old - 1.0 / g_new) * cj  # 1/p = c_j at phi_j
+    with np.errstate(invalid="ignore", divide="ignore"):
+        du = beta**2 * np.tan(phj) / (2.0 * slope**2)
+    dip = np.where((slope > 0.0) & np.isfinite(du), np.minimum(phj + du, ext[:, None] * (1.0 - 1e-10)), np.nan)
+    return np.concatenate([phj, dip], axis=1)
+
+
 def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
     """Earliest direct eigenray for one block of pairs with za <= zb, horizontal range x."""
     n = za.size
@@ -531,6 +574,9 @@ def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
             continue
         g = geo.take(i)
         grid = ext[i, None] * u[None, :]
+        cusp = _cusp_samples(st, g, fam, ext[i])
+        if cusp is not None:
+            grid = np.sort(np.concatenate([grid, cusp], axis=1), axis=1)  # NaN (unused) last
         h = _family(st, g.col(), fam, grid)[0] - x[i, None]
         rows, s = _pick_brackets(h)
         if rows.size == 0:
@@ -550,10 +596,14 @@ def _direct(st: _Stack, zs, zr, x) -> _Arrivals:
     out.time[:] = np.nan
     swap = zs > zr
     za, zb = np.where(swap, zr, zs), np.where(swap, zs, zr)
+    # depths within a nanometre are equal: below that, c(z_b) rounds to c(z_a) and the
+    # direct family's range formula would see a depth step without a speed step
+    zb = np.where(zb - za <= _SAME_DEPTH_M, za, zb)
     inside = (za >= 0.0) & (zb <= st.zmax) & np.isfinite(za) & np.isfinite(zb) & np.isfinite(x)
     idx = np.flatnonzero(inside)
-    for s in range(0, idx.size, _CHUNK):
-        i = idx[s : s + _CHUNK]
+    chunk = max(64, _CHUNK_ELEMS // ((_GRID + 2 * _CUSP_MAX) * (st.g.size + 1)))
+    for s in range(0, idx.size, chunk):
+        i = idx[s : s + chunk]
         r = _direct_block(st, za[i], zb[i], x[i])
         for f in ("time", "length", "turn", "ok"):
             getattr(out, f)[i] = getattr(r, f)

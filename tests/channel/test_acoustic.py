@@ -323,3 +323,69 @@ def test_mac_jitter_statistics():
     assert len(err) > 350
     assert abs(err.mean()) < 4 * sigma / math.sqrt(len(err))
     assert 0.9 * sigma < err.std() < 1.1 * sigma
+
+
+def test_real_shadow_zone_and_reflected_path():
+    """c(z) = 1500 - 0.05 z: arcs between shallow nodes 6 km apart would leave the water. With
+    reflections="none" the packet is lost ("no_path"); with "fallback" it arrives by the
+    bottom-reflected path, with that path's travel time."""
+    ssp = Isogradient(1500.0, -0.05, bottom=1000.0)
+    src, dst = [0.0, 0.0, 2.0], [6000.0, 0.0, 2.0]
+    assert np.isnan(travel_time(ssp, src, dst, reflections="none"))
+    for refl in ("none", "fallback"):
+        sim = Simulation(10, ssp=ssp, channel=ChannelConfig(max_range_m=7000.0, reflections=refl))
+        sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[src, dst])
+        sim.run(10.0)
+        r = _at(_packets(sim), 1).iloc[0]
+        if refl == "none":
+            assert (r.event, r.reason, r.path) == ("drop", "no_path", "none")
+        else:
+            assert (r.event, r.path) == ("rx", "bottom")
+            assert abs(r.tof - float(travel_time(ssp, src, dst, reflections="fallback"))) < 1e-9
+
+
+def test_default_loss_model_wires_the_config():
+    """The default SNR follows the sonar equation's dependencies: +10 dB of source level gives
+    +10 dB; 10x the bandwidth gives -10 dB (flat noise PSD); 4x the range with spreading k = 2
+    costs 20 log10 4 dB plus the absorption over the extra path; and a threshold above the
+    SNR drops the packet."""
+    def snr(**cfg):
+        sim = Simulation(12, ssp=C, channel=ChannelConfig(collision="none", snr_threshold_db=-1e9, **cfg))
+        sim.add_group(_plan({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
+        sim.run(5.0)
+        p = _packets(sim)
+        return p[p.event == "rx"].set_index("node")["snr_db"]
+
+    base = snr(spreading=2.0)
+    assert np.isfinite(base).all()
+    assert math.isclose(snr(spreading=2.0, source_level_db=180.0)[1] - base[1], 10.0, abs_tol=1e-9)
+    assert math.isclose(snr(spreading=2.0, bandwidth_khz=50.0)[1] - base[1], -10.0, abs_tol=1e-9)
+    from aquasim_py.channel.loss import thorp_absorption_db_per_km
+    expected = 20 * math.log10(4.0) + 1.5 * float(thorp_absorption_db_per_km(10.0))  # 1.5 km more
+    assert math.isclose(base[1] - base[2], expected, abs_tol=1e-9)
+    sim = Simulation(12, ssp=C, channel=ChannelConfig(snr_threshold_db=float(base[2]) + 0.5, spreading=2.0))
+    sim.add_group(_plan({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
+    sim.run(5.0)
+    p = _packets(sim)
+    assert list(p[p.node == 1].event) == ["rx"] and list(p[p.node == 2].reason) == ["snr"]
+
+
+def test_signal_logs_stay_short_at_overhearing_nodes():
+    """A node that only overhears unicasts keeps no unbounded record of past signals."""
+    pos = [[0.0, 0.0, 10.0], [300.0, 0.0, 10.0], [0.0, 300.0, 10.0]]
+
+    class Chat(Node):
+        name = "chat"
+
+        def run(self):
+            if self.id == 0:
+                while True:
+                    yield self.send(1, "u", None, 50)
+                    yield self.sleep(0.3)
+
+    sim = Simulation(13, ssp=C)
+    sim.add_group(Chat, 3, positions=pos)
+    sim.run(300.0)
+    p = _packets(sim)
+    assert (p.event == "tx").sum() > 800 and (p.event == "rx").sum() >= (p.event == "tx").sum() - 1
+    assert len(sim._cores[2].rx_log) <= 3 and len(sim._cores[1].rx_log) <= 3
