@@ -429,12 +429,12 @@ class Simulation:
             group = self.groups[g]
             sel = np.flatnonzero(gids == g)
             mob = group.mobility
-            hook = getattr(mob, "positions_at", None)
-            if hook is not None:
-                # optional vectorized hook of a mobility model: (local ids, times) -> (k, 3)
-                out[sel] = hook(idx[sel] - group.start, times[sel])
+            batched = getattr(mob, "position_at", None)
+            if batched is not None:
+                # Mobility.position_at: every (node, time) pair of the group in one vectorized call
+                out[sel] = batched(idx[sel] - group.start, times[sel])
                 continue
-            # one mobility query per (moving node, time): the few receivers of one packet
+            # a third-party model without position_at: one query per (node, time)
             for i, j, t in zip(sel.tolist(), (idx[sel] - group.start).tolist(), times[sel].tolist()):
                 out[i] = mob.position(t)[j]
         return out

@@ -10,7 +10,10 @@ One registered protocol; the behaviour is chosen by parameters:
   every frame and a depth row every ``rho`` frames (eqs 39-40);
 - ``model = "essp"``: the exact isogradient ray model (eqs 13, 15-18) with the node's own
   profile knowledge c(z) = ``surface_speed_mps`` + ``gradient_per_s`` z (which a scenario may
-  set equal to or different from the environment's); ``model = "assp"``: straight rays at
+  set equal to or different from the environment's); with ``continue_above_surface`` (default)
+  the closed form is also evaluated above the surface, so an iterate that strays there keeps a
+  model value (as the paper's formulas do; the Levenberg-Marquardt fallback of
+  :func:`aquasim_py.estimation.gauss_newton` stays in place either way); ``model = "assp"``: straight rays at
   v_bar = [C(max anchor depth) + C(min anchor depth)] / 2 with the same knowledge.
 
 Network: the nodes are synchronized (the paper's assumption: give every group a perfect
@@ -80,6 +83,8 @@ class Ramezani(Node):
         initial_guess: Vec3 | None = Field(None, description="tracking prior position (m); default the first GN fix")
         p0_pos_std_m: float = Field(30.0, gt=0.0, description="tracking prior position std per axis (m)")
         p0_vel_std_mps: float = Field(0.1, gt=0.0, description="tracking prior velocity std per axis (m/s)")
+        continue_above_surface: bool = Field(
+            True, description="essp: evaluate eq 13 also above the surface (an iterate may stray there)")
         max_iter: int = Field(7, ge=1, description="Algorithm 1: K")
         tol_m: float = Field(1e-3, gt=0.0, description="Algorithm 1: eps (m)")
         min_anchors: int = Field(4, ge=1, description="fewest anchors heard in a frame to use it")
@@ -155,7 +160,8 @@ class Ramezani(Node):
         tofs = np.array([got[s][0] for s in slots])
         anchors = np.array([got[s][1] for s in slots], dtype=float)
         srcs = " ".join(str(got[s][2]) for s in slots)
-        time_fn, grad_fn = tof_functions(p.model, p.surface_speed_mps, p.gradient_per_s, anchors)
+        time_fn, grad_fn = tof_functions(p.model, p.surface_speed_mps, p.gradient_per_s, anchors,
+                                         continued=p.continue_above_surface)
         common = dict(mode=p.mode, model=p.model, frame=frame, n_anchors=len(slots), anchor_nodes=srcs,
                       sigma_t=p.sigma_t_s, b=p.surface_speed_mps, a=p.gradient_per_s)
         if p.mode == "localization":
@@ -214,6 +220,8 @@ class Ramezani(Node):
             r.append(p.sigma_z_m**2)
 
         def eval_at(s: np.ndarray) -> np.ndarray:
+            if p.continue_above_surface:
+                return s[:3]
             # a prediction above the surface has no ray: linearize at the surface instead
             return np.array([s[0], s[1], max(float(s[2]), 0.0)])
 

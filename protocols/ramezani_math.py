@@ -63,12 +63,51 @@ def v_bar(b: float, a: float, anchors: ArrayLike) -> float:
     return float(b + a * 0.5 * (z.max() + z.min()))
 
 
-def essp_model(b: float, a: float) -> tuple[TofFn, TofFn]:
+def essp_model(b: float, a: float, *, continued: bool = False) -> tuple[TofFn, TofFn]:
     """(time_fn, grad_fn) of the exact isogradient ray model (eqs 13, 15-18), direct arc only:
-    the model a node with profile knowledge (b, a) fits. NaN where the arc leaves the water."""
+    the model a node with profile knowledge (b, a) fits.
+
+    ``continued=False``: the channel's closed forms, NaN where the arc leaves the water (a
+    Gauss-Newton iterate above the surface then has no model value). ``continued=True``: the
+    same closed forms evaluated without the water-column check, i.e. eq 13 analytically
+    continued to any point with c > 0 (what an estimator coded from the paper's formulas
+    does); identical in the water (tested against the channel).
+    """
+    if continued:
+        return partial(_continued_time, b, a), partial(_continued_grad, b, a)
     ssp = Isogradient(b, a)
     return (partial(travel_time, ssp, reflections="none"),
             partial(travel_time_gradient, ssp, reflections="none"))
+
+
+def _continued_parts(b: float, a: float, src: Array, dst: Array) -> tuple[Array, ...]:
+    s = np.asarray(src, dtype=float)
+    d = np.asarray(dst, dtype=float)
+    diff = d - s
+    D = np.linalg.norm(diff, axis=-1)
+    c1 = b + a * s[..., 2]
+    c2 = b + a * d[..., 2]
+    with np.errstate(invalid="ignore"):
+        g = np.sqrt(c1 * c2)  # NaN where a speed is not positive: no model there
+    y = abs(a) * D / (2.0 * g)
+    return diff, D, c2, g, y
+
+
+def _continued_time(b: float, a: float, src: Array, dst: Array) -> Array:
+    """Eq 13 as t = (D / g) asinh(y) / y, g = sqrt(c1 c2), y = |a| D / (2 g): no 1/a, exact at a = 0."""
+    _, D, _, g, y = _continued_parts(b, a, src, dst)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(y < 1e-6, 1.0 - y * y / 6.0, np.arcsinh(y) / np.where(y < 1e-6, 1.0, y))
+    return D / g * ratio
+
+
+def _continued_grad(b: float, a: float, src: Array, dst: Array) -> Array:
+    """d t / d dst of :func:`_continued_time`: ((dx, dy, dz) / D - (0, 0, a D / (2 c2))) / (g sqrt(1 + y^2))."""
+    diff, D, c2, g, y = _continued_parts(b, a, src, dst)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(D[..., None] > 0.0, diff / np.where(D > 0.0, D, 1.0)[..., None], 0.0)
+        u[..., 2] -= a * D / (2.0 * c2)
+        return u / (g * np.sqrt(1.0 + y * y))[..., None]
 
 
 def assp_model(b: float, a: float, anchors: ArrayLike) -> tuple[TofFn, TofFn]:
@@ -76,10 +115,12 @@ def assp_model(b: float, a: float, anchors: ArrayLike) -> tuple[TofFn, TofFn]:
     return constant_speed_tof(v_bar(b, a, anchors))
 
 
-def tof_functions(model: str, b: float, a: float, anchors: ArrayLike) -> tuple[TofFn, TofFn]:
-    """The ToF model by name: ``"essp"`` (exact SSP) or ``"assp"`` (average speed)."""
+def tof_functions(model: str, b: float, a: float, anchors: ArrayLike, *, continued: bool = False
+                  ) -> tuple[TofFn, TofFn]:
+    """The ToF model by name: ``"essp"`` (exact SSP; ``continued`` as in :func:`essp_model`) or
+    ``"assp"`` (average speed)."""
     if model == "essp":
-        return essp_model(b, a)
+        return essp_model(b, a, continued=continued)
     if model == "assp":
         return assp_model(b, a, anchors)
     raise ValueError(f"model must be 'essp' or 'assp', got {model!r}")

@@ -11,7 +11,8 @@ over ITMTL-wsc next to the paper's 56.67 % and 25.8 %. With ``--out``: results.j
 compare.md, and PNGs (bars per variant: Figs 9-10 / 13 analogues; per-round convergence of
 sync and localization error, ITMTL vs ITMTL-wsc: Figs 11-12 analogues).
 
-``--mobility``: meandering (the scenario's current), turn (coordinated turn, 1 m/s,
+ITMTL runs without promotion unless ``--promotion`` (the paper's Figs 9-14 study anchors as
+the only references). ``--mobility``: meandering (the scenario's current), turn (coordinated turn, 1 m/s,
 0.01 rad/s: maneuvering nodes for IMM vs raw fixes), random_walk.
 """
 
@@ -34,6 +35,7 @@ VARIANTS = {
     "ITMTL": ("itmtl", {}),
     "ITMTL-wsc": ("itmtl", {"compensate": False}),
     "ITMTL no IMM": ("itmtl", {"imm": False}),
+    "ITMTL unweighted": ("itmtl", {"weighted": False}),
     "MU-Sync": ("mu_sync", {}),
     "TSHL": ("tshl", {}),
     "Mobi-Sync": ("mobi_sync", {}),
@@ -48,7 +50,7 @@ KEYS = ("sync_final_mean_s", "sync_final_mean_all_s", "loc_nmse", "loc_rmse_m", 
 ITMTL_ONLY = ("ssp_depths_m", "ssp_speeds_mps")
 
 
-def run(variant: str, seed: int, duration: float, mobility: str) -> tuple[dict[str, float], pd.DataFrame]:
+def run(variant: str, seed: int, duration: float, mobility: str, promotion: bool = False) -> tuple[dict[str, float], pd.DataFrame]:
     proto, extra = VARIANTS[variant]
     raw = tomllib.loads(SCEN.read_text())
     raw["simulation"].update(seed=seed, duration_s=duration)
@@ -57,6 +59,8 @@ def run(variant: str, seed: int, duration: float, mobility: str) -> tuple[dict[s
         params = g.setdefault("params", {})
         if g["role"] == "ordinary":
             params.update(extra)
+            if proto == "itmtl":
+                params["promotion"] = promotion
             if MOBILITY[mobility] is not None:
                 g["mobility"] = dict(MOBILITY[mobility])
         if proto != "itmtl":
@@ -75,16 +79,19 @@ def main() -> None:
     ap.add_argument("--mobility", choices=list(MOBILITY), default="meandering")
     ap.add_argument("--variants", nargs="*", default=list(VARIANTS))
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--promotion", action="store_true",
+                    help="let ITMTL promote nodes (the paper's Figs 9-14 use anchors only)")
     a = ap.parse_args()
     res: dict[str, list[dict[str, float]]] = {}
     rounds: dict[str, list[pd.DataFrame]] = {}
     for v in a.variants:
         for s in range(1, a.seeds + 1):
-            m, pr = run(v, s, a.duration, a.mobility)
+            m, pr = run(v, s, a.duration, a.mobility, a.promotion)
             res.setdefault(v, []).append(m)
             rounds.setdefault(v, []).append(pr.assign(seed=s))
     mean = {v: {k: float(np.nanmean([r.get(k, np.nan) for r in rs])) for k in KEYS} for v, rs in res.items()}
-    lines = [f"{a.seeds} seeds, {a.duration:g} s, mobility {a.mobility}: means over seeds", "",
+    lines = [f"{a.seeds} seeds, {a.duration:g} s, mobility {a.mobility}, promotion {'on' if a.promotion else 'off'}: "
+             "means over seeds", "",
              "| variant | sync covered (us) | sync all (us) | NMSE | RMSE (m) | coverage | bound | promoted |",
              "|---|---|---|---|---|---|---|---|"]
     for v, m in mean.items():

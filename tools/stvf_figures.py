@@ -211,13 +211,15 @@ def main(argv: list[str] | None = None) -> None:
             headline(args, out)
             continue
         jobs = _jobs(name, args)
-        if args.workers > 1:
-            with ProcessPoolExecutor(args.workers) as ex:
-                rows = list(ex.map(run_one, jobs))
-        else:
-            rows = [run_one(j) for j in jobs]
+        rows: list[dict[str, Any]] = []
+        partial = out / f"{name}.partial.csv"
+        with ProcessPoolExecutor(max(1, args.workers)) as ex:
+            for row in ex.map(run_one, jobs):  # job order, whatever finishes first
+                rows.append(row)
+                pd.DataFrame(rows).to_csv(partial, index=False)  # a long sweep can be read while it runs
         df = pd.DataFrame(rows)
         df.to_csv(out / f"{name}.csv", index=False)
+        partial.unlink(missing_ok=True)
         if name == "fig3":
             _plot_xy(df, "n_ref", "beacon_share", [("mean_error_m", "localization error (m)"),
                                                    ("coverage", "coverage")], out / "fig3.png", "Fig. 3")

@@ -6,8 +6,10 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    computation over all node positions);
 2. delay: the eigenray time from p_s to the receiver's position *at the arrival instant*,
    i.e. the fixed point t_a = t0 + T(p_s, p_rx(t_a)), iterated (vectorized over receivers)
-   until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step,
-   so a few iterations suffice; static receivers need none;
+   until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step.
+   Iteration starts from the fixed point of the receivers' straight-line motion at t0 (no
+   mobility queries), which is exact for constant velocity, so the exact iteration usually
+   stops after one query per receiver; static receivers need none;
 3. losses: no eigenray (shadow zone) -> "no_path"; SNR below the threshold -> "snr";
    the receiver transmitting during any part of the reception -> "half_duplex"; another
    signal overlapping the reception at the receiver -> "collision" (with ``capture``, the

@@ -484,7 +484,7 @@ def _finish(st, geo, fam, phi, target, idx, best: _Arrivals, resid) -> None:
 
 
 _CUSP_JUMP = 1.05  # gradient ratio across a breakpoint that gets the extra samples
-_CUSP_MAX = 8  # at most this many breakpoints per family (the largest jumps)
+_CUSP_MAX = 12  # at most this many breakpoints per family and pair (evenly spread)
 
 
 def _cusp_samples(st: _Stack, geo: _Geo, fam: int, ext) -> NDArray[np.float64] | None:
@@ -504,9 +504,6 @@ def _cusp_samples(st: _Stack, geo: _Geo, fam: int, ext) -> NDArray[np.float64] |
         g_old, g_new = -g[j], -g[j - 1]
     if j.size == 0:
         return None
-    if j.size > _CUSP_MAX:
-        keep = np.argsort(g_new / g_old)[-_CUSP_MAX:]
-        j, g_old, g_new = j[keep], g_old[keep], g_new[keep]
     zj, cj = st.z[j], st.c[j]
     side = (zj > geo.zb[:, None]) if fam == _FAM_L else (zj < geo.za[:, None])
     ratio = 1.0 / (geo.pmax[:, None] * cj)  # cos(phi_j) = c_max / c_j
@@ -515,6 +512,18 @@ def _cusp_samples(st: _Stack, geo: _Geo, fam: int, ext) -> NDArray[np.float64] |
     phj = np.where(phj < ext[:, None], phj, np.nan)
     if not np.any(np.isfinite(phj)):
         return None
+    # the breakpoint's gradients ride along with its phi_j through the per-pair selection
+    key = np.broadcast_to(np.arange(j.size), phj.shape)
+    order = np.argsort(np.where(np.isfinite(phj), phj, np.inf), axis=1)
+    phj = np.take_along_axis(phj, order, axis=1)
+    key = np.take_along_axis(key, order, axis=1)
+    if j.size > _CUSP_MAX:
+        # many thin layers: an even spread of the pair's relevant breakpoints
+        m = np.isfinite(phj).sum(axis=1)
+        pick = np.round(np.linspace(0.0, 1.0, _CUSP_MAX)[None, :] * np.maximum(m - 1, 0)[:, None]).astype(np.intp)
+        phj = np.where(m[:, None] > 0, np.take_along_axis(phj, pick, axis=1), np.nan)
+        key = np.take_along_axis(key, pick, axis=1)
+    g_old, g_new, cj = g_old[key], g_new[key], cj[key]
     col = geo.col()
     probe = np.where(np.isfinite(phj), phj * (1.0 - 1e-12), 0.0)  # just before: old layer turns
     _, slope, _, _ = _family(st, col, fam, probe, deriv=True)

@@ -389,3 +389,26 @@ def test_signal_logs_stay_short_at_overhearing_nodes():
     p = _packets(sim)
     assert (p.event == "tx").sum() > 800 and (p.event == "rx").sum() >= (p.event == "tx").sum() - 1
     assert len(sim._cores[2].rx_log) <= 3 and len(sim._cores[1].rx_log) <= 3
+
+
+def test_turning_receiver_delay_at_arrival_position():
+    """A receiver on a tight circle (3 m/s, 0.2 rad/s): the straight-line start is not exact,
+    yet the delay still matches an independent root on the closed-form circle to 1e-9 s."""
+    from aquasim_py.mobility import CoordinatedTurn
+
+    speed, w, h0 = 3.0, 0.2, 0.4
+    p_r0 = np.array([900.0, -300.0, 140.0])
+    src = [0.0, 0.0, 60.0]
+
+    def circle(t):  # written here from the geometry, not taken from the mobility module
+        return p_r0 + (speed / w) * np.array([np.sin(h0 + w * t) - np.sin(h0), np.cos(h0) - np.cos(h0 + w * t), 0.0])
+
+    sim = Simulation(14, ssp=PROFILE, volume=BOX, channel=ChannelConfig(collision="none"))
+    sim.add_group(_plan({0: [(3.0, None, 64), (17.5, None, 64)]}), 1, positions=[src])
+    sim.add_group(Listener, 1, mobility=CoordinatedTurn([p_r0], BOX, speed=speed, turn_rate=w, heading=h0))
+    sim.run(30.0)
+    p = _packets(sim)
+    for t0, r_time, tof in zip(p[p.event == "tx"].time, p[p.event == "rx"].time, p[p.event == "rx"].tof):
+        f = lambda ta: ta - t0 - float(travel_time(PROFILE, src, circle(ta)))  # noqa: E731
+        t_arr = brentq(f, t0, t0 + 10.0, xtol=1e-13, rtol=1e-15)
+        assert abs(r_time - t_arr) < 1e-9 and abs(tof - (t_arr - t0)) < 1e-9

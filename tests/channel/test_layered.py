@@ -72,14 +72,30 @@ def random_pairs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return src, dst
 
 
+def _trace(orc: Oracle, z_src: float, launch: float, R: float, z_lim) -> ray_ode.OdeRay:
+    return ray_ode.trace(orc.speed, orc.dspeed, z_src, launch, R, interfaces=orc.interfaces, z_limits=z_lim)
+
+
 def shot_check(orc: Oracle, z_src: float, z_dst: float, R: float, launch: float, z_lim) -> tuple[float, float]:
     """Trace the ray launched at ``launch``; return (depth miss at range R, corrected time)."""
-    ray = ray_ode.trace(orc.speed, orc.dspeed, z_src, launch, R, interfaces=orc.interfaces, z_limits=z_lim)
-    assert ray.reached, "the ray at the solver's launch angle leaves the water before the receiver"
-    miss = ray.z_end - z_dst
+    ray = _trace(orc, z_src, launch, R, z_lim)
+    miss = ray.z_end - z_dst if ray.reached else np.inf
+    if abs(miss) > 1e-6:
+        # ray_ode.trace occasionally misfires at an interface event for one exact launch angle
+        # (e.g. MONO, 249.38 m -> 388.01 m over 4351.74 m: the ray at 0.06768760032558413 rad
+        # turns at 383.5 m, the rays 1e-10 rad either side at 390.5 m): use the mean of the
+        # two neighbouring rays, which is the ray at ``launch`` to O(1e-20) m
+        lo = _trace(orc, z_src, launch - 1e-10, R, z_lim)
+        hi = _trace(orc, z_src, launch + 1e-10, R, z_lim)
+        assert lo.reached and hi.reached, "the ray at the solver's launch angle leaves the water"
+        miss = 0.5 * (lo.z_end + hi.z_end) - z_dst
+        t = 0.5 * (lo.time + hi.time)
+        ang = 0.5 * (lo.arrival_angle + hi.arrival_angle)
+        z_end = 0.5 * (lo.z_end + hi.z_end)
+    else:
+        t, ang, z_end = ray.time, ray.arrival_angle, ray.z_end
     # t(R, z) = t_ray + (dt/dz) dz with dt/dz = sin(theta)/c at the arrival (first order)
-    t = ray.time - math.sin(ray.arrival_angle) / orc.speed(ray.z_end) * miss
-    return miss, t
+    return miss, t - math.sin(ang) / orc.speed(z_end) * miss
 
 
 def check_against_oracle(prof: Layered, n: int, seed: int) -> None:

@@ -120,3 +120,52 @@ def test_tracking_from_first_fix_without_depth(tmp_path: Path) -> None:
     assert not g["depth_used"].any()
     m = Ramezani.metrics(frames)
     assert m["tracking_essp.rmse_over_bound"] < 2.0
+
+
+# --------------------------------------------------------------------------- pure maths
+@pytest.mark.parametrize("a", [0.1, 0.017, -0.05, 0.0, 1e-9])
+def test_continued_model_equals_channel_in_water(a: float) -> None:
+    from protocols.ramezani_math import essp_model
+
+    rng = np.random.default_rng(1)
+    X = rng.uniform([-3000, -3000, 0], [3000, 3000, 400], (2000, 3))
+    tc, gc = essp_model(1480.0, a, continued=True)
+    tw, gw = essp_model(1480.0, a)
+    t_ref, g_ref = tw(TETRAHEDRON, X[:, None]), gw(TETRAHEDRON, X[:, None])
+    ok = np.isfinite(t_ref)
+    assert ok.mean() > 0.5
+    np.testing.assert_allclose(tc(TETRAHEDRON, X[:, None])[ok], t_ref[ok], rtol=1e-13)
+    np.testing.assert_allclose(gc(TETRAHEDRON, X[:, None])[ok], g_ref[ok], rtol=1e-9, atol=1e-18)
+
+
+def test_continued_gradient_above_surface_finite_differences() -> None:
+    from protocols.ramezani_math import essp_model
+
+    tc, gc = essp_model(PAPER_B, PAPER_A, continued=True)
+    X = np.array([[800.0, 40.0, -20.0], [300.0, -200.0, -5.0], [60.0, 50.0, -60.0]])
+    h = 1e-3
+    fd = np.stack([(tc(TETRAHEDRON, (X + h * e)[:, None]) - tc(TETRAHEDRON, (X - h * e)[:, None])) / (2 * h)
+                   for e in np.eye(3)], axis=-1)
+    np.testing.assert_allclose(gc(TETRAHEDRON, X[:, None]), fd, rtol=1e-6, atol=1e-12)
+
+
+def test_fig6_essp_stays_on_crb_assp_departs() -> None:
+    # Fig. 6 (pure maths): sigma_t = 1 ms, target = [x, 50, 50] + N(0, 100 I); plain Algorithm 1
+    from protocols.ramezani_math import localize_batch, tof_functions
+
+    rng = np.random.default_rng(6)
+    tt, _ = tof_functions("essp", PAPER_B, PAPER_A, TETRAHEDRON)
+    ratios = {}
+    for x in (50.0, 400.0, 1000.0):
+        X = np.array([x, 50.0, 50.0]) + 10.0 * rng.standard_normal((3000, 3))
+        t = tt(TETRAHEDRON, X[:, None]) + 1e-3 * rng.standard_normal((3000, 4))
+        bound = np.sqrt(np.mean(fix_crb(TETRAHEDRON, X, PAPER_B, PAPER_A, 1e-3)))
+        for m in ("essp", "assp"):
+            tf, gf = tof_functions(m, PAPER_B, PAPER_A, TETRAHEDRON, continued=True)
+            Xe, _, _ = localize_batch(TETRAHEDRON, t, tf, gf, 1e-3, TETRAHEDRON.mean(axis=0))
+            ratios[m, x] = np.sqrt(np.mean(np.sum((Xe - X) ** 2, axis=1))) / bound
+    for x in (50.0, 400.0, 1000.0):
+        assert ratios["essp", x] == pytest.approx(1.0, abs=0.08), ratios
+    assert ratios["assp", 50.0] < 1.05
+    assert ratios["assp", 400.0] > 1.1
+    assert ratios["assp", 1000.0] > 1.5
