@@ -811,7 +811,8 @@ def straight_line_time(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDAr
     integral = (hh / c1 * _log1p_ratio(st.g * hh / c1)).sum(axis=1)
     dz = z2 - z1
     with np.errstate(divide="ignore", invalid="ignore"):
-        mean_slow = np.where(dz > 0.0, integral / dz, 1.0 / st.speed(z1))
+        # below a nanometre the integral underflows or rounds: the local slowness is exact
+        mean_slow = np.where(dz > _SAME_DEPTH_M, integral / dz, 1.0 / st.speed(0.5 * (z1 + z2)))
     out = dist * mean_slow
     outside = (z1 < 0.0) | (z2 > st.zmax)
     return np.where(outside, np.nan, out).reshape(shape)

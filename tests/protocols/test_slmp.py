@@ -78,20 +78,28 @@ def test_slmp_confidence_hand_computed():
     assert sm.slmp_confidence([1.0, 0.9, 0.95], pos, refs, ranges) == pytest.approx(want)
 
 
-def _run(overrides):
-    if not hasattr(Node, "known_position"):  # ideal GPS stand-in for the test (see test_stvf)
-        def known_position(self):  # pragma: no cover
-            core = self._Node__k
-            return core.position(core.env.now)
+def _ideal_fix(self):  # pragma: no cover - only without the kernel's sensor
+    core = self._Node__k
+    return core.position(core.env.now)
 
-        Node.known_position = known_position
+
+@pytest.fixture
+def position_fix():
+    """An ideal beacon position sensor while the kernel has none (see test_stvf.py)."""
+    with pytest.MonkeyPatch.context() as mp:
+        if not hasattr(Node, "known_position"):
+            mp.setattr(Node, "known_position", _ideal_fix, raising=False)
+        yield
+
+
+def _run(overrides):
     sc = scenario.load(QUICK, overrides=list(overrides))
     sim = scenario.build(sc)
     sim.run(sc.simulation.duration_s)
     return sim.trace.frames()
 
 
-def test_slmp_quick_run():
+def test_slmp_quick_run(position_fix):
     frames = _run(["nodes[0].protocol=slmp", "nodes[1].protocol=slmp",
                    "nodes[1].params.training_s=5.0", "simulation.duration_s=20.0"])
     e = frames["estimates"]
