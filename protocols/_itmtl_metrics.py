@@ -9,7 +9,8 @@ node stays an ordinary node whose errors count.
   ``sync_final_*_all``: over every ordinary node, covered or not; per round: over the nodes
   localized in that round (and ``sync_all_mean_s`` over all).
 - localization: RMSE (m) and NMSE (sum of squared errors / sum of squared true positions,
-  :func:`aquasim_py.metrics.nmse`'s definition) over all rows and over the final rows.
+  :func:`aquasim_py.metrics.nmse`'s definition) over all rows and over the final rows;
+  ``*_fixed``: only rounds with a fix (not the track's predictions while coasting).
 - coverage: share of ordinary nodes with at least one position estimate; ``coverage_final``:
   share covered at the end.
 - coverage upper bound: iterated ">= 3 localized neighbours" promotion on the connectivity
@@ -136,6 +137,12 @@ def protocol_metrics(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str,
         out["loc_final_rmse_m"] = float(np.sqrt(np.mean(np.sum(df * df, axis=1))))
         out["loc_final_nmse"] = float(np.sum(df * df) / np.sum(xf * xf))
         out["promoted_share"] = float(est[est["is_reference"].astype(bool)]["node"].nunique() / max(len(ids), 1))
+        if "fixed" in est:
+            fx = est[est["fixed"].astype(bool)]
+            xs = fx[["true_x", "true_y", "true_z"]].to_numpy(float)
+            ds = fx[["x", "y", "z"]].to_numpy(float) - xs
+            out["loc_rmse_fixed_m"] = float(np.sqrt(np.mean(np.sum(ds * ds, axis=1)))) if len(fx) else nan
+            out["loc_nmse_fixed"] = float(np.sum(ds * ds) / np.sum(xs * xs)) if len(fx) else nan
     else:
         for k in ("loc_rmse_m", "loc_nmse", "loc_final_rmse_m", "loc_final_nmse"):
             out[k] = nan

@@ -79,6 +79,7 @@ class ItmtlParams(ReqResParams):
     speed_prior_mps: float = Field(1.5, gt=0, description="velocity std per axis when the node's velocity is unknown (m/s)")
     ref_time_weight: float = Field(1.0, ge=0, description="factor on the reference's announced time variance in the regression weights")
     gate_chi2: float = Field(13.8, gt=0, description="innovation gate (chi-square, 2 dof; 13.8 = 99.9 %)")
+    gate_floor_m: float = Field(20.0, ge=0, description="std added to the gate's innovation covariance (m)")
     fix_max_std_m: float = Field(20.0, gt=0, description="fixes less determined than this are not used (m)")
     max_speed_mps: float = Field(5.0, gt=0, description="a track faster than this is not used for the motion split (m/s)")
     fix_std_floor_m: float = Field(0.5, gt=0, description="floor of the fix noise std fed to the IMM (m)")
@@ -98,7 +99,8 @@ class ItmtlNode(ReqResNode):
         self.localized = False
         self.conf_hist: list[float] = []
         # exchanges so far, one row per answer
-        self._ex: list[tuple[float, float, float, float, float]] = []  # T1, t2, t3, T4, weight
+        # T1, t2, t3, T4, reference confidence, announced velocity std (m/s), time std (s)
+        self._ex: list[tuple[float, ...]] = []
         self._ex_round: list[int] = []
         self._ref_pos: list[np.ndarray] = []
         self._ref_vel: list[np.ndarray] = []
@@ -171,7 +173,10 @@ class ItmtlNode(ReqResNode):
         self.synced = True
 
     def position_std(self) -> float:
-        """Std of this node's position estimate (m): the IMM's (or the last fix's) covariance."""
+        """Std of this node's position estimate (m): the IMM's (or the last fix's) covariance;
+        0 for a buoy / anchor (surveyed)."""
+        if self.is_anchor:
+            return 0.0
         P = self._pos_cov
         return float(np.sqrt(np.trace(P) / 2.0)) if P is not None else 1e3
 
@@ -234,7 +239,9 @@ class ItmtlNode(ReqResNode):
         else:
             return True
         d = fix.position[:2] - prior
-        return float(d @ np.linalg.solve(P + R, d)) <= p.gate_chi2
+        # the floor keeps a manoeuvre the motion models did not foresee from locking the track
+        # out; mirror solutions (the failure this gate is for) lie hundreds of metres away
+        return float(d @ np.linalg.solve(P + R + np.eye(2) * p.gate_floor_m**2, d)) <= p.gate_chi2
 
     def _ambiguous(self, ref_pos: np.ndarray, fix: Any, depth: float) -> bool:
         """Is the fix's mirror image across the references' horizontal principal axis an

@@ -106,6 +106,10 @@ class Ramezani(Node):
         ids = p.anchor_ids if p.anchor_ids is not None else list(range(len(p.anchor_positions)))
         self._ids = [int(i) for i in ids]
         self._n = len(ids)
+        # target state: EKF posterior (tracking), last frame used, frame of the prior s_0
+        self._state: tuple[np.ndarray, np.ndarray] | None = None
+        self._last_frame = -1
+        self._frame0 = 0
 
     def run(self) -> Generator[Any, Any, None]:
         if self.role in _ANCHOR_ROLES:
@@ -133,9 +137,6 @@ class Ramezani(Node):
     def _target(self) -> Generator[Any, Any, None]:
         p = self.params
         pending: dict[int, dict[int, tuple[float, list[float], int]]] = {}
-        self._state: tuple[np.ndarray, np.ndarray] | None = None
-        self._last_frame = -1
-        self._frame0 = 0
         while True:
             rec = yield self.recv(timeout=p.frame_s, kinds=_PING)
             if rec is None:

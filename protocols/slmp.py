@@ -30,8 +30,9 @@ from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Node, Role, SensorUnavailable
 from aquasim_py.registry import register
 
-from .slmp_math import DegenerateGeometryError, InsufficientMeasurementsError, MobilityPredictor, \
-    multilaterate_2d, slmp_confidence
+from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
+
+from .slmp_math import MobilityPredictor, multilaterate_2d, slmp_confidence
 from .stvf_metrics import localization_metrics
 
 __all__ = ["SLMPNode"]

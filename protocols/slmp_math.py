@@ -23,7 +23,6 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
-from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
 
 __all__ = [
@@ -185,5 +184,3 @@ def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayL
     eta = float(np.mean(ref_confidence)) * (1.0 - np.abs(rho - r).sum() / denom)
     return float(np.clip(eta, 0.0, 1.0))
 
-
-__all__ += ["DegenerateGeometryError", "InsufficientMeasurementsError"]

@@ -7,7 +7,9 @@ Each run is a beacon-ranging scenario (20 drifting listeners, 6 anchors, 600 s s
 ~1-2 s of CPU): SimPy and the channel hold the GIL, so only processes scale. Timings are
 interleaved (1, N, 1, N, ...) so a load change on a shared machine hits both alike; the
 reported speed-up is the ratio of the best wall times, and every repetition is printed.
-The rows of the two sweeps are compared too: they must be identical.
+The rows of the two sweeps are compared too: they must be identical. Each repetition also
+measures the machine's ceiling: the speed-up the same worker count gets on ideal pure-Python
+jobs at that moment (below the worker count when other processes load the cores).
 """
 
 from __future__ import annotations
@@ -67,6 +69,29 @@ def _cpu() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
+def _spin(n: int) -> int:
+    """Pure-Python CPU work with no I/O and no shared state: the ideal parallel job."""
+    s = 0
+    for i in range(n):
+        s += i * i
+    return s
+
+
+def machine_ceiling(workers: int, jobs: int = 4, n: int = 6_000_000) -> float:
+    """Speed-up that ``workers`` processes get right now on ideal jobs (the machine's ceiling:
+    below ``workers`` when other processes share the cores)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    t0 = time.perf_counter()
+    for _ in range(jobs):
+        _spin(n)
+    serial = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(workers) as ex:
+        list(ex.map(_spin, [n] * jobs))
+    return serial / (time.perf_counter() - t0)
+
+
 def timed(sc: scenario.Scenario, jobs: list[sweep.Job], workers: int) -> tuple[float, float, list[dict]]:
     """(wall s, CPU s, rows) of one sweep."""
     c0, t0 = _cpu(), time.perf_counter()
@@ -86,10 +111,11 @@ def main(argv: list[str] | None = None) -> int:
     raw["sweep"]["runs"] = args.runs
     sc = scenario.load_dict(raw, None)
     jobs = sweep.plan(sc)
-    serial, parallel, cpu1, cpun = [], [], [], []
+    serial, parallel, cpu1, cpun, ceiling = [], [], [], [], []
     rows1 = rowsn = None
     load0 = os.getloadavg()[0]
     for _ in range(args.repeat):
+        ceiling.append(machine_ceiling(args.workers))
         t, c, rows1 = timed(sc, jobs, 1)
         serial.append(t)
         cpu1.append(c)
@@ -109,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         "parallel_cpu_s": cpun,
         "speedup_best": min(serial) / min(parallel),
         "speedup_median": sorted(serial)[len(serial) // 2] / sorted(parallel)[len(parallel) // 2],
+        "ceiling_speedup": ceiling,
         "rows_identical": same,
     }
     if args.json:
@@ -120,6 +147,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.workers} workers: wall", " ".join(f"{t:.2f}s" for t in parallel), " cpu",
               " ".join(f"{t:.2f}s" for t in cpun))
         print(f"speed-up (best/best): {result['speedup_best']:.2f}x; rows identical: {same}")
+        print("machine ceiling now (ideal CPU-bound jobs, same worker count):",
+              " ".join(f"{c:.2f}x" for c in ceiling))
     return 0 if same else 1
 
 

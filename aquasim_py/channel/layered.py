@@ -414,24 +414,20 @@ def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi, guess=Non
     return best, fbest
 
 
-def _pick_brackets(h: NDArray[np.float64]):
-    """Up to two sign changes per row of h (pairs, samples): the first and last of those where
-    the range grows with phi (the minima of t = p X + tau(p), which include the earliest
-    eigenray), or of any sign change when there is none of that kind."""
+def _pick_brackets(h: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(row, sample) of the sign changes of h (pairs, samples) worth refining: those where the
+    range grows with phi, or every one in a row that has none of that kind.
+
+    Along a family t = p X + tau(p) with d tau / d p = -X(p), so the eigenrays are the
+    stationary points of t in p; the roots alternate between minima of t (range growing with
+    phi) and maxima, and a maximum is always later than a neighbouring minimum: the earliest
+    eigenray is among the minima whenever there is one."""
     h0, h1 = h[:, :-1], h[:, 1:]
     fin = np.isfinite(h0) & np.isfinite(h1)
     cross = fin & (h0 * h1 <= 0.0) & ~((h0 == 0.0) & (h1 == 0.0))
     up = cross & (h0 <= 0.0) & (h1 >= 0.0)
     use = np.where(up.any(axis=1, keepdims=True), up, cross)
-    has = use.any(axis=1)
-    first = np.argmax(use, axis=1)
-    last = use.shape[1] - 1 - np.argmax(use[:, ::-1], axis=1)
-    rows = np.flatnonzero(has)
-    f, l_ = first[rows], last[rows]
-    two = l_ != f
-    rr = np.concatenate([rows, rows[two]])
-    ss = np.concatenate([f, l_[two]])
-    return rr, ss
+    return np.nonzero(use)
 
 
 @dataclass
