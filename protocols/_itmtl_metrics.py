@@ -111,6 +111,7 @@ def protocol_metrics(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str,
     est = _rows(tables.get("estimates"), name, ids)
     out["sync_final_mean_s"] = out["sync_final_p95_s"] = out["sync_mean_s"] = nan
     out["sync_final_mean_all_s"] = out["sync_final_p95_all_s"] = nan
+    out["coverage_final"] = 0.0 if len(ids) else nan
     if len(clk):
         last = clk.sort_values("time").groupby("node").tail(1)
         fin = last["error"].abs()

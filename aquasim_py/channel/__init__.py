@@ -1,11 +1,18 @@
 """Channel physics (profiles, eigenrays, losses; plain numpy/scipy) and the SimPy channel."""
 
 from .rays import Eigenray, PathKind
-from .raytrace import eigenray, straight_line_time, travel_time, travel_time_gradient, why_no_path
+from .raytrace import (
+    eigenray,
+    reflected_eigenray,
+    straight_line_time,
+    travel_time,
+    travel_time_gradient,
+    why_no_path,
+)
 from .ssp import Constant, Isogradient, Layered, Munk, SoundSpeedProfile, from_ctd, mackenzie
 
 __all__ = [
     "Constant", "Isogradient", "Layered", "Munk", "SoundSpeedProfile", "from_ctd", "mackenzie",
     "Eigenray", "PathKind",
-    "eigenray", "straight_line_time", "travel_time", "travel_time_gradient", "why_no_path",
+    "eigenray", "reflected_eigenray", "straight_line_time", "travel_time", "travel_time_gradient", "why_no_path",
 ]

@@ -173,7 +173,7 @@ def test_first_arrival_against_launch_fan(prof: Layered) -> None:
     R = np.hypot(*(dst - src)[:, :2].T)
     for i in range(len(src)):
         rays = ray_ode.fan(orc.speed, orc.dspeed, src[i], dst[i], n=121, interfaces=orc.interfaces,
-                           z_limits=(0.0, BOTTOM))
+                           z_limits=(0.0, BOTTOM), max_step=25.0)
         if ray.path[i] == PathKind.NONE:
             assert not rays
             continue
@@ -222,7 +222,7 @@ def test_turning_rays_and_angles_against_oracle() -> None:
     for i in range(len(src)):
         r = ray_ode.shoot(orc.speed, orc.dspeed, src[i], dst[i], interfaces=orc.interfaces,
                           z_limits=(0.0, BOTTOM), bracket=(ray.launch_angle[i] - 1e-6, ray.launch_angle[i] + 1e-6),
-                          extrema=bool(np.isfinite(ray.turning_depth[i])))
+                          extrema=bool(np.isfinite(ray.turning_depth[i])), max_step=25.0)
         assert abs(r.time - ray.time[i]) < 1e-9
         assert abs(r.arrival_angle - ray.arrival_angle[i]) < 1e-7
         assert abs(r.length - ray.length[i]) < 1e-5
