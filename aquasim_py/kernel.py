@@ -70,7 +70,8 @@ class _NodeCore:
 
     __slots__ = (
         "sim", "env", "channel", "index", "role", "params", "protocol", "group", "slot",
-        "clock", "sensors", "has_velocity", "rng_protocol", "_rng_depth", "_rng_vel", "_rng_mac",
+        "clock", "sensors", "has_velocity", "has_position", "rng_protocol", "_rng_depth", "_rng_vel",
+        "_rng_pos", "_rng_mac",
         "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp", "log_cap",
     )
 
@@ -94,9 +95,11 @@ class _NodeCore:
         self.exact_stamp = self.affine and getattr(clock, "jitter_std", None) == 0.0
         self.sensors = sensors
         self.has_velocity = sensors.has_velocity(group.role)
+        self.has_position = sensors.has_position(group.role)
         self.rng_protocol = sim.rng("node", index, "protocol")
         self._rng_depth: np.random.Generator | None = None
         self._rng_vel: np.random.Generator | None = None
+        self._rng_pos: np.random.Generator | None = None
         self._rng_mac: np.random.Generator | None = None
         self.jitter_std = float(sim.channel_config.jitter_std_s)
         cap = getattr(group.node_cls, "inbox_capacity", None)
@@ -213,6 +216,20 @@ class _NodeCore:
                 self._rng_vel = self.sim.rng("node", self.index, "velocity")
             v = v + self._rng_vel.normal(0.0, std, 3)
         return v
+
+    def read_position(self) -> np.ndarray:
+        if not self.has_position:
+            raise SensorUnavailable(
+                f"node {self.index} ({self.role.value}) has no position fix; give its group "
+                "Sensors(position=True) to add one (GPS / surveyed mooring)"
+            )
+        p = np.array(self.position(self.env.now), dtype=float)
+        std = self.sensors.position_std
+        if std > 0.0:
+            if self._rng_pos is None:
+                self._rng_pos = self.sim.rng("node", self.index, "position")
+            p = p + self._rng_pos.normal(0.0, std, 3)
+        return p
 
     # -- logging ----------------------------------------------------------------------------------
 

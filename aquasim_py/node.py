@@ -48,6 +48,9 @@ class Sensors:
     """A group's sensors.
 
     depth_std: std of the depth gauge's Gaussian noise (m).
+    position_std: std of the position fix's Gaussian noise per axis (m).
+    position: whether the nodes know their own position (GPS at the surface, or a surveyed
+        mooring); None = the role's default: buoys and anchors only.
     velocity_std: std of the velocity sensor's Gaussian noise per axis (m/s).
     velocity: whether the nodes have a velocity sensor (DVL / GPS-derived); None = the role's
         default: every role but ``target`` (a non-cooperative target reports nothing).
@@ -56,9 +59,15 @@ class Sensors:
     depth_std: float = 0.0
     velocity_std: float = 0.0
     velocity: bool | None = None
+    position_std: float = 0.0
+    position: bool | None = None
 
     def has_velocity(self, role: Role) -> bool:
         return self.velocity if self.velocity is not None else role is not Role.TARGET
+
+    def has_position(self, role: Role) -> bool:
+        """Position fix (GPS for buoys, survey for moored anchors); None = buoys and anchors only."""
+        return self.position if self.position is not None else role in (Role.BUOY, Role.ANCHOR)
 
 
 class NodeEnv:
@@ -195,6 +204,14 @@ class Node:
         Raises :class:`SensorUnavailable` if the node's role/group has no velocity sensor.
         """
         return self.__k.read_velocity()
+
+    def known_position(self) -> np.ndarray:
+        """Own position fix (m, shape (3,)): GPS / survey, with the group's Gaussian noise.
+
+        Only nodes that could know where they are have one (buoys and anchors by default);
+        raises :class:`SensorUnavailable` otherwise.
+        """
+        return self.__k.read_position()
 
     # -- logging --------------------------------------------------------------------------------
 

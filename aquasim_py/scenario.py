@@ -704,6 +704,7 @@ def build(sc: Scenario) -> Any:
             cls, g.count, role=g.role, mobility=mobility, clocks=_clock_factory(g.clock),
             params=g.params, name=g.name,
             sensors=Sensors(depth_std=s.depth_noise_std_m, velocity_std=s.velocity_noise_std_mps,
-                            velocity=s.velocity_sensor),
+                            velocity=s.velocity_sensor, position_std=s.position_noise_std_m,
+                            position=s.position_fix),
         )
     return sim

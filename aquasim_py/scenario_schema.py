@@ -214,6 +214,8 @@ class SensorSpec(Strict):
     depth_noise_std_m: NonNegFloat = Field(0.0, description="depth gauge noise std (m)")
     velocity_noise_std_mps: NonNegFloat = Field(0.0, description="velocity sensor noise std per axis (m/s)")
     velocity_sensor: bool | None = Field(None, description="has a velocity sensor; default every role but target")
+    position_noise_std_m: NonNegFloat = Field(0.0, description="position fix (GPS / survey) noise std per axis (m)")
+    position_fix: bool | None = Field(None, description="knows its own position; default buoys and anchors only")
 
 
 class NodeGroupSpec(Strict):

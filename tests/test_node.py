@@ -161,6 +161,26 @@ def test_depth_and_velocity_sensors():
         target.velocity()
 
 
+def test_position_fix_only_where_a_node_could_know_it():
+    """Buoys and anchors have a GPS / survey fix by default; ordinary nodes and targets do not."""
+    std = 0.8
+    sim = Simulation(12, ssp=C, volume=BOX)
+    anchor = sim.add_group(Node, 1, role=Role.ANCHOR, positions=[[100.0, -200.0, 30.0]],
+                           sensors=Sensors(position_std=std))[0]
+    buoy = sim.add_group(Node, 1, role=Role.BUOY, positions=[[0.0, 0.0, 0.0]])[0]
+    ordinary = sim.add_group(Node, 1, role=Role.ORDINARY, positions=[[5.0, 5.0, 50.0]])[0]
+    rov = sim.add_group(Node, 1, role=Role.ORDINARY, positions=[[9.0, 9.0, 90.0]],
+                        sensors=Sensors(position=True))[0]
+    sim.run(1.0)
+    fixes = np.array([anchor.known_position() for _ in range(4000)])
+    assert np.all(np.abs(fixes.mean(axis=0) - [100.0, -200.0, 30.0]) < 4 * std / math.sqrt(4000))
+    assert np.all((0.95 * std < fixes.std(axis=0)) & (fixes.std(axis=0) < 1.05 * std))
+    assert buoy.known_position().tolist() == [0.0, 0.0, 0.0]  # default: noise-free fix
+    assert rov.known_position().tolist() == [9.0, 9.0, 90.0]  # opted in explicitly
+    with pytest.raises(SensorUnavailable, match="position"):
+        ordinary.known_position()
+
+
 def test_log_estimate_and_clock_truth_columns():
     skew, offset = 30e-6, 0.8
 

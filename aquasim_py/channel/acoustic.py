@@ -292,25 +292,33 @@ class AcousticChannel:
         """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point)."""
         ssp = self.ssp
         refl = self.config.reflections
-        ray = eigenray(ssp, p_src, p_rx, reflections=refl)
-        moving = self._sim.is_moving()[cand]
-        if moving.any():
-            time = np.array(ray.time, dtype=float)
-            fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
-            active = np.flatnonzero(moving & np.isfinite(time))
-            # Start from the fixed point of the receivers' straight-line motion at t0 (vectorized,
-            # no mobility queries): for constant velocity it is already the answer, and the exact
-            # iteration below then stops after one query per receiver.
-            p0 = p_rx[active]
-            v0 = self._sim.velocities(t0)[cand[active]]
-            t_lin = _linear_fixed_point(ssp, refl, p_src, p0, v0, time[active],
-                                        fields["arrival_angle"][active], fields["path"][active])
-            time[active] = t_lin
+        sim = self._sim
+        moving = sim.is_moving()[cand]
+        if not moving.any():
+            ray = eigenray(ssp, p_src, p_rx, reflections=refl)
+        else:
+            start = None
+            if isinstance(ssp, Constant):
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, sim.velocities(t0)[cand])
+            if start is None:
+                ray = eigenray(ssp, p_src, p_rx, reflections=refl)
+                fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
+                active = np.flatnonzero(moving & np.isfinite(fields["time"]))
+                # Start from the fixed point of the receivers' straight-line motion at t0
+                # (vectorized, no mobility queries): for constant velocity it is already the
+                # answer, and the exact iteration below then stops after one query per receiver.
+                v0 = sim.velocities(t0)[cand[active]]
+                fields["time"][active] = _linear_fixed_point(
+                    ssp, refl, p_src, p_rx[active], v0, fields["time"][active],
+                    fields["arrival_angle"][active], fields["path"][active])
+            else:
+                fields, active = start
+            time = fields["time"]
             # exact fixed point t_a = t0 + T(p_src(t0), p_rx(t_a)) on the true trajectories
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
-                p_new = self._sim.positions_at(cand[active], t0 + time[active])
+                p_new = sim.positions_at(cand[active], t0 + time[active])
                 r = eigenray(ssp, p_src, p_new, reflections=refl)
                 step = np.abs(r.time - time[active])
                 for f in fields:
@@ -400,6 +408,39 @@ def _linear_fixed_point(ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.flo
             return t
     slope = _slope_along(ssp, p_src, p0, v, arrival_angle)
     return _secant_fixed_point(_travel_time_fn(ssp, refl, p_src, path), p0, v, t_start, slope)
+
+
+def _constant_start(ssp: Constant, refl: str, p_src: NDArray[np.float64], p_rx: NDArray[np.float64],
+                    moving: NDArray[np.bool_], v: NDArray[np.float64]
+                    ) -> tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None:
+    """Constant profile: the eigenray fields of the candidates before the exact iteration, and
+    the moving receivers to iterate (``active``), without tracing rays to their send-time
+    positions: a straight ray exists iff both ends are in the water (the ray tracer's own
+    test), and the start delay is the closed-form straight-line root. Only the other
+    candidates (static, or out of the water) are traced. None if the closed form fails."""
+    z_s = float(p_src[2])
+    z = p_rx[:, 2]
+    inside = (z >= 0.0) & np.isfinite(p_rx).all(axis=1)
+    ok_src = z_s >= 0.0 and bool(np.isfinite(p_src).all())
+    if ssp.bottom is not None:
+        inside &= z <= ssp.bottom
+        ok_src = ok_src and z_s <= ssp.bottom
+    act = moving & inside if ok_src else np.zeros_like(moving)
+    active = np.flatnonzero(act)
+    t = _constant_moving_root(ssp.speed_mps, p_rx[active] - p_src, v[active])
+    if not np.isfinite(t).all():
+        return None
+    n = len(p_rx)
+    fields: dict[str, NDArray[Any]] = {f: np.full(n, np.nan) for f in Eigenray.__dataclass_fields__}
+    fields["path"] = np.full(n, np.int8(PathKind.DIRECT), dtype=np.int8)
+    rest = np.flatnonzero(~act)
+    if rest.size:
+        r = eigenray(ssp, p_src, p_rx[rest], reflections=refl)
+        for f in fields:
+            fields[f][rest] = getattr(r, f)
+    # every active field is overwritten by the first exact step; only the start delay matters
+    fields["time"][active] = t
+    return fields, active
 
 
 def _constant_moving_root(c: float, d: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
