@@ -440,6 +440,12 @@ class Simulation:
 
     def positions_at(self, idx: np.ndarray, times: np.ndarray) -> np.ndarray:
         """True positions (k, 3) of nodes ``idx[i]`` at true times ``times[i]``."""
+        if len(self.groups) == 1:
+            # one group (the common case, on the moving-receiver hot path): no per-group split
+            group = self.groups[0]
+            batched = getattr(group.mobility, "position_at", None)
+            if batched is not None:
+                return np.asarray(batched(idx - group.start, times), dtype=float)
         out = np.empty((len(idx), 3))
         gids = self._group_of[idx]
         for g in np.unique(gids).tolist():

@@ -26,7 +26,7 @@ from aquasim_py import scenario, sweep
 
 SCENARIO = """
 [simulation]
-duration_s = 600.0
+duration_s = 1200.0
 seed = 2024
 
 [environment]

@@ -8,8 +8,10 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    i.e. the fixed point t_a = t0 + T(p_s, p_rx(t_a)), iterated (vectorized over receivers)
    until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step.
    Iteration starts from the fixed point of the receivers' straight-line motion at t0 (no
-   mobility queries), which is exact for constant velocity, so the exact iteration usually
-   stops after one query per receiver; static receivers need none;
+   mobility queries): in closed form for a constant sound speed, else by a few secant steps
+   seeded with the exact slope grad T . v. It is exact for constant velocity, so the exact
+   iteration usually stops after one query (and one ray trace) per receiver; static
+   receivers need none;
 3. losses: no eigenray (shadow zone) -> "no_path"; SNR below the threshold -> "snr";
    the receiver transmitting during any part of the reception -> "half_duplex"; another
    signal overlapping the reception at the receiver -> "collision" (with ``capture``, the
@@ -30,6 +32,7 @@ import math
 from bisect import bisect_left, insort
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -59,6 +62,7 @@ _ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver core
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
 _MAX_ITER = 50
+_FLOAT_FIELDS = tuple(f for f in Eigenray.__dataclass_fields__ if f != "path")
 
 
 @dataclass(frozen=True)
@@ -120,12 +124,25 @@ def no_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
 def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     """SNR (dB) along each eigenray: SL - A(l, f) - N(f) - 10 log10 B (``channel.loss.snr_db``),
     with l the ray's arc length and the config's source level, carrier, band, spreading
-    exponent and ambient-noise parameters."""
+    exponent and ambient-noise parameters.
+
+    The same terms in the same order as ``loss.snr_db`` (so the same bits), with the two that
+    depend only on the config (ambient noise N(f) and 10 log10 B) computed once per config:
+    the noise sum is the costliest part and this runs once per transmission."""
     from . import loss
 
-    return loss.snr_db(config.source_level_db, ray.length, config.frequency_khz,
-                       config.bandwidth_khz * 1e3, k=config.spreading, shipping=config.shipping,
-                       wind_mps=config.wind_mps)
+    noise, band = _snr_constants(config)
+    return (np.asarray(config.source_level_db, dtype=float)
+            - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading) - noise - band)
+
+
+@lru_cache(maxsize=64)
+def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz) of a channel config."""
+    from . import loss
+
+    noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
+    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float))
 
 
 def default_loss_model() -> LossModel:
@@ -431,31 +448,31 @@ def _constant_start(ssp: Constant, refl: str, p_src: NDArray[np.float64], p_rx: 
     if not np.isfinite(t).all():
         return None
     n = len(p_rx)
-    fields: dict[str, NDArray[Any]] = {f: np.full(n, np.nan) for f in Eigenray.__dataclass_fields__}
-    fields["path"] = np.full(n, np.int8(PathKind.DIRECT), dtype=np.int8)
+    # every row is filled below: traced (rest) or overwritten by the first exact step (active)
+    fields: dict[str, NDArray[Any]] = {f: np.empty(n) for f in _FLOAT_FIELDS}
+    fields["path"] = np.empty(n, dtype=np.int8)
     rest = np.flatnonzero(~act)
     if rest.size:
         r = eigenray(ssp, p_src, p_rx[rest], reflections=refl)
         for f in fields:
             fields[f][rest] = getattr(r, f)
-    # every active field is overwritten by the first exact step; only the start delay matters
-    fields["time"][active] = t
+    fields["time"][active] = t  # the start delay: the only active field read before it is overwritten
     return fields, active
 
 
 def _constant_moving_root(c: float, d: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
     """Positive root t (s) of |d + v t| = c t (receiver offset d (m) from the source, velocity v).
 
-    (c^2 - |v|^2) t^2 - 2 (d.v) t - |d|^2 = 0; the form without cancellation is chosen by the
-    sign of d.v. NaN if |v| >= c.
+    (c^2 - |v|^2) t^2 - 2 (d.v) t - |d|^2 = 0, t = (d.v + sqrt((d.v)^2 + (c^2 - |v|^2) |d|^2))
+    / (c^2 - |v|^2). With |v| <= c/2 the sum never cancels (|d.v| <= |v||d| is at most half the
+    root), so this is accurate to a few ulps; NaN for faster receivers (the caller iterates).
     """
     dv = np.einsum("ij,ij->i", d, v)
-    dd = np.einsum("ij,ij->i", d, d)
-    a = c * c - np.einsum("ij,ij->i", v, v)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sq = np.sqrt(dv * dv + a * dd)
-        t = np.where(dv >= 0.0, (dv + sq) / a, dd / (sq - dv))
-    return np.where(a > 0.0, t, np.nan)
+    vv = np.einsum("ij,ij->i", v, v)
+    if not bool((vv <= 0.25 * c * c).all()):
+        return np.full(len(d), np.nan)
+    a = c * c - vv
+    return (dv + np.sqrt(dv * dv + a * np.einsum("ij,ij->i", d, d))) / a
 
 
 def _slope_along(ssp: SoundSpeedProfile, p_src: NDArray[np.float64], p0: NDArray[np.float64],

@@ -486,3 +486,19 @@ def test_moving_receiver_delay_constant_profile():
         t_arr = brentq(lambda ta: (ta - t0) * c - np.linalg.norm(p_r0 + v_r * ta - p_s), t0, t0 + 10.0,
                        xtol=1e-13, rtol=1e-15)
         assert abs(r_time - t_arr) < 1e-9 and abs(tof - (t_arr - t0)) < 1e-9
+
+
+def test_physical_snr_is_loss_snr_db_bit_for_bit():
+    """The per-config cached noise and band terms change nothing: identical to loss.snr_db."""
+    from aquasim_py.channel import loss
+
+    lengths = np.array([1.0, 2.5, 80.0, 1234.5, 4999.0, np.nan])
+    ray = Eigenray(time=lengths / 1500.0, length=lengths, launch_angle=np.zeros(6), arrival_angle=np.zeros(6),
+                   turning_depth=np.full(6, np.nan), path=np.zeros(6, np.int8))
+    for cfg in (ChannelConfig(), ChannelConfig(frequency_khz=25.0, bandwidth_khz=8.0, spreading=2.0,
+                                               shipping=0.9, wind_mps=7.0, source_level_db=180.0)):
+        got = acoustic.physical_snr(ray, cfg)
+        ref = loss.snr_db(cfg.source_level_db, lengths, cfg.frequency_khz, cfg.bandwidth_khz * 1e3,
+                          k=cfg.spreading, shipping=cfg.shipping, wind_mps=cfg.wind_mps)
+        assert np.array_equal(got, ref, equal_nan=True)
+        assert np.isfinite(got[:5]).all() and np.all(np.diff(got[:5]) < 0)
