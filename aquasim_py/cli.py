@@ -320,9 +320,10 @@ def _sweep(argv: Sequence[str]) -> int:
     out, key = _output_dir(sc, args.out, suffix="-sweep")
     jobs = sweep.plan(sc)
     # build every grid point once (no run): a value only the physics rejects fails here, early
+    base = {k: v for k, v in sc.to_dict().items() if k != "sweep"}
     for job in jobs:
         if job.run == 0:
-            scenario.build(scenario.load_dict(sc.to_dict(), sc.path, overrides=[(k, v) for k, v in job.point]))
+            scenario.build(scenario.load_dict(base, sc.path, overrides=list(job.point)))
     if args.scheduler is not None:
         try:
             import dask.distributed  # noqa: F401
@@ -337,13 +338,16 @@ def _sweep(argv: Sequence[str]) -> int:
             with Progress(
                 TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                 TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),
-                console=_console(stderr=True), transient=True,
+                # no refresh thread: worker processes are forked while this display is up
+                console=_console(stderr=True), transient=True, auto_refresh=False,
             ) as prog:
                 task = prog.add_task(f"{sc.name} sweep", total=len(jobs), start=False)
+                prog.refresh()
 
                 def tick(done: int, total: int) -> None:
                     prog.start_task(task)
                     prog.update(task, completed=done)
+                    prog.refresh()
 
                 rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler, progress=tick)
         else:

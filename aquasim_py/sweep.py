@@ -134,8 +134,8 @@ def run_jobs(
             for i, job in enumerate(jobs):
                 _done(i, run_job(base, path, job))
         else:
-            # Every job is submitted before the caller's progress display draws anything, so
-            # the worker processes are forked before any display thread exists.
+            # Worker processes may be forked: the CLI's progress display runs no thread for
+            # that reason (a lock held by another thread at fork time would stay held).
             with ProcessPoolExecutor(max_workers=n) as pool:
                 futs = {pool.submit(run_job, base, path, job): job for job in jobs}
                 try:

@@ -26,7 +26,7 @@ import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.metrics import positions_at
-from aquasim_py.node import Node, Role
+from aquasim_py.node import Node, Role, SensorUnavailable
 from aquasim_py.registry import register
 
 __all__ = ["Beacon", "true_ranges"]
@@ -55,13 +55,13 @@ class Beacon(Node):
             yield from self._listen_loop()
 
     def _own_position(self) -> list[float] | None:
-        # An anchor knows where it is (survey or GPS); the kernel exposes that fix, if at all,
-        # as a method of the node. Without one the beacon carries no position: ranging and its
+        # An anchor knows where it is (survey or GPS fix, with the group's noise). A broadcaster
+        # without a fix (sensors.position_fix = false) sends no position: ranging and its
         # metrics do not need it.
-        fix = getattr(self, "known_position", None)
-        if fix is None:
+        try:
+            return [float(v) for v in np.asarray(self.known_position(), dtype=float).ravel()]
+        except SensorUnavailable:
             return None
-        return [float(v) for v in np.asarray(fix(), dtype=float).ravel()]
 
     def _broadcast_loop(self) -> Generator[Any, Any, None]:
         p = self.params

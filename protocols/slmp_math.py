@@ -5,7 +5,7 @@ mobility prediction for underwater sensor networks", IEEE Trans. Mobile Computin
 2011 (INFOCOM 2008). Its text is not in our seeds: the parts below follow its published
 outline and the STVF paper's account of how it was run (Sec. 5.3: 100 s of beacon training,
 prediction window 60 s with 20 % overlap, prediction step 15, error threshold 5 % of the
-range); docs/sections/stvf.md lists what is our reading.
+range); docs/stvf.md lists what is our reading.
 
 - Mobility prediction: a node's velocity sequence (finite differences of its positions, one
   per period) is modelled by a linear predictor v_k = sum_{i=1}^{p} a_i v_{k-i} per axis

@@ -40,7 +40,7 @@ KIND = "stvf_beacon"
 
 
 class STVFParams(BaseModel):
-    """STVF parameters (Table 1 defaults; z in ms, see docs/sections/stvf.md)."""
+    """STVF parameters (Table 1 defaults; z in ms, see docs/stvf.md)."""
 
     model_config = ConfigDict(extra="forbid")
 

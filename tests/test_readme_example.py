@@ -1,8 +1,4 @@
-"""Runs the complete protocol example of the README ("Writing a protocol").
-
-The lead moves docs/sections/kernel.md into README.md; the test reads README.md when it holds
-the example's marker and docs/sections/kernel.md otherwise, so it runs whichever is current.
-"""
+"""Runs the complete protocol example of the README ("Writing a protocol")."""
 
 from __future__ import annotations
 
@@ -16,15 +12,14 @@ MARKER = "<!-- readme-example: kernel -->"
 
 
 def _example_source() -> tuple[Path, str]:
-    for path in (ROOT / "README.md", ROOT / "docs" / "sections" / "kernel.md"):
-        if path.is_file():
-            text = path.read_text(encoding="utf-8")
-            if MARKER in text:
-                m = re.search(r"```python\n(.*?)```", text[text.index(MARKER):], re.S)
-                if m is None:
-                    pytest.fail(f"{path}: no ```python block after {MARKER}")
-                return path, m.group(1)
-    pytest.fail(f"neither README.md nor docs/sections/kernel.md contains {MARKER}")
+    path = ROOT / "README.md"
+    text = path.read_text(encoding="utf-8")
+    if MARKER not in text:
+        pytest.fail(f"README.md does not contain {MARKER}")
+    m = re.search(r"```python\n(.*?)```", text[text.index(MARKER):], re.S)
+    if m is None:
+        pytest.fail(f"README.md: no ```python block after {MARKER}")
+    return path, m.group(1)
 
 
 def test_readme_protocol_example_runs(tmp_path, monkeypatch, capsys):

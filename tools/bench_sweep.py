@@ -3,8 +3,8 @@
     python tools/bench_sweep.py              # 8 runs, 1 vs 2 workers, 2 repetitions
     python tools/bench_sweep.py --runs 12 --workers 2 --repeat 3
 
-Each run is a beacon-ranging scenario (20 drifting listeners, 6 anchors, 600 s simulated,
-~1-2 s of CPU): SimPy and the channel hold the GIL, so only processes scale. Timings are
+Each run is a beacon-ranging scenario (20 drifting listeners, 6 anchors, 1200 s simulated,
+~0.7 s of CPU on a quiet machine): SimPy and the channel hold the GIL, so only processes scale. Timings are
 interleaved (1, N, 1, N, ...) so a load change on a shared machine hits both alike; the
 reported speed-up is the ratio of the best wall times, and every repetition is printed.
 The rows of the two sweeps are compared too: they must be identical. Each repetition also

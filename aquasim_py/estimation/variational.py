@@ -1,6 +1,6 @@
 """Spatial-temporal variational filtering (STVF) maths: Hu, Sun, Luo, Zhou, Guo, Sensors 2018.
 
-Pure numpy, no SimPy. Notation follows the paper (see docs/sections/stvf.md):
+Pure numpy, no SimPy. Notation follows the paper (see docs/stvf.md):
 
 - State ``s = [x, vx, y, vy]`` (m, m/s) in the unknown node's depth plane; ``A`` picks (x, y).
 - Gaussians are ``N(mean, precision)``; the Gamma is ``Gam(shape, rate)``.

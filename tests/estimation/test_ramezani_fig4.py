@@ -79,7 +79,7 @@ def test_fig4_fast() -> None:
     _check(fig4_table(600, sigmas_ms=(0.01, 0.1, 1.0)), tol=0.15)
 
 
-if __name__ == "__main__":  # prints the table for docs/sections/estimation.md
+if __name__ == "__main__":  # prints the table for docs/estimation.md
     import sys
 
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 10_000

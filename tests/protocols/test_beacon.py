@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from aquasim_py import cli, metrics, scenario, trace
-from aquasim_py.node import Node
 from protocols.beacon import Beacon, range_errors
 
 ANCHORS = np.array([[0.0, 0.0, 10.0], [1500.0, 0.0, 30.0], [0.0, 1200.0, 50.0]])
@@ -139,10 +138,16 @@ def test_moving_listeners_truth_from_trace(tmp_path):
 def test_anchor_position_in_beacon(tmp_path):
     r = run(make(tmp_path))["ranges"]
     got = r[["anchor_x", "anchor_y", "anchor_z"]].to_numpy()
-    if callable(getattr(Node, "known_position", None)):
-        np.testing.assert_allclose(got, ANCHORS[r["anchor"].to_numpy()])
-    else:  # the kernel offers no position fix: the beacon carries none
-        assert np.isnan(got).all()
+    np.testing.assert_array_equal(got, ANCHORS[r["anchor"].to_numpy()])
+
+
+def test_anchor_without_position_fix_sends_none(tmp_path):
+    sc = make(tmp_path)
+    sc = scenario.load_dict(sc.to_dict(), sc.path, overrides=["nodes.0.sensors.position_fix=false"])
+    r = run(sc)["ranges"]
+    assert len(r) > 0 and np.isnan(r[["anchor_x", "anchor_y", "anchor_z"]].to_numpy()).all()
+    # the ranges themselves do not depend on it
+    np.testing.assert_allclose(r["range_m"], geometric(r), rtol=0, atol=1e-6)
 
 
 def test_metrics_from_csv_equal_in_memory(tmp_path):
