@@ -56,8 +56,6 @@ class ReqResParams(BaseModel):
     ssp_speeds_mps: list[float] = Field(default_factory=list, description="speeds at those depths (m/s)")
     velocity_sensor_std_mps: float = Field(0.02, ge=0, description="assumed std of a velocity sensor reading, per axis (m/s)")
     stamp_std_s: float = Field(2e-5, gt=0, description="assumed MAC timestamp precision (s)")
-    surveyed_positions: dict[str, list[float]] = Field(
-        default_factory=dict, description="node id -> surveyed (x, y, z) of static references (m)")
 
 
 @dataclass
@@ -105,16 +103,8 @@ class ReqResNode(Node):
     # -- what a reference tells others ------------------------------------------------------------
 
     def own_position(self) -> np.ndarray:
-        """Position a buoy / anchor knows: the node's GPS / survey fix (``known_position()``,
-        as the beacon protocol also expects) where the kernel provides one, else the
-        surveyed position given for this node id in ``surveyed_positions``."""
-        fn = getattr(self, "known_position", None)
-        if callable(fn):
-            return np.asarray(fn(), dtype=float).reshape(3)
-        pos = self.params.surveyed_positions.get(str(self.id))
-        if pos is None:
-            raise RuntimeError(f"node {self.id}: no known position (give params.surveyed_positions)")
-        return np.asarray(pos, dtype=float)
+        """Position a buoy / anchor knows: its GPS / survey fix (``Node.known_position()``)."""
+        return np.asarray(self.known_position(), dtype=float).reshape(3)
 
     def profile(self) -> SoundSpeedProfile:
         """The sound-speed profile the node believes (a CTD cast): ``ssp_depths_m`` /

@@ -37,7 +37,7 @@ from pydantic import Field
 
 from aquasim_py.estimation.imm import IMM
 from aquasim_py.estimation.motion import ConstantVelocity, CoordinatedTurn
-from aquasim_py.estimation.sync import Exchanges, half_round_trip_sync, itmtl_sync, split_delays
+from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
 from aquasim_py.registry import register
 
 from ._reqres import ReqResNode, ReqResParams, Round

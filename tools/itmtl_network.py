@@ -41,7 +41,7 @@ def run(n: int, density: float, share: float, seed: int, duration: float) -> dic
     ordinary = np.column_stack([rng.uniform(0, side, (n - n_anchor, 2)), rng.uniform(20.0, depth - 20.0, n - n_anchor)])
     ref, ordi = raw["nodes"]
     ref["placement"] = {"kind": "explicit", "positions": anchors.tolist()}
-    ref["params"] = {"surveyed_positions": {str(i): anchors[i].tolist() for i in range(n_anchor)}}
+    ref.pop("params", None)
     ordi["placement"] = {"kind": "explicit", "positions": ordinary.tolist()}
     sim = scenario.build(scenario.load_dict(raw, SCEN))
     sim.run(duration)

@@ -28,21 +28,6 @@ SCENARIO = ROOT / "scenarios" / "stvf.toml"
 PAPER = {"avg_rmse_m": 7.09, "share_below_avg": 0.785, "converge_within_5": 0.8907}
 
 
-def _install_position_fix() -> None:
-    """Beacons need a position fix (``Node.known_position``, GPS in the paper). If the kernel
-    has none, this harness installs an ideal one (true position) for the beacons' use."""
-    from aquasim_py.node import Node
-
-    if hasattr(Node, "known_position"):
-        return
-
-    def known_position(self: Any) -> Any:  # pragma: no cover - harness only
-        core = self._Node__k
-        return core.position(core.env.now)
-
-    Node.known_position = known_position  # type: ignore[attr-defined]
-
-
 def overrides_for(protocol: str, nodes: int, beacon_share: float, duration: float,
                   seed: int, extra: dict[str, Any]) -> list[str]:
     """--set overrides for one run: network scaled at constant density, the protocol on both
@@ -67,7 +52,6 @@ def overrides_for(protocol: str, nodes: int, beacon_share: float, duration: floa
 
 def run_one(job: dict[str, Any]) -> dict[str, Any]:
     """One simulation; returns the job's keys plus the protocol's metrics and CPU time."""
-    _install_position_fix()
     from aquasim_py import scenario
     from aquasim_py.registry import get
 

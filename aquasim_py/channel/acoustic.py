@@ -146,11 +146,7 @@ def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[
 
 
 def default_loss_model() -> LossModel:
-    """:func:`physical_snr` when ``aquasim_py.channel.loss`` is available, else :func:`no_snr`."""
-    try:
-        from . import loss  # noqa: F401
-    except ImportError:  # pragma: no cover - the loss module ships with the package
-        return no_snr
+    """The channel's default: :func:`physical_snr` (use :func:`no_snr` to disable SNR drops)."""
     return physical_snr
 
 
@@ -203,7 +199,6 @@ class AcousticChannel:
                duration: float) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         env = self._env
-        sim = self._sim
         t0 = env.now
         src = core.index
         uid = self._uid

@@ -8,7 +8,6 @@ import pytest
 from scipy.optimize import least_squares
 
 from aquasim_py import scenario
-from aquasim_py.node import Node
 from aquasim_py.registry import get
 from protocols import slmp_math as sm
 
@@ -78,20 +77,6 @@ def test_slmp_confidence_hand_computed():
     assert sm.slmp_confidence([1.0, 0.9, 0.95], pos, refs, ranges) == pytest.approx(want)
 
 
-def _ideal_fix(self):  # pragma: no cover - only without the kernel's sensor
-    core = self._Node__k
-    return core.position(core.env.now)
-
-
-@pytest.fixture
-def position_fix():
-    """An ideal beacon position sensor while the kernel has none (see test_stvf.py)."""
-    with pytest.MonkeyPatch.context() as mp:
-        if not hasattr(Node, "known_position"):
-            mp.setattr(Node, "known_position", _ideal_fix, raising=False)
-        yield
-
-
 def _run(overrides):
     sc = scenario.load(QUICK, overrides=list(overrides))
     sim = scenario.build(sc)
@@ -99,7 +84,7 @@ def _run(overrides):
     return sim.trace.frames()
 
 
-def test_slmp_quick_run(position_fix):
+def test_slmp_quick_run():
     frames = _run(["nodes[0].protocol=slmp", "nodes[1].protocol=slmp",
                    "nodes[1].params.training_s=5.0", "simulation.duration_s=20.0"])
     e = frames["estimates"]

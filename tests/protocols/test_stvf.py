@@ -8,27 +8,10 @@ import pandas as pd
 import pytest
 
 from aquasim_py import scenario
-from aquasim_py.node import Node
 from aquasim_py.registry import get
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "scenarios" / "stvf_quick.toml"
-
-
-def _ideal_fix(self):  # pragma: no cover - only without the kernel's sensor
-    core = self._Node__k
-    return core.position(core.env.now)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def position_fix():
-    """Beacons read their position through ``Node.known_position()`` (GPS via the surface buoys
-    in the paper). Where the kernel has no such sensor yet, these tests install an ideal one
-    (true position) and remove it afterwards; protocol code never touches the truth."""
-    with pytest.MonkeyPatch.context() as mp:
-        if not hasattr(Node, "known_position"):
-            mp.setattr(Node, "known_position", _ideal_fix, raising=False)
-        yield
 
 
 def _run(overrides=()):
