@@ -189,6 +189,34 @@ def headline(args: argparse.Namespace, out: Path) -> None:
     print("paper:", PAPER)
 
 
+# experiment -> (x column, group column, [(y column, label)], title)
+FIGURES: dict[str, tuple[str, str, list[tuple[str, str]], str]] = {
+    "fig3": ("n_ref", "beacon_share", [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
+             "Fig. 3: STVF vs Nr"),
+    "fig4": ("n_samples", "beacon_share", [("mean_error_m", "localization error (m)"),
+                                           ("cpu_per_localization_ms", "CPU per localization, whole run (ms)")],
+             "Fig. 4: STVF vs samples"),
+    "fig7": ("density", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+             "Fig. 7, density: STVF vs SLMP"),
+    "fig8": ("delta", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+             "Fig. 8, confidence threshold: STVF vs SLMP"),
+    "fig9": ("noise_ratio", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+             "Fig. 9, ranging noise std / delay: STVF vs SLMP"),
+}
+
+
+def report(name: str, df: pd.DataFrame, args: argparse.Namespace, out: Path) -> None:
+    """PNG (mean +- s.e.m. over seeds) and a printed table for one experiment's runs."""
+    x, group, ys, title = FIGURES[name]
+    setup = (f"{args.nodes} nodes, {args.duration:g} s, {df['seed'].nunique()} seed(s)"
+             + (f", scored t >= {args.training:g} s" if group == "protocol" else ", scored from t = 0")
+             + "; mean +- s.e.m.")
+    _plot_xy(df, x, group, ys, out / f"{name}.png", f"{title}\n({setup})")
+    cols = [c for c, _ in ys] + (["avg_rmse_m"] if "avg_rmse_m" in df else [])
+    print(name, setup)
+    print(df.groupby([x, group])[cols].agg(["mean", "sem"]).round(3).to_string(), flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("experiments", nargs="+", help="headline fig3 fig4 fig7 fig8 fig9")
@@ -199,12 +227,17 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "out" / "stvf_figures"))
+    ap.add_argument("--replot", action="store_true",
+                    help="redraw the PNGs and tables from the CSVs already in --out (give the same set-up options)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     for name in args.experiments:
         if name == "headline":
             headline(args, out)
+            continue
+        if args.replot:
+            report(name, pd.read_csv(out / f"{name}.csv"), args, out)
             continue
         jobs = _jobs(name, args)
         rows: list[dict[str, Any]] = []
@@ -216,18 +249,7 @@ def main(argv: list[str] | None = None) -> None:
         df = pd.DataFrame(rows)
         df.to_csv(out / f"{name}.csv", index=False)
         partial.unlink(missing_ok=True)
-        if name == "fig3":
-            _plot_xy(df, "n_ref", "beacon_share", [("mean_error_m", "localization error (m)"),
-                                                   ("coverage", "coverage")], out / "fig3.png", "Fig. 3")
-        elif name == "fig4":
-            _plot_xy(df, "n_samples", "beacon_share", [("mean_error_m", "localization error (m)"),
-                                                       ("cpu_per_localization_ms", "CPU per localization (ms)")],
-                     out / "fig4.png", "Fig. 4")
-        else:
-            x = {"fig7": "density", "fig8": "delta", "fig9": "noise_ratio"}[name]
-            _plot_xy(df, x, "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
-                     out / f"{name}.png", name)
-            print(df.groupby([x, "protocol"])[["mean_error_m", "coverage", "avg_rmse_m"]].agg(["mean", "sem"]).to_string())
+        report(name, df, args, out)
 
 
 if __name__ == "__main__":
