@@ -20,18 +20,19 @@ The ranging model is STVF's: one-way delays from MAC stamps (synchronized clocks
 
 from __future__ import annotations
 
-from collections.abc import Generator, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.estimation.variational import project_delay
-from aquasim_py.node import Node, Role, SensorUnavailable
+from aquasim_py.node import Role
 from aquasim_py.registry import register
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 
+from ._periodic import PeriodicBeaconNode
 from .slmp_math import MobilityPredictor, multilaterate_2d, slmp_confidence
 from .stvf_metrics import localization_metrics
 
@@ -64,11 +65,12 @@ class SLMPParams(BaseModel):
 
 
 @register
-class SLMPNode(Node):
+class SLMPNode(PeriodicBeaconNode):
     """An SLMP node: beacons (anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "slmp"
     Params = SLMPParams
+    beacon_kind = KIND
 
     def setup(self) -> None:
         p: SLMPParams = self.params
@@ -81,18 +83,10 @@ class SLMPNode(Node):
         self.last: tuple[float, np.ndarray] | None = None  # (local time, xy) of the last estimate
         self.table: dict[int, tuple[float, np.ndarray, float, float]] = {}  # src -> (t0, xy, r, eta)
 
-    def position_fix(self) -> np.ndarray:
-        """A beacon's own position fix (x, y, z) in m: GPS through the surface buoys in the
-        paper. Read from the node's position sensor ``known_position()``."""
-        fix = getattr(self, "known_position", None)
-        if fix is None:
-            raise SensorUnavailable(f"{self!r}: a beacon needs a position fix (Node.known_position())")
-        return np.asarray(fix(), float)
-
-    def payload(self) -> dict[str, Any] | None:
+    def beacon_payload(self) -> dict[str, Any] | None:
         now = self.local_time()
         if self.is_beacon:
-            pos = self.position_fix()
+            pos = self.known_position()
             self.predictor.add(now, pos[:2])
             vel = self.predictor.velocity()
             return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
@@ -104,28 +98,9 @@ class SLMPNode(Node):
                     "vel": (float(vel[0]), float(vel[1]))}
         return None
 
-    def run(self) -> Generator[Any, Any, None]:
-        p: SLMPParams = self.params
-        t_start = self.local_time()
-        k = 0
-        while True:
-            period_start = t_start + k * p.period_s
-            payload = self.payload()
-            if payload is not None:
-                offset = self.rng.uniform(0.0, p.send_window_s)
-                yield self.sleep(max(0.0, period_start + offset - self.local_time()))
-                yield self.broadcast(KIND, payload, p.bits)
-            if not self.is_beacon:
-                yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
-                heard = []
-                while self.pending():
-                    rec = yield self.recv()
-                    if rec.packet.kind == KIND:
-                        heard.append(rec)
-                if self.local_time() - t_start >= p.training_s:
-                    self.localize(heard)
-            k += 1
-            yield self.sleep(max(0.0, t_start + k * p.period_s - self.local_time()))
+    def ready(self, elapsed_s: float) -> bool:
+        """Unknown nodes localize only after the beacons' mobility training."""
+        return elapsed_s >= self.params.training_s
 
     def localize(self, heard: list[Any]) -> None:
         p: SLMPParams = self.params

@@ -20,7 +20,7 @@ from depth gauges, delays from MAC stamps.
 
 from __future__ import annotations
 
-from collections.abc import Generator, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -29,9 +29,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from aquasim_py.estimation import variational as vf
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
-from aquasim_py.node import Node, Role, SensorUnavailable
+from aquasim_py.node import Role
 from aquasim_py.registry import register
 
+from ._periodic import PeriodicBeaconNode
 from .stvf_metrics import localization_metrics
 
 __all__ = ["STVFNode"]
@@ -74,11 +75,12 @@ class STVFParams(BaseModel):
 
 
 @register
-class STVFNode(Node):
+class STVFNode(PeriodicBeaconNode):
     """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "stvf"
     Params = STVFParams
+    beacon_kind = KIND
 
     def setup(self) -> None:
         p: STVFParams = self.params
@@ -108,7 +110,7 @@ class STVFNode(Node):
     def beacon_payload(self) -> dict[str, Any] | None:
         """What this node broadcasts this period, or None if it is not a reference."""
         if self.is_beacon:
-            pos = np.asarray(self.position_fix(), float)
+            pos = np.asarray(self.known_position(), float)
             vel = np.asarray(self.velocity(), float)[:2]
             return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
                     "vel": (float(vel[0]), float(vel[1]))}
@@ -118,40 +120,6 @@ class STVFNode(Node):
             return {"xy": (float(xy[0]), float(xy[1])), "depth": self.depth(), "eta": self.confidence,
                     "vel": (float(self.speed_est[0]), float(self.speed_est[1]))}
         return None
-
-    def position_fix(self) -> np.ndarray:
-        """A beacon's own position fix (x, y, z) in m: GPS through the surface buoys in the
-        paper. Read from the node's position sensor ``known_position()``."""
-        fix = getattr(self, "known_position", None)
-        if fix is None:
-            raise SensorUnavailable(f"{self!r}: a beacon needs a position fix (Node.known_position())")
-        return np.asarray(fix(), float)
-
-    # -- process -----------------------------------------------------------------------------
-
-    def run(self) -> Generator[Any, Any, None]:
-        p: STVFParams = self.params
-        t_start = self.local_time()
-        k = 0
-        while True:
-            period_start = t_start + k * p.period_s
-            payload = self.beacon_payload()
-            if payload is not None:
-                # A random offset per period: all references sending at once would be deaf to
-                # each other (half-duplex modems); the paper's simulation has no MAC at all.
-                offset = self.rng.uniform(0.0, p.send_window_s)
-                yield self.sleep(max(0.0, period_start + offset - self.local_time()))
-                yield self.broadcast(KIND, payload, p.bits)
-            if not self.is_beacon:
-                yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
-                heard = []
-                while self.pending():
-                    rec = yield self.recv()
-                    if rec.packet.kind == KIND:
-                        heard.append(rec)
-                self.localize(heard)
-            k += 1
-            yield self.sleep(max(0.0, t_start + k * p.period_s - self.local_time()))
 
     # -- localization ------------------------------------------------------------------------
 
