@@ -70,8 +70,7 @@ class _NodeCore:
 
     __slots__ = (
         "sim", "env", "channel", "index", "role", "params", "protocol", "group", "slot",
-        "clock", "sensors", "has_velocity", "has_position", "rng_protocol", "_rng_depth", "_rng_vel",
-        "_rng_pos", "_rng_mac",
+        "clock", "sensors", "has_velocity", "has_position", "rng_protocol", "_rng_sensor", "_rng_mac",
         "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp", "log_cap",
     )
 
@@ -97,9 +96,7 @@ class _NodeCore:
         self.has_velocity = sensors.has_velocity(group.role)
         self.has_position = sensors.has_position(group.role)
         self.rng_protocol = sim.rng("node", index, "protocol")
-        self._rng_depth: np.random.Generator | None = None
-        self._rng_vel: np.random.Generator | None = None
-        self._rng_pos: np.random.Generator | None = None
+        self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
         self._rng_mac: np.random.Generator | None = None
         self.jitter_std = float(sim.channel_config.jitter_std_s)
         cap = getattr(group.node_cls, "inbox_capacity", None)
@@ -194,14 +191,20 @@ class _NodeCore:
 
     # -- sensors ----------------------------------------------------------------------------------
 
+    def _noisy(self, purpose: str, value: Any, std: float) -> Any:
+        """``value`` plus Gaussian noise of ``std`` from the node's own ("node", id, purpose)
+        stream, made on first use; ``value`` itself when std = 0."""
+        if std <= 0.0:
+            return value
+        rng = self._rng_sensor.get(purpose)
+        if rng is None:
+            rng = self._rng_sensor[purpose] = self.sim.rng("node", self.index, purpose)
+        if isinstance(value, float):
+            return value + float(rng.normal(0.0, std))
+        return value + rng.normal(0.0, std, np.shape(value))
+
     def read_depth(self) -> float:
-        z = float(self.position(self.env.now)[2])
-        std = self.sensors.depth_std
-        if std > 0.0:
-            if self._rng_depth is None:
-                self._rng_depth = self.sim.rng("node", self.index, "depth")
-            z += float(self._rng_depth.normal(0.0, std))
-        return z
+        return self._noisy("depth", float(self.position(self.env.now)[2]), self.sensors.depth_std)
 
     def read_velocity(self) -> np.ndarray:
         if not self.has_velocity:
@@ -210,12 +213,7 @@ class _NodeCore:
                 "Sensors(velocity=True) to add one"
             )
         v = np.array(self.group.mobility.velocity(self.env.now)[self.slot], dtype=float)
-        std = self.sensors.velocity_std
-        if std > 0.0:
-            if self._rng_vel is None:
-                self._rng_vel = self.sim.rng("node", self.index, "velocity")
-            v = v + self._rng_vel.normal(0.0, std, 3)
-        return v
+        return self._noisy("velocity", v, self.sensors.velocity_std)
 
     def read_position(self) -> np.ndarray:
         if not self.has_position:
@@ -224,12 +222,7 @@ class _NodeCore:
                 "Sensors(position=True) to add one (GPS / surveyed mooring)"
             )
         p = np.array(self.position(self.env.now), dtype=float)
-        std = self.sensors.position_std
-        if std > 0.0:
-            if self._rng_pos is None:
-                self._rng_pos = self.sim.rng("node", self.index, "position")
-            p = p + self._rng_pos.normal(0.0, std, 3)
-        return p
+        return self._noisy("position", p, self.sensors.position_std)
 
     # -- logging ----------------------------------------------------------------------------------
 
