@@ -64,6 +64,8 @@ class STVFParams(BaseModel):
     noise_rate_ms2: float = Field(200.0, gt=0, description="beta (ms^2): Gam(alpha, beta) on the precision (1/ms^2)")
     tol_m: float = Field(0.1, gt=0, description="stop when mu* moves less than this (m)")
     max_iter: int = Field(50, ge=1)
+    common_random_numbers: bool = Field(
+        False, description="reuse one set of importance samples for every pass of a localization (Algorithm 1 draws new ones)")
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (measurement model)")
     range_m: float = Field(80.0, gt=0, description="modem range (m): a first fix must lie within it of every reference")
     first_fix_refs: int = Field(3, ge=1, description="references needed to start the filter (prior from multilateration)")
@@ -96,6 +98,7 @@ class STVFNode(PeriodicBeaconNode):
             n_speed_samples=p.n_samples,
             tol=p.tol_m,
             max_iter=p.max_iter,
+            common_random_numbers=p.common_random_numbers,
         )
         self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
         self.confidence = 1.0 if self.is_beacon else 0.0

@@ -91,16 +91,16 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     if name == "fig3":
         for share in shares:
             for nr in (1, 2, 3, 4, 5):
-                add("stvf", share, {"p.n_ref": nr}, n_ref=nr)
+                add("stvf", share, {"p.n_ref": nr}, t_min=args.score_from, n_ref=nr)
     elif name == "fig4":
         for share in shares:
             for ns in (50, 100, 200, 400):
-                add("stvf", share, {"p.n_samples": ns}, n_samples=ns)
+                add("stvf", share, {"p.n_samples": ns}, t_min=args.score_from, n_samples=ns)
     elif name in ("fig7", "fig8", "fig9"):
         slmp_extra = {"nodes[1].params.training_s": args.training}
         if name == "fig7":
             points = [("density", d, {"channel.max_range_m": round(math.sqrt(d * 250000 / (200 * math.pi)), 2),
-                                      "p.range_m": 100.0}) for d in (6, 8, 12, 16, 20, 24)]
+                                      "p.range_m": 100.0}) for d in args.densities]
         elif name == "fig8":
             points = [("delta", d, {"p.delta": d}) for d in (0.8, 0.85, 0.9, 0.95, 0.97, 0.99, 1.0)]
         else:
@@ -108,6 +108,21 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
         for key, val, extra in points:
             add("stvf", 0.20, {**extra, "nodes[1].params.n_ref": 2}, t_min=args.training, **{key: val})
             add("slmp", 0.20, {**extra, **slmp_extra}, t_min=args.training, **{key: val})
+    elif name == "ablation":
+        # What separates STVF from SLMP at Table 1's density: one change per row (docs/stvf.md).
+        matched = round(3 * (0.02 * 50.0 / 1.5) ** 2, 3)  # Gam(3, beta) with mean 1/sigma^2, 2 % of 50 m
+        variants = {
+            "Nr=2": {"nodes[1].params.n_ref": 2},
+            "Nr=3 (Table 1)": {},
+            "Nr=3, one sample set": {"p.common_random_numbers": "true"},
+            "Nr=3, noise prior matched": {"p.noise_rate_ms2": matched},
+            "Nr=2, noise prior matched": {"nodes[1].params.n_ref": 2, "p.noise_rate_ms2": matched},
+            "Nr=5": {"nodes[1].params.n_ref": 5},
+        }
+        for variant, extra in variants.items():
+            add("stvf", 0.20, extra, t_min=args.training, variant=variant)
+        add("slmp", 0.20, {"nodes[1].params.training_s": args.training}, t_min=args.training,
+            variant="SLMP")
     else:
         raise SystemExit(f"unknown experiment {name!r}")
     return jobs
@@ -202,6 +217,8 @@ FIGURES: dict[str, tuple[str, str, list[tuple[str, str]], str]] = {
              "Fig. 8, confidence threshold: STVF vs SLMP"),
     "fig9": ("noise_ratio", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
              "Fig. 9, ranging noise std / delay: STVF vs SLMP"),
+    "ablation": ("variant", "protocol", [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
+                 "STVF variants against SLMP, density 16, 20 % beacons"),
 }
 
 
@@ -209,7 +226,7 @@ def report(name: str, df: pd.DataFrame, args: argparse.Namespace, out: Path) -> 
     """PNG (mean +- s.e.m. over seeds) and a printed table for one experiment's runs."""
     x, group, ys, title = FIGURES[name]
     setup = (f"{args.nodes} nodes, {args.duration:g} s, {df['seed'].nunique()} seed(s)"
-             + (f", scored t >= {args.training:g} s" if group == "protocol" else ", scored from t = 0")
+             + f", scored t >= {args.training if group == 'protocol' else (args.score_from or 0):g} s"
              + "; mean +- s.e.m.")
     _plot_xy(df, x, group, ys, out / f"{name}.png", f"{title}\n({setup})")
     cols = [c for c, _ in ys] + (["avg_rmse_m"] if "avg_rmse_m" in df else [])
@@ -219,12 +236,16 @@ def report(name: str, df: pd.DataFrame, args: argparse.Namespace, out: Path) -> 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("experiments", nargs="+", help="headline fig3 fig4 fig7 fig8 fig9")
+    ap.add_argument("experiments", nargs="+", help="headline fig3 fig4 fig7 fig8 fig9 ablation")
     ap.add_argument("--nodes", type=int, default=200)
     ap.add_argument("--duration", type=float, default=500.0)
     ap.add_argument("--training", type=float, default=100.0, help="SLMP beacon training (s)")
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--score-from", type=float, default=None,
+                    help="fig3/fig4: score STVF on t >= this (s), after its start-up transient")
+    ap.add_argument("--densities", type=float, nargs="+", default=[6, 8, 12, 16, 20, 24],
+                    help="node densities of fig7")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "out" / "stvf_figures"))
     ap.add_argument("--replot", action="store_true",
