@@ -61,17 +61,20 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
     sim.run(sc.simulation.duration_s)
     cpu = time.process_time() - c0
     frames = sim.trace.frames()
+    from protocols.stvf_metrics import localization_metrics
+
     if job.get("t_min") is not None:
         # compare protocols over the same window (SLMP only localizes after its training)
-        from protocols.stvf_metrics import localization_metrics
-
         m = localization_metrics(frames, job["protocol"], t_min=job["t_min"])
     else:
         m = get(job["protocol"]).metrics(frames)
     row = {k: v for k, v in job.items() if k not in ("overrides", "keep", "t_min")}
     row.update(m)
     row["cpu_s"] = cpu
-    row["cpu_per_localization_ms"] = 1e3 * cpu / max(m.get("localizations", 0.0), 1.0)
+    # the whole run's CPU over all of its localizations, not only the scored ones
+    total = m["localizations"] if job.get("t_min") is None else localization_metrics(
+        frames, job["protocol"])["localizations"]
+    row["cpu_per_localization_ms"] = 1e3 * cpu / max(total, 1.0)
     if job.get("keep"):
         row["_frames"] = frames
     return row
