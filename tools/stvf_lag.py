@@ -34,10 +34,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-
-from aquasim_py.estimation import variational as vf
 from scipy.optimize import least_squares
 
+from aquasim_py.estimation import variational as vf
 from aquasim_py.estimation.lsq import multilaterate
 
 SPEED = 1500.0
@@ -74,7 +73,7 @@ def velocity(t: np.ndarray | float) -> np.ndarray:
 
 
 def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[str, np.ndarray]:
-    """Errors (periods, 2) of STVF and of the two multilateration baselines for one run."""
+    """Errors (periods, 2) of STVF and of the two least-squares baselines for one run."""
     rng = np.random.default_rng(seed)
     noise_rng = np.random.default_rng(seed + 10_000)  # same measurements for every variant
     filt_rng = np.random.default_rng(seed + 20_000)
@@ -86,7 +85,7 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
 
     t = np.arange(periods + 1, dtype=float)
     truth = np.vstack([np.zeros(2), np.cumsum(velocity(t[:-1]), axis=0)])
-    out = {k: np.full((periods, 2), np.nan) for k in ("stvf", "ml3", "ml6")}
+    out = {k: np.full((periods, 2), np.nan) for k in ("stvf", "ls3", "ls6")}
     its = np.zeros(periods)
     prop = np.zeros(periods)
     mu = lp = None
@@ -98,10 +97,10 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
         sel = vf.select_references(gamma, n_ref)
         sel3 = vf.select_references(gamma, 3)
         ranges = z_ms * SPEED / 1e3
-        out["ml6"][k - 1] = fix(refs, ranges) - truth[k]
-        out["ml3"][k - 1] = fix(refs[sel3], ranges[sel3]) - truth[k]
+        out["ls6"][k - 1] = fix(refs, ranges) - truth[k]
+        out["ls3"][k - 1] = fix(refs[sel3], ranges[sel3]) - truth[k]
         if mu is None:
-            mu, lp = vf.initial_prior(out["ml6"][k - 1] + truth[k], 10.0)
+            mu, lp = vf.initial_prior(out["ls6"][k - 1] + truth[k], 10.0)
         mu_p, lp_p = vf.predict(mu, lp, prior.transition)
         res = vf.variational_update(z_ms[sel] * scale / 1e3, refs[sel], mu_p, lp_p, prior, filt_rng)
         mu, lp = res.mu, res.mu_precision
@@ -124,7 +123,7 @@ def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[s
     prop = np.concatenate([r["prop"][burn:] for r in runs])
     return {"variant": name, "error_m": e, "behind_m": lag, "iterations": float(its.mean()),
             "within_5": float((its <= 5).mean()), "proposal_std_m": float(np.median(prop)),
-            "ml3_m": stats("ml3")[0], "ml6_m": stats("ml6")[0]}
+            "ls3_m": stats("ls3")[0], "ls6_m": stats("ls6")[0]}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -143,10 +142,10 @@ def main(argv: list[str] | None = None) -> None:
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     pd.DataFrame(rows).to_csv(a.out, index=False)
     head = f"{'variant':<22}{'error m':>9}{'behind m':>10}{'iters':>7}{'<=5':>6}{'prop std m':>11}"
-    print(head + f"{'ML(3) m':>9}{'ML(6) m':>9}")
+    print(head + f"{'LS(3) m':>9}{'LS(6) m':>9}")
     for r in rows:
         print(f"{r['variant']:<22}{r['error_m']:>9.2f}{r['behind_m']:>10.2f}{r['iterations']:>7.1f}"
-              f"{r['within_5']:>6.2f}{r['proposal_std_m']:>11.3f}{r['ml3_m']:>9.2f}{r['ml6_m']:>9.2f}")
+              f"{r['within_5']:>6.2f}{r['proposal_std_m']:>11.3f}{r['ls3_m']:>9.2f}{r['ls6_m']:>9.2f}")
 
 
 if __name__ == "__main__":
