@@ -152,6 +152,30 @@ def _plot_xy(df: pd.DataFrame, x: str, group: str, ys: list[tuple[str, str]], pa
     plt.close(fig)
 
 
+def _plot_bars(df: pd.DataFrame, x: str, ys: list[tuple[str, str]], path: Path, title: str) -> None:
+    """Horizontal bars (mean +- s.e.m.) for categorical experiments, in the order run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    order = list(dict.fromkeys(df[x]))
+    fig, axes = plt.subplots(1, len(ys), figsize=(6 * len(ys), 0.5 * len(order) + 1.5), sharey=True)
+    for ax, (col, label) in zip(np.atleast_1d(axes), ys):
+        stats = df.groupby(x)[col].agg(["mean", "sem"]).reindex(order)
+        colors = ["tab:blue" if p == "slmp" else "tab:orange"
+                  for p in df.groupby(x)["protocol"].first().reindex(order)]
+        ax.barh(range(len(order)), stats["mean"], xerr=stats["sem"].fillna(0), color=colors, capsize=3)
+        ax.set_yticks(range(len(order)), order)
+        ax.set_xlabel(label)
+        ax.grid(alpha=0.3, axis="x")
+    np.atleast_1d(axes)[0].invert_yaxis()  # the axes share y: invert once, first run on top
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def headline(args: argparse.Namespace, out: Path) -> None:
     """Table 1 run(s): avg RMSE, share below it, iterations (Figs 5 and 6)."""
     import matplotlib
@@ -231,7 +255,10 @@ def report(name: str, df: pd.DataFrame, args: argparse.Namespace, out: Path) -> 
     setup = (f"{args.nodes} nodes, {args.duration:g} s, {df['seed'].nunique()} seed(s)"
              + f", scored t >= {args.training if group == 'protocol' else (args.score_from or 0):g} s"
              + "; mean +- s.e.m.")
-    _plot_xy(df, x, group, ys, out / f"{name}.png", f"{title}\n({setup})")
+    if pd.api.types.is_numeric_dtype(df[x]):
+        _plot_xy(df, x, group, ys, out / f"{name}.png", f"{title}\n({setup})")
+    else:
+        _plot_bars(df, x, ys, out / f"{name}.png", f"{title}\n({setup})")
     cols = [c for c, _ in ys] + (["avg_rmse_m"] if "avg_rmse_m" in df else [])
     print(name, setup)
     print(df.groupby([x, group])[cols].agg(["mean", "sem"]).round(3).to_string(), flush=True)
