@@ -4,6 +4,8 @@ headline numbers, for STVF and the SLMP baseline.
     python tools/stvf_figures.py headline            # Table 1: avg RMSE, share below, Fig 5, Fig 6
     python tools/stvf_figures.py fig3 fig4 fig7 fig8 fig9 --seeds 10 --workers 2
     python tools/stvf_figures.py fig7 --nodes 50 --duration 120 --seeds 10   # scaled-down
+    python tools/stvf_figures.py ablation --nodes 50 --duration 120 --training 60 --seeds 4
+                                                     # STVF variants vs SLMP (docs/stvf.md)
 
 ``--nodes`` scales the network at constant density (area side 500 m x sqrt(nodes / 200)), so a
 small run keeps Table 1's geometry per node. Results go to ``--out`` (default
