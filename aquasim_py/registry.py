@@ -2,9 +2,10 @@
 
 Two sources, loaded lazily on the first lookup:
 
-- built-ins: every module of the ``protocols`` package is imported; a module registers its
-  Node subclass with the :func:`register` decorator. A module that fails to import does not
-  break the registry (the others still load); its error is reported when its name is asked for.
+- built-ins: every family package of :mod:`aquasim_py.protocols` (the repository's top-level
+  ``protocols/`` folder) is imported; its modules register their Node subclasses with the
+  :func:`register` decorator. A family that fails to import does not break the registry (the
+  others still load); its error is reported when its name is asked for.
 - third-party packages: the entry-point group ``aquasim_py.protocols``, each entry point
   naming a Node subclass, e.g. in a plug-in's ``pyproject.toml``::
 
@@ -21,6 +22,7 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import pkgutil
+import sys
 import threading
 from typing import Any
 
@@ -29,7 +31,7 @@ from pydantic import BaseModel
 __all__ = ["register", "get", "available", "UnknownProtocolError", "ProtocolDefinitionError"]
 
 ENTRY_POINT_GROUP = "aquasim_py.protocols"
-BUILTIN_PACKAGE = "protocols"
+BUILTIN_PACKAGE = "aquasim_py.protocols"
 
 _registry: dict[str, type] = {}
 _load_errors: dict[str, str] = {}  # module or entry-point name -> why it did not load
@@ -100,10 +102,13 @@ def _load_builtins() -> None:
         except Exception as exc:  # a half-written protocol must not hide the others
             _load_errors[info.name] = f"{modname} failed to import ({type(exc).__name__}: {exc})"
             continue
-        # a module imported before the registry loaded registered itself then; collect again
-        for obj in list(vars(mod).values()):
-            if isinstance(obj, type) and obj.__dict__.get("_aquasim_registered") and obj.__module__ == modname:
-                _registry.setdefault(obj.name, obj)
+        # a family imported before the registry loaded (or before a registry reset) registered
+        # itself then; collect its classes again from every module of the family
+        family = [m for n, m in list(sys.modules.items()) if n == modname or n.startswith(modname + ".")]
+        for m in family:
+            for obj in list(vars(m).values()):
+                if isinstance(obj, type) and obj.__dict__.get("_aquasim_registered") and obj.__module__ == m.__name__:
+                    _registry.setdefault(obj.name, obj)
 
 
 def _load_entry_points() -> None:

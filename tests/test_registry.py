@@ -23,11 +23,11 @@ def fresh(monkeypatch):
 
 
 def test_beacon_is_built_in():
-    from protocols.beacon import Beacon
+    from aquasim_py.protocols.beacon import BeaconNode
 
-    assert registry.get("beacon") is Beacon
+    assert registry.get("beacon") is BeaconNode
     assert "beacon" in registry.available()
-    assert issubclass(Beacon.Params, BaseModel)
+    assert issubclass(BeaconNode.Params, BaseModel)
 
 
 def test_unknown_name_lists_available():

@@ -48,7 +48,7 @@ def layout(n: int, neighbours: float, seed: int) -> tuple[np.ndarray, float]:
     return pos, hi
 
 
-class Beacon(Node):
+class BenchBeacon(Node):
     """Broadcasts every PERIOD local seconds from a random phase; optionally drains its inbox."""
 
     name = "bench_beacon"
@@ -68,7 +68,7 @@ class Beacon(Node):
 
 
 def build_kernel(pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: float = 0.0) -> Simulation:
-    cls = type("B", (Beacon,), {"listen": listen})
+    cls = type("B", (BenchBeacon,), {"listen": listen})
     box = Box([-1.0, -1.0, 0.0], [10_001.0, 10_001.0, 200.0])
     sim = Simulation(seed, ssp=Constant(SPEED), volume=box,
                      channel=ChannelConfig(max_range_m=rng_m, bitrate_bps=BITRATE, collision="destructive"))

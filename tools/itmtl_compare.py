@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from aquasim_py import scenario
-from protocols._itmtl_metrics import per_round, protocol_metrics
+from aquasim_py.protocols.itmtl.metrics import per_round, protocol_metrics
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "itmtl.toml"
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from aquasim_py import scenario
-from protocols._itmtl_metrics import protocol_metrics
+from aquasim_py.protocols.itmtl.metrics import protocol_metrics
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "itmtl.toml"
 KEYS = ("coverage_final", "coverage", "coverage_upper_bound", "sync_final_mean_s", "loc_nmse", "promoted_share")

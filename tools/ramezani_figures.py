@@ -26,7 +26,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from protocols.ramezani_math import (  # noqa: E402
+from aquasim_py.protocols.ramezani.math import (  # noqa: E402
     CUBE_VERTICES,
     PAPER_A,
     PAPER_B,

@@ -7,7 +7,7 @@ sigma_t = 1 ms, depth every rho = 10 frames with sigma_z = 1 m, K = 500 frames, 
 30 m off on every axis; RMSE over frames 300..500 (eq 45). The reference is the recursive
 PCRB (eqs 41-42) evaluated along the true trajectories, an independent computation (Fisher
 information recursion) from the filter. Trajectories that would leave the water are redrawn
-(see :func:`protocols.ramezani_math.simulate_trajectories`).
+(see :func:`aquasim_py.protocols.ramezani.math.simulate_trajectories`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocols.ramezani_math import tracking_monte_carlo
+from aquasim_py.protocols.ramezani.math import tracking_monte_carlo
 
 
 def _check_paper_setup(n: int, seed: int) -> None:
@@ -59,7 +59,7 @@ def test_pcrb_matches_kalman_covariance_on_linear_rows() -> None:
     # The PCRB recursion we compare against must equal the EKF's own covariance recursion when
     # the filter linearizes at the truth: run the batched EKF with h linear in x (straight rays
     # frozen at the true position's gradient) and compare P with the PCRB step by step.
-    from protocols.ramezani_math import (PAPER_A, PAPER_B, TETRAHEDRON, batched_ekf, essp_model,
+    from aquasim_py.protocols.ramezani.math import (PAPER_A, PAPER_B, TETRAHEDRON, batched_ekf, essp_model,
                                          paper_transition, pcrb_along)
 
     K, Ts, sig = 40, 10.0, 1e-3

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from aquasim_py import cli, metrics, scenario, trace
-from protocols.beacon import Beacon, range_errors
+from aquasim_py.protocols.beacon import BeaconNode, range_errors
 
 ANCHORS = np.array([[0.0, 0.0, 10.0], [1500.0, 0.0, 30.0], [0.0, 1200.0, 50.0]])
 SENSORS = np.array([[400.0, 300.0, 80.0], [1100.0, 900.0, 20.0]])
@@ -83,7 +83,7 @@ def test_perfect_clocks_and_nominal_speed_give_exact_ranges(tmp_path):
     fr = run(make(tmp_path))
     r = fr["ranges"]
     np.testing.assert_allclose(r["range_m"], geometric(r), rtol=0, atol=1e-6)
-    m = Beacon.metrics(fr)
+    m = BeaconNode.metrics(fr)
     assert abs(m["range_error_mean_m"]) < 1e-6 and m["range_rmse_m"] < 1e-6
 
 
@@ -91,7 +91,7 @@ def test_listener_clock_offset_adds_offset_times_speed(tmp_path):
     fr = run(make(tmp_path, sensor_clock="clock = { offset_s = 0.002 }"))
     r = fr["ranges"]
     np.testing.assert_allclose(r["range_m"] - geometric(r), 0.002 * C, rtol=0, atol=1e-6)
-    assert Beacon.metrics(fr)["range_error_mean_m"] == pytest.approx(3.0, abs=1e-6)
+    assert BeaconNode.metrics(fr)["range_error_mean_m"] == pytest.approx(3.0, abs=1e-6)
 
 
 def test_listener_clock_skew_grows_with_time(tmp_path):
@@ -117,7 +117,7 @@ def test_metrics_are_the_statistics_of_the_errors(tmp_path):
     fr = run(make(tmp_path, sensor_clock="clock = { skew_std_ppm = 40.0, offset_std_s = 1e-3 }",
                   channel="jitter_std_s = 1e-4"))
     e = fr["ranges"]["range_m"].to_numpy() - geometric(fr["ranges"])
-    m = Beacon.metrics(fr)
+    m = BeaconNode.metrics(fr)
     assert m["ranges"] == len(e)
     assert m["range_error_mean_m"] == pytest.approx(e.mean(), abs=1e-9)
     assert m["range_error_std_m"] == pytest.approx(e.std(ddof=1), abs=1e-9)
@@ -154,7 +154,7 @@ def test_metrics_from_csv_equal_in_memory(tmp_path):
     fr = run(make(tmp_path, sensor_clock="clock = { skew_std_ppm = 40.0 }", channel="jitter_std_s = 1e-4"))
     trace.write_frames(fr, tmp_path / "t")
     back = trace.load(tmp_path / "t")
-    a, b = Beacon.metrics(fr), Beacon.metrics(back)
+    a, b = BeaconNode.metrics(fr), BeaconNode.metrics(back)
     assert a == pytest.approx(b, rel=1e-12)
     assert metrics.summarize(back)["beacon.range_rmse_m"] == pytest.approx(a["range_rmse_m"], rel=1e-12)
 

@@ -12,7 +12,7 @@ import pytest
 
 from aquasim_py import scenario
 from aquasim_py.channel import Isogradient, travel_time
-from protocols._itmtl_metrics import per_round, protocol_metrics
+from aquasim_py.protocols.itmtl.metrics import per_round, protocol_metrics
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios" / "itmtl.toml"
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from aquasim_py.channel import Constant, Isogradient, travel_time
-from protocols.itmtl_math import (
+from aquasim_py.protocols.itmtl.math import (
     DelayModel,
     fix_confidence,
     initial_clock,

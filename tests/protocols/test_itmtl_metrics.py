@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from protocols._itmtl_metrics import coverage_upper_bound, per_round, protocol_metrics
+from aquasim_py.protocols.itmtl.metrics import coverage_upper_bound, per_round, protocol_metrics
 
 
 def _nodes():

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from aquasim_py import scenario
-from protocols.ramezani import Ramezani
-from protocols.ramezani_math import PAPER_A, PAPER_B, TETRAHEDRON, fix_crb
+from aquasim_py.protocols.ramezani import RamezaniNode
+from aquasim_py.protocols.ramezani.math import PAPER_A, PAPER_B, TETRAHEDRON, fix_crb
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -52,7 +52,7 @@ def test_localization_on_crb_at_small_noise() -> None:
     # unbiased: the mean error is within 4 standard errors of zero on every axis
     assert np.all(np.abs(ee.mean(axis=0)) < 4 * ee.std(axis=0) / np.sqrt(len(ee)))
     assert rmse_a > 5 * rmse_e
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     assert m["localization_essp.sqrt_mean_crb_m"] == pytest.approx(np.sqrt(crb), rel=1e-9)
     assert m["localization_essp.rmse_m"] == pytest.approx(rmse_e, rel=1e-12)
 
@@ -60,7 +60,7 @@ def test_localization_on_crb_at_small_noise() -> None:
 def test_localization_large_noise_both_on_crb() -> None:
     # 1 ms: noise dominates, ESSP and ASSP both sit at the bound (Fig. 4, right end)
     frames = run("ramezani_localization.toml", *sigma(1e-3), "simulation.duration_s=300.0")
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     assert m["localization_essp.rmse_over_bound"] == pytest.approx(1.0, abs=0.15)
     assert m["localization_assp.rmse_over_bound"] == pytest.approx(1.0, abs=0.15)
 
@@ -69,7 +69,7 @@ def test_localization_uses_its_own_profile_not_the_environment() -> None:
     # the node believes a = 0.05 while the water has a = 0.1: ESSP loses its advantage
     frames = run("ramezani_localization.toml", *sigma(1e-5), "simulation.duration_s=100.0",
                  "nodes.1.params.gradient_per_s=0.05")
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     assert m["localization_essp.rmse_over_bound"] > 3.0
 
 
@@ -78,7 +78,7 @@ def test_localization_with_depth_gauge() -> None:
     frames = run("ramezani_localization.toml", *sigma(1e-3), "simulation.duration_s=300.0",
                  "nodes.1.params.use_depth=true", "nodes.1.params.sigma_z_m=0.5",
                  "nodes.1.sensors.depth_noise_std_m=0.5")
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     target = frames["estimates"][["true_x", "true_y", "true_z"]].to_numpy(float)[0]
     with_z = float(fix_crb(TETRAHEDRON, target, PAPER_B, PAPER_A, 1e-3, 0.5))
     without = float(fix_crb(TETRAHEDRON, target, PAPER_B, PAPER_A, 1e-3))
@@ -95,7 +95,7 @@ def test_tracking_short_run() -> None:
         g = e[e["model"] == model].sort_values("step")
         assert g["step"].tolist() == list(range(1, 101))
         assert g["depth_used"].tolist() == [k % 10 == 0 for k in range(1, 101)]
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     # from 30 m off on every axis (52 m) the EKF-ESSP converges to the bound's scale
     assert e[e["model"] == "essp"]["error"].iloc[0] < 60.0
     assert m["tracking_essp.rmse_over_bound"] < 2.0
@@ -118,14 +118,14 @@ def test_tracking_from_first_fix_without_depth(tmp_path: Path) -> None:
     g = e[e["model"] == "essp"].sort_values("step")
     assert g["step"].tolist() == list(range(1, 51))  # frame 0 became the prior
     assert not g["depth_used"].any()
-    m = Ramezani.metrics(frames)
+    m = RamezaniNode.metrics(frames)
     assert m["tracking_essp.rmse_over_bound"] < 2.0
 
 
 # --------------------------------------------------------------------------- pure maths
 @pytest.mark.parametrize("a", [0.1, 0.017, -0.05, 0.0, 1e-9])
 def test_continued_model_equals_channel_in_water(a: float) -> None:
-    from protocols.ramezani_math import essp_model
+    from aquasim_py.protocols.ramezani.math import essp_model
 
     rng = np.random.default_rng(1)
     X = rng.uniform([-3000, -3000, 0], [3000, 3000, 400], (2000, 3))
@@ -139,7 +139,7 @@ def test_continued_model_equals_channel_in_water(a: float) -> None:
 
 
 def test_continued_gradient_above_surface_finite_differences() -> None:
-    from protocols.ramezani_math import essp_model
+    from aquasim_py.protocols.ramezani.math import essp_model
 
     tc, gc = essp_model(PAPER_B, PAPER_A, continued=True)
     X = np.array([[800.0, 40.0, -20.0], [300.0, -200.0, -5.0], [60.0, 50.0, -60.0]])
@@ -151,7 +151,7 @@ def test_continued_gradient_above_surface_finite_differences() -> None:
 
 def test_fig6_essp_stays_on_crb_assp_departs() -> None:
     # Fig. 6 (pure maths): sigma_t = 1 ms, target = [x, 50, 50] + N(0, 100 I); plain Algorithm 1
-    from protocols.ramezani_math import localize_batch, tof_functions
+    from aquasim_py.protocols.ramezani.math import localize_batch, tof_functions
 
     rng = np.random.default_rng(6)
     tt, _ = tof_functions("essp", PAPER_B, PAPER_A, TETRAHEDRON)

@@ -9,7 +9,7 @@ from scipy.optimize import least_squares
 
 from aquasim_py import scenario
 from aquasim_py.registry import get
-from protocols import slmp_math as sm
+from aquasim_py.protocols.slmp import math as sm
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "scenarios" / "stvf_quick.toml"

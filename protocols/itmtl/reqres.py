@@ -31,7 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
 from aquasim_py.node import Node, Role, SensorUnavailable
 
-from . import _itmtl_metrics
+from . import metrics as itmtl_metrics
 
 REQ = "sync_req"
 RES = "sync_res"
@@ -232,8 +232,8 @@ class ReqResNode(Node):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
-        return _itmtl_metrics.protocol_metrics(tables, cls.name)
+        return itmtl_metrics.protocol_metrics(tables, cls.name)
 
     @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
-        return _itmtl_metrics.round_table(tables, cls.name)
+        return itmtl_metrics.round_table(tables, cls.name)

@@ -32,15 +32,15 @@ from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from ._periodic import PeriodicBeaconNode
-from .stvf_metrics import localization_metrics
+from ..common.periodic import PeriodicBeaconNode
+from .metrics import localization_metrics
 
-__all__ = ["STVFNode"]
+__all__ = ["StvfNode"]
 
 KIND = "stvf_beacon"
 
 
-class STVFParams(BaseModel):
+class StvfParams(BaseModel):
     """STVF parameters (Table 1 defaults; z in ms, see docs/stvf.md)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -77,15 +77,15 @@ class STVFParams(BaseModel):
 
 
 @register
-class STVFNode(PeriodicBeaconNode):
+class StvfNode(PeriodicBeaconNode):
     """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "stvf"
-    Params = STVFParams
+    Params = StvfParams
     beacon_kind = KIND
 
     def setup(self) -> None:
-        p: STVFParams = self.params
+        p: StvfParams = self.params
         self.prior = vf.STVFPrior(
             transition=np.eye(4) * p.transition_precision,
             wishart_scale=np.eye(4) * p.wishart_scale,
@@ -128,7 +128,7 @@ class STVFNode(PeriodicBeaconNode):
 
     def measurements(self, heard: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
         """(z ms projected, refs (n, 2), eta (n,), speed (n,), own depth) from receptions."""
-        p: STVFParams = self.params
+        p: StvfParams = self.params
         depth = self.depth()
         if not heard:
             return np.empty(0), np.empty((0, 2)), np.empty(0), np.empty(0), depth
@@ -144,7 +144,7 @@ class STVFNode(PeriodicBeaconNode):
         return z, refs, eta, speed, depth
 
     def localize(self, heard: list[Any]) -> None:
-        p: STVFParams = self.params
+        p: StvfParams = self.params
         z, refs, eta, speed, depth = self.measurements(heard)
         now = self.local_time()
         if z.size < p.n_ref:
@@ -187,7 +187,7 @@ class STVFNode(PeriodicBeaconNode):
         """Coarse (x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given): multilateration on the
         nominal-speed ranges to every reference heard, kept only if it lies within ``range_m``
         of each (a node hears only references in range); otherwise their centroid."""
-        p: STVFParams = self.params
+        p: StvfParams = self.params
         r = z * p.speed_mps / 1e3
         if len(r) >= 3:
             try:

@@ -2,7 +2,7 @@
 
 R. Gao, D. Qiao, M. Zhang, G. Xu et al., mobile target localization based on iterative
 tracing for underwater wireless sensor networks. The equations of the paper were lost; the
-maths follows the reconstruction in ``notes/papers.md`` (see :mod:`protocols.itmtl_math` and
+maths follows the reconstruction in ``notes/papers.md`` (see :mod:`aquasim_py.protocols.itmtl.math` and
 :mod:`aquasim_py.estimation.sync`).
 
 Roles: buoys and anchors answer Req messages (true time, known position); ordinary nodes run
@@ -40,8 +40,8 @@ from aquasim_py.estimation.motion import ConstantVelocity, CoordinatedTurn
 from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
 from aquasim_py.registry import register
 
-from ._reqres import ReqResNode, ReqResParams, Round
-from .itmtl_math import (
+from .reqres import ReqResNode, ReqResParams, Round
+from .math import (
     DelayModel,
     fix_confidence,
     initial_clock,

@@ -5,7 +5,7 @@ The node's own velocity is the mean of its neighbours' reported velocities (spat
 correlation of the current, :func:`aquasim_py.estimation.sync.neighbour_velocity`); the delay
 change over each exchange follows from the relative velocity along the straight line of
 sight at the mean speed, which splits the round trip; then linear regression over all
-exchanges. No ray model, no tracking. Localization as in :mod:`protocols._baseline`.
+exchanges. No ray model, no tracking. Localization as in :mod:`aquasim_py.protocols.itmtl.baseline`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from aquasim_py.estimation.sync import ClockFit, Exchanges, itmtl_sync, neighbour_velocity
 from aquasim_py.registry import register
 
-from ._baseline import BaselineNode
+from .baseline import BaselineNode
 
 
 @register

@@ -26,7 +26,7 @@ noise N(0, ``sigma_t_s``^2) drawn from the node's own random stream. A frame is 
 all anchors were heard, or when a later frame starts / nothing arrives for a frame period.
 
 The protocol never reads ground truth; the bounds are computed after the run in
-:meth:`Ramezani.metrics` from the trace (true positions from the ``estimates`` truth columns
+:meth:`RamezaniNode.metrics` from the trace (true positions from the ``estimates`` truth columns
 and the ``positions`` table), evaluated with the profile the node was configured with.
 """
 
@@ -45,9 +45,9 @@ from aquasim_py.metrics import positions_at
 from aquasim_py.node import Node, Role
 from aquasim_py.registry import register
 
-from .ramezani_math import TETRAHEDRON, fix_crb, paper_transition, pcrb_along, tof_functions
+from .math import TETRAHEDRON, fix_crb, paper_transition, pcrb_along, tof_functions
 
-__all__ = ["Ramezani"]
+__all__ = ["RamezaniNode"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 _ANCHOR_ROLES = (Role.ANCHOR, Role.BUOY)
@@ -55,7 +55,7 @@ _PING = "rz_ping"
 
 
 @register
-class Ramezani(Node):
+class RamezaniNode(Node):
     """Anchors ping in TDMA slots; targets localize (GNA) or track (EKF) from the ToFs."""
 
     name = "ramezani"
@@ -91,7 +91,7 @@ class Ramezani(Node):
         rmse_from_step: int = Field(300, ge=1, description="tracking RMSE over steps K1..K: K1")
 
         @model_validator(mode="after")
-        def _ids(self) -> Ramezani.Params:
+        def _ids(self) -> RamezaniNode.Params:
             if self.anchor_ids is not None and len(self.anchor_ids) != len(self.anchor_positions):
                 raise ValueError(f"anchor_ids has {len(self.anchor_ids)} entries for "
                                  f"{len(self.anchor_positions)} anchor_positions")

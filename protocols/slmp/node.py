@@ -7,11 +7,11 @@ runs it for comparison (Hu et al., Sensors 2018, Sec. 5.3).
   (60 s, the prediction window): a beacon heard at t0 constrains the node's own position at
   t0, so a stale one is used with the node's predicted displacement since t0 added to the
   reference position. With >= ``min_refs`` (3, after projection on the depth plane)
-  references: multilateration and a confidence (:func:`~protocols.slmp_math.slmp_confidence`);
+  references: multilateration and a confidence (:func:`~aquasim_py.protocols.slmp.math.slmp_confidence`);
   above ``delta`` the node becomes a reference. Otherwise, with >= ``self_min_refs`` references
   in view ("more than one", STVF Sec. 5.3.1) and a previous estimate, the node self-estimates
   from its previous location and its predicted velocity.
-- Mobility prediction: :class:`~protocols.slmp_math.MobilityPredictor` (window 60 s, overlap
+- Mobility prediction: :class:`~aquasim_py.protocols.slmp.math.MobilityPredictor` (window 60 s, overlap
   20 %, order 15, refit when the one-step error exceeds 5 % of the range).
 
 The ranging model is STVF's: one-way delays from MAC stamps (synchronized clocks), error std
@@ -32,16 +32,16 @@ from aquasim_py.registry import register
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 
-from ._periodic import PeriodicBeaconNode
-from .slmp_math import MobilityPredictor, multilaterate_2d, slmp_confidence
-from .stvf_metrics import localization_metrics
+from ..common.periodic import PeriodicBeaconNode
+from .math import MobilityPredictor, multilaterate_2d, slmp_confidence
+from ..stvf.metrics import localization_metrics
 
-__all__ = ["SLMPNode"]
+__all__ = ["SlmpNode"]
 
 KIND = "slmp_beacon"
 
 
-class SLMPParams(BaseModel):
+class SlmpParams(BaseModel):
     """SLMP parameters (STVF Sec. 5.3 defaults)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -65,15 +65,15 @@ class SLMPParams(BaseModel):
 
 
 @register
-class SLMPNode(PeriodicBeaconNode):
+class SlmpNode(PeriodicBeaconNode):
     """An SLMP node: beacons (anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "slmp"
-    Params = SLMPParams
+    Params = SlmpParams
     beacon_kind = KIND
 
     def setup(self) -> None:
-        p: SLMPParams = self.params
+        p: SlmpParams = self.params
         self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
         self.predictor = MobilityPredictor(
             p.period_s, window=int(round(p.window_s / p.period_s)), overlap=p.overlap,
@@ -103,7 +103,7 @@ class SLMPNode(PeriodicBeaconNode):
         return elapsed_s >= self.params.training_s
 
     def localize(self, heard: list[Any]) -> None:
-        p: SLMPParams = self.params
+        p: SlmpParams = self.params
         now = self.local_time()
         depth = self.depth()
         for rec in heard:

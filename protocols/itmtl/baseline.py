@@ -15,8 +15,8 @@ import numpy as np
 from aquasim_py.estimation.sync import ClockFit, Exchanges, split_delays
 from aquasim_py.channel.ssp import Constant
 
-from ._reqres import ReqResNode, Round
-from .itmtl_math import DelayModel, multilaterate, position_fix
+from .reqres import ReqResNode, Round
+from .math import DelayModel, multilaterate, position_fix
 
 
 class BaselineNode(ReqResNode):

@@ -11,7 +11,7 @@ ray is straight: the range error measures exactly those effects (clock offset an
 timestamp jitter, ray bending, sound-speed mismatch). Each range goes to the ``ranges`` table.
 
 The protocol never sees ground truth. The true range is computed afterwards, in
-:meth:`Beacon.metrics`, from the trace alone: the packet's true send and arrival times (the
+:meth:`BeaconNode.metrics`, from the trace alone: the packet's true send and arrival times (the
 ``packets`` table, by uid) and the true positions at those times (the ``positions`` table,
 interpolated), so the same numbers come out of a CSV trace read back later.
 """
@@ -29,13 +29,13 @@ from aquasim_py.metrics import positions_at
 from aquasim_py.node import Node, Role, SensorUnavailable
 from aquasim_py.registry import register
 
-__all__ = ["Beacon", "true_ranges"]
+__all__ = ["BeaconNode", "range_errors", "true_ranges"]
 
 _BROADCASTERS = (Role.ANCHOR, Role.BUOY)
 
 
 @register
-class Beacon(Node):
+class BeaconNode(Node):
     """Anchors and buoys broadcast beacons; everyone else logs one-way ToA ranges."""
 
     name = "beacon"
