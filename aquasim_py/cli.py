@@ -19,7 +19,7 @@ import tempfile
 import time
 import uuid
 from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -88,10 +88,13 @@ def _seed(text: str) -> int:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file")
-    p.add_argument("--out", metavar="DIR", help="output directory (default: [output] directory, else out/<scenario name>)")
+    p.add_argument(
+        "--out", metavar="DIR", help="output directory (default: [output] directory, else out/<scenario name>)"
+    )
     p.add_argument("--seed", type=_seed, metavar="N", help="override [simulation] seed")
-    p.add_argument("--set", action="append", default=[], metavar="KEY.PATH=VALUE",
-                   help="override any scenario value (repeatable)")
+    p.add_argument(
+        "--set", action="append", default=[], metavar="KEY.PATH=VALUE", help="override any scenario value (repeatable)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar and no tables")
 
 
@@ -99,8 +102,8 @@ def _run_parser() -> argparse.ArgumentParser:
     p = _Parser(
         prog="aquasim-py",
         description="Simulate an underwater acoustic sensor network scenario and write its trace "
-                    "tables and metrics. Use 'aquasim-py sweep SCENARIO.toml' for a Monte Carlo "
-                    "or parameter sweep (see 'aquasim-py sweep --help').",
+        "tables and metrics. Use 'aquasim-py sweep SCENARIO.toml' for a Monte Carlo "
+        "or parameter sweep (see 'aquasim-py sweep --help').",
         epilog=_RUN_EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -117,10 +120,13 @@ def _sweep_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _common(p)
-    p.add_argument("--workers", type=_positive_int, metavar="N",
-                   help=f"local worker processes (default: the core count, here {os.cpu_count()})")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run on a Dask cluster at ADDRESS (needs 'aquasim-py[dask]')")
+    p.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help=f"local worker processes (default: the core count, here {os.cpu_count()})",
+    )
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster at ADDRESS (needs 'aquasim-py[dask]')")
     return p
 
 
@@ -139,10 +145,8 @@ def staged_output(target: str | Path, file: Path | None, key: str) -> Iterator[P
 
     def _unmake() -> None:
         for d in reversed(created):
-            try:
+            with suppress(OSError):
                 d.rmdir()
-            except OSError:
-                pass
 
     try:
         missing = []
@@ -241,8 +245,9 @@ def _check_format(sc: Scenario) -> None:
         try:
             import pyarrow  # noqa: F401
         except ImportError:
-            raise ScenarioError(sc.path, "trace.format",
-                                "parquet needs pyarrow (pip install 'aquasim-py[parquet]')") from None
+            raise ScenarioError(
+                sc.path, "trace.format", "parquet needs pyarrow (pip install 'aquasim-py[parquet]')"
+            ) from None
 
 
 def _progress_wanted(quiet: bool) -> bool:
@@ -267,10 +272,13 @@ def _run(argv: Sequence[str]) -> int:
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
             with Progress(
-                TextColumn("[bold]{task.description}"), BarColumn(),
+                TextColumn("[bold]{task.description}"),
+                BarColumn(),
                 TextColumn("{task.completed:.0f}/{task.total:.0f} s simulated"),
-                TimeElapsedColumn(), TimeRemainingColumn(),
-                console=_console(stderr=True), transient=True,
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
+                console=_console(stderr=True),
+                transient=True,
             ) as prog:
                 task = prog.add_task(sc.name, total=duration)
                 sim.run(duration, progress=lambda t, until: prog.update(task, completed=t))
@@ -279,8 +287,13 @@ def _run(argv: Sequence[str]) -> int:
         wall = time.perf_counter() - started
         frames = sim.trace.frames()
         protocols = sc.protocols()
-        m = metrics.summarize(frames, protocols, percentiles=sc.metrics.percentiles,
-                              warmup_s=sc.metrics.warmup_s, unknown_roles=sc.metrics.unknown_roles)
+        m = metrics.summarize(
+            frames,
+            protocols,
+            percentiles=sc.metrics.percentiles,
+            warmup_s=sc.metrics.warmup_s,
+            unknown_roles=sc.metrics.unknown_roles,
+        )
         wanted = sc.trace.tables
         selected = frames if wanted is None else {k: v for k, v in frames.items() if k in wanted}
         write_frames(selected, tmp, sc.trace.format)
@@ -333,13 +346,26 @@ def _sweep(argv: Sequence[str]) -> int:
     with staged_output(out, sc.path, key) as tmp:
         started = time.perf_counter()
         if _progress_wanted(args.quiet):
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
 
             with Progress(
-                TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("runs"), TimeElapsedColumn(), TimeRemainingColumn(),
+                TextColumn("[bold]{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("runs"),
+                TimeElapsedColumn(),
+                TimeRemainingColumn(),
                 # no refresh thread: worker processes are forked while this display is up
-                console=_console(stderr=True), transient=True, auto_refresh=False,
+                console=_console(stderr=True),
+                transient=True,
+                auto_refresh=False,
             ) as prog:
                 task = prog.add_task(f"{sc.name} sweep", total=len(jobs), start=False)
                 prog.refresh()

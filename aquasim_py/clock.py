@@ -60,16 +60,16 @@ class Clock:
     """
 
     __slots__ = (
-        "skew",
-        "offset",
-        "drift_std",
-        "drift_interval",
-        "jitter_std",
+        "_count",
         "_drift_rng",
         "_jitter_rng",
-        "_skews",
         "_knots",
-        "_count",
+        "_skews",
+        "drift_interval",
+        "drift_std",
+        "jitter_std",
+        "offset",
+        "skew",
     )
 
     def __init__(

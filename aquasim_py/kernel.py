@@ -27,7 +27,7 @@ from .node import Node, Role, Sensors, SensorUnavailable
 from .packet import Reception
 from .trace import Trace, TraceConfig
 
-__all__ = ["Simulation", "Group", "ChannelConfig", "TraceConfig"]
+__all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig"]
 
 ClockSpec = Sequence[Any] | Callable[[int, np.random.Generator], Any] | None
 MobilitySpec = Any  # a Mobility object, or a callable rng -> Mobility
@@ -69,13 +69,44 @@ class _NodeCore:
     """Kernel-side state of one node; the only bridge between a Node and ground truth."""
 
     __slots__ = (
-        "sim", "env", "channel", "index", "role", "params", "protocol", "group", "slot",
-        "clock", "sensors", "has_velocity", "has_position", "rng_protocol", "_rng_sensor", "_rng_mac",
-        "jitter_std", "inbox", "waiters", "tx_free_at", "tx_log", "rx_log", "affine", "exact_stamp", "log_cap",
+        "_rng_mac",
+        "_rng_sensor",
+        "affine",
+        "channel",
+        "clock",
+        "env",
+        "exact_stamp",
+        "group",
+        "has_position",
+        "has_velocity",
+        "inbox",
+        "index",
+        "jitter_std",
+        "log_cap",
+        "params",
+        "protocol",
+        "rng_protocol",
+        "role",
+        "rx_log",
+        "sensors",
+        "sim",
+        "slot",
+        "tx_free_at",
+        "tx_log",
+        "waiters",
     )
 
-    def __init__(self, sim: Simulation, index: int, group: Group, local: int, clock: Any,
-                 sensors: Sensors, params: BaseModel, protocol: str) -> None:
+    def __init__(
+        self,
+        sim: Simulation,
+        index: int,
+        group: Group,
+        local: int,
+        clock: Any,
+        sensors: Sensors,
+        params: BaseModel,
+        protocol: str,
+    ) -> None:
         self.sim = sim
         self.env = sim.env
         self.channel = sim.channel
@@ -89,8 +120,7 @@ class _NodeCore:
         # A drift-free Clock is the affine map local = (1 + skew) t + offset: evaluate it on
         # Python floats (same IEEE operations as Clock.to_local) to skip numpy scalar overhead
         # on the per-packet path.
-        self.affine = (getattr(clock, "drift_std", None) == 0.0 and hasattr(clock, "skew")
-                       and hasattr(clock, "offset"))
+        self.affine = getattr(clock, "drift_std", None) == 0.0 and hasattr(clock, "skew") and hasattr(clock, "offset")
         self.exact_stamp = self.affine and getattr(clock, "jitter_std", None) == 0.0
         self.sensors = sensors
         self.has_velocity = sensors.has_velocity(group.role)
@@ -157,8 +187,9 @@ class _NodeCore:
                 return
         self.inbox.append(rec)
 
-    def recv(self, timeout: float | None, kinds: str | Iterable[str] | None,
-             to_true_delay: Callable[[float], float]) -> simpy.Event:
+    def recv(
+        self, timeout: float | None, kinds: str | Iterable[str] | None, to_true_delay: Callable[[float], float]
+    ) -> simpy.Event:
         ks: frozenset[str] | None
         if kinds is None:
             ks = None
@@ -232,15 +263,27 @@ class _NodeCore:
             raise ValueError(f"log(): columns {sorted(reserved)} are added by the kernel")
         self.sim.trace.append(table, time=self.env.now, node=self.index, protocol=self.protocol, **columns)
 
-    def log_estimate(self, x: float, y: float, z: float, confidence: float, is_reference: bool,
-                     extra: Mapping[str, Any]) -> None:
+    def log_estimate(
+        self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]
+    ) -> None:
         t = self.env.now
         tx, ty, tz = (float(v) for v in self.position(t))
         err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
         self.sim.trace.append(
-            "estimates", time=t, node=self.index, protocol=self.protocol, x=x, y=y, z=z,
-            true_x=tx, true_y=ty, true_z=tz, error=err, confidence=confidence,
-            is_reference=is_reference, **extra,
+            "estimates",
+            time=t,
+            node=self.index,
+            protocol=self.protocol,
+            x=x,
+            y=y,
+            z=z,
+            true_x=tx,
+            true_y=ty,
+            true_z=tz,
+            error=err,
+            confidence=confidence,
+            is_reference=is_reference,
+            **extra,
         )
 
     def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
@@ -252,8 +295,16 @@ class _NodeCore:
         # the node's estimate of true time now, from its own clock reading and its clock model
         err = (local - offset) / (1.0 + skew) - t
         self.sim.trace.append(
-            "clocks", time=t, node=self.index, protocol=self.protocol, skew=skew, offset=offset,
-            true_skew=true_skew, true_offset=true_offset, error=err, **extra,
+            "clocks",
+            time=t,
+            node=self.index,
+            protocol=self.protocol,
+            skew=skew,
+            offset=offset,
+            true_skew=true_skew,
+            true_offset=true_offset,
+            error=err,
+            **extra,
         )
 
 
@@ -281,9 +332,16 @@ class Simulation:
     channel (default: ``aquasim_py.channel.loss`` when present, else no SNR).
     """
 
-    def __init__(self, seed: int | None = 0, ssp: SoundSpeedProfile | None = None, volume: Any = None,
-                 channel: ChannelConfig | None = None, trace: TraceConfig | None = None,
-                 *, loss_model: LossModel | None = None) -> None:
+    def __init__(
+        self,
+        seed: int | None = 0,
+        ssp: SoundSpeedProfile | None = None,
+        volume: Any = None,
+        channel: ChannelConfig | None = None,
+        trace: TraceConfig | None = None,
+        *,
+        loss_model: LossModel | None = None,
+    ) -> None:
         ss = np.random.SeedSequence(seed)
         self.seed: int = int(ss.entropy)  # type: ignore[arg-type]
         self._seedseq = ss
@@ -314,8 +372,9 @@ class Simulation:
         """
         if not key:
             raise ValueError("rng() needs a key, e.g. sim.rng('node', 3, 'depth')")
-        ss = np.random.SeedSequence(self._seedseq.entropy,
-                                    spawn_key=tuple(self._seedseq.spawn_key) + tuple(_key_words(key)))
+        ss = np.random.SeedSequence(
+            self._seedseq.entropy, spawn_key=tuple(self._seedseq.spawn_key) + tuple(_key_words(key))
+        )
         return np.random.Generator(np.random.PCG64(ss))
 
     # -- building ---------------------------------------------------------------------------------
@@ -325,10 +384,19 @@ class Simulation:
         """True simulation time (s): kernel, channel, trace and metrics only."""
         return self.env.now
 
-    def add_group(self, node_cls: type[Node], count: int, *, role: Role | str = Role.ORDINARY,
-                  mobility: MobilitySpec = None, positions: Any = None, clocks: ClockSpec = None,
-                  params: Mapping[str, Any] | BaseModel | None = None, sensors: Sensors | None = None,
-                  name: str | None = None) -> list[Node]:
+    def add_group(
+        self,
+        node_cls: type[Node],
+        count: int,
+        *,
+        role: Role | str = Role.ORDINARY,
+        mobility: MobilitySpec = None,
+        positions: Any = None,
+        clocks: ClockSpec = None,
+        params: Mapping[str, Any] | BaseModel | None = None,
+        sensors: Sensors | None = None,
+        name: str | None = None,
+    ) -> list[Node]:
         """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
 
         mobility: a Mobility (``position(t) -> (count, 3)``) or a callable ``rng -> Mobility``
@@ -355,15 +423,18 @@ class Simulation:
             p0 = np.asarray(positions, dtype=float).reshape(count, 3)
             box = self.volume
             if box is None:  # no scenario volume: any box holding the nodes will do for Static
-                box = Box(np.minimum(p0.min(axis=0) - 1.0, [np.inf, np.inf, 0.0]).clip([-np.inf, -np.inf, 0.0]),
-                          p0.max(axis=0) + 1.0)
+                box = Box(
+                    np.minimum(p0.min(axis=0) - 1.0, [np.inf, np.inf, 0.0]).clip([-np.inf, -np.inf, 0.0]),
+                    p0.max(axis=0) + 1.0,
+                )
             mobility = Static(p0, box, self.rng("group", gname, "mobility"))
         elif callable(mobility) and not hasattr(mobility, "position"):
             mobility = mobility(self.rng("group", gname, "mobility"))
         p0 = np.asarray(mobility.position(0.0))
         if p0.shape != (count, 3):
-            raise ValueError(f"add_group {gname!r}: mobility gives positions of shape {p0.shape}, "
-                             f"expected ({count}, 3)")
+            raise ValueError(
+                f"add_group {gname!r}: mobility gives positions of shape {p0.shape}, expected ({count}, 3)"
+            )
         start = len(self.nodes)
         group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility))
         if params is None:
@@ -474,8 +545,16 @@ class Simulation:
             if n:
                 p = self.positions(t)
                 v = self.velocities(t)
-                table.extend(time=np.full(n, t), node=np.arange(n), x=p[:, 0], y=p[:, 1], z=p[:, 2],
-                             vx=v[:, 0], vy=v[:, 1], vz=v[:, 2])
+                table.extend(
+                    time=np.full(n, t),
+                    node=np.arange(n),
+                    x=p[:, 0],
+                    y=p[:, 1],
+                    z=p[:, 2],
+                    vx=v[:, 0],
+                    vy=v[:, 1],
+                    vz=v[:, 2],
+                )
             k += 1
             # absolute grid k * interval, so sample times carry no accumulated rounding
             yield self.env.timeout(max(0.0, k * interval - self.env.now))

@@ -31,17 +31,17 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "position_errors",
-    "rmse",
-    "nmse",
-    "coverage",
-    "unknown_nodes",
-    "sync_errors",
-    "sync_error_stats",
-    "packet_counts",
-    "positions_at",
-    "summarize",
     "UNKNOWN_ROLES",
+    "coverage",
+    "nmse",
+    "packet_counts",
+    "position_errors",
+    "positions_at",
+    "rmse",
+    "summarize",
+    "sync_error_stats",
+    "sync_errors",
+    "unknown_nodes",
 ]
 
 UNKNOWN_ROLES: tuple[str, ...] = ("ordinary", "target")
@@ -168,7 +168,7 @@ def packet_counts(packets: pd.DataFrame | None) -> dict[str, int]:
     out["sent"] = int((ev == "tx").sum())
     out["received"] = int((ev == "rx").sum())
     drops = packets[ev == "drop"]
-    out["dropped"] = int(len(drops))
+    out["dropped"] = len(drops)
     if len(drops) and "reason" in drops.columns:
         reasons = drops["reason"].fillna("unknown").astype(str).replace("", "unknown")
         for reason, n in sorted(reasons.value_counts().items()):
@@ -231,7 +231,7 @@ def summarize(
     est = tables.get("estimates")
     nodes = tables.get("nodes")
     if est is not None and len(est):
-        out["localization.estimates"] = int(len(_select(est, t_min=t0)))
+        out["localization.estimates"] = len(_select(est, t_min=t0))
         out["localization.rmse_m"] = rmse(est, t_min=t0)
         out["localization.final_rmse_m"] = rmse(est, t_min=t0, final=True)
         out["localization.nmse"] = nmse(est, t_min=t0)

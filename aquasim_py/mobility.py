@@ -27,12 +27,12 @@ from scipy.integrate import solve_ivp
 
 __all__ = [
     "Box",
-    "Mobility",
-    "Static",
     "ConstantVelocity",
     "CoordinatedTurn",
-    "RandomWalk",
     "MeanderingCurrent",
+    "Mobility",
+    "RandomWalk",
+    "Static",
     "Waypoints",
 ]
 
@@ -46,7 +46,7 @@ Array = NDArray[np.float64]
 class Box:
     """Axis-aligned scenario volume ``lo <= p <= hi`` (m); ``lo[2] >= 0`` is the surface side."""
 
-    __slots__ = ("lo", "hi", "size", "_period", "_inv_period", "_cache")
+    __slots__ = ("_cache", "_inv_period", "_period", "hi", "lo", "size")
 
     def __init__(self, lo: ArrayLike, hi: ArrayLike) -> None:
         lo_a = np.array(lo, dtype=float).reshape(-1)
@@ -96,7 +96,10 @@ class Box:
         # time (several times slower); materialize the constants at the query's shape once.
         c = self._cache.get(shape)
         if c is None:
-            c = tuple(np.ascontiguousarray(np.broadcast_to(a, shape)) for a in (self.lo, self.hi, self.size, self._period, self._inv_period))
+            c = tuple(
+                np.ascontiguousarray(np.broadcast_to(a, shape))
+                for a in (self.lo, self.hi, self.size, self._period, self._inv_period)
+            )
             if len(self._cache) < 64:
                 self._cache[shape] = c
         return c
@@ -169,7 +172,7 @@ def _readonly(a: Array) -> Array:
 class _Table:
     """Growable array of per-knot states (K, n, 3) with capacity doubling."""
 
-    __slots__ = ("data", "count")
+    __slots__ = ("count", "data")
 
     def __init__(self, first: Array) -> None:
         self.data = np.empty((16,) + first.shape)

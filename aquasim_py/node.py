@@ -21,9 +21,7 @@ import numpy as np
 import simpy
 from pydantic import BaseModel, ConfigDict
 
-from .packet import Reception
-
-__all__ = ["Node", "Role", "Sensors", "NodeEnv", "SensorUnavailable", "BROADCAST"]
+__all__ = ["BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors"]
 
 #: ``dst`` of a broadcast packet
 BROADCAST = None
@@ -219,8 +217,9 @@ class Node:
         """Append a row to a trace table (the kernel adds ``time``, ``node``, ``protocol``)."""
         self.__k.log(table, columns)
 
-    def log_estimate(self, x: float, y: float, z: float, *, confidence: float = math.nan,
-                     is_reference: bool = False, **extra: Any) -> None:
+    def log_estimate(
+        self, x: float, y: float, z: float, *, confidence: float = math.nan, is_reference: bool = False, **extra: Any
+    ) -> None:
         """Log a position estimate (m) to ``estimates``; the kernel adds truth and error."""
         self.__k.log_estimate(float(x), float(y), float(z), float(confidence), bool(is_reference), extra)
 

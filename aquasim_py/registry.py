@@ -28,7 +28,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-__all__ = ["register", "get", "available", "UnknownProtocolError", "ProtocolDefinitionError"]
+__all__ = ["ProtocolDefinitionError", "UnknownProtocolError", "available", "get", "register"]
 
 ENTRY_POINT_GROUP = "aquasim_py.protocols"
 BUILTIN_PACKAGE = "aquasim_py.protocols"
@@ -61,9 +61,7 @@ def _check(cls: type) -> str:
         raise ProtocolDefinitionError(f"{cls.__qualname__}: a protocol needs a non-empty str `name`")
     params = getattr(cls, "Params", None)
     if not (isinstance(params, type) and issubclass(params, BaseModel)):
-        raise ProtocolDefinitionError(
-            f"{cls.__qualname__}: a protocol needs `Params`, a pydantic BaseModel subclass"
-        )
+        raise ProtocolDefinitionError(f"{cls.__qualname__}: a protocol needs `Params`, a pydantic BaseModel subclass")
     return name
 
 
@@ -76,8 +74,10 @@ def register(cls: type) -> type:
     name = _check(cls)
     with _lock:
         old = _registry.get(name)
-        if old is not None and old is not cls and (
-            old.__module__ != cls.__module__ or old.__qualname__ != cls.__qualname__
+        if (
+            old is not None
+            and old is not cls
+            and (old.__module__ != cls.__module__ or old.__qualname__ != cls.__qualname__)
         ):
             raise ProtocolDefinitionError(
                 f"protocol name {name!r} is already taken by {old.__module__}.{old.__qualname__}"
@@ -98,7 +98,7 @@ def _load_builtins() -> None:
             continue
         modname = f"{BUILTIN_PACKAGE}.{info.name}"
         try:
-            mod = importlib.import_module(modname)
+            importlib.import_module(modname)
         except Exception as exc:  # a half-written protocol must not hide the others
             _load_errors[info.name] = f"{modname} failed to import ({type(exc).__name__}: {exc})"
             continue
@@ -125,7 +125,7 @@ def _load_entry_points() -> None:
 
 
 def _ensure_loaded() -> None:
-    global _loaded
+    global _loaded  # noqa: PLW0603  (one flag for the lazy, thread-safe load)
     with _lock:
         if _loaded:
             return

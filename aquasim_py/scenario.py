@@ -42,16 +42,16 @@ from aquasim_py.scenario_schema import (
 from aquasim_py.scenario_schema import Scenario as _ScenarioModel
 
 __all__ = [
+    "MOBILITY_CLASSES",
     "Scenario",
     "ScenarioError",
+    "apply_override",
+    "build",
+    "format_key_path",
     "load",
     "load_dict",
-    "build",
-    "apply_override",
-    "parse_key_path",
-    "format_key_path",
     "make_ssp",
-    "MOBILITY_CLASSES",
+    "parse_key_path",
 ]
 
 #: scenario mobility model name -> class name in aquasim_py.mobility
@@ -164,7 +164,9 @@ def parse_value(text: str) -> Any:
         return text
 
 
-def apply_override(data: dict[str, Any], key: str | Sequence[str | int], value: Any, *, file: str | Path | None = None) -> None:
+def apply_override(
+    data: dict[str, Any], key: str | Sequence[str | int], value: Any, *, file: str | Path | None = None
+) -> None:
     """Set ``data[key path] = value`` in place, creating missing tables on the way.
 
     Keys that the schema does not know are still set, so validation reports them as unknown.
@@ -186,7 +188,9 @@ def apply_override(data: dict[str, Any], key: str | Sequence[str | int], value: 
             if not last and el not in cur:
                 cur[el] = {}
         else:
-            raise ScenarioError(file, shown, f"cannot set a key inside {format_key_path(loc[:i])} (a {_toml_type(cur)})")
+            raise ScenarioError(
+                file, shown, f"cannot set a key inside {format_key_path(loc[:i])} (a {_toml_type(cur)})"
+            )
         if last:
             cur[el] = value
         else:
@@ -295,7 +299,9 @@ def _message(err: dict[str, Any], loc: list[str | int], model: type[BaseModel] |
         return loc, f"must be a finite number (got {_show(inp)})"
     if typ in _TYPE_WORDS:
         got = _show(inp)
-        return loc, f"expected {_TYPE_WORDS[typ]} (got {_toml_type(inp)} {got})" if not isinstance(inp, (list, dict)) else f"expected {_TYPE_WORDS[typ]} (got {got})"
+        return loc, f"expected {_TYPE_WORDS[typ]} (got {_toml_type(inp)} {got})" if not isinstance(
+            inp, (list, dict)
+        ) else f"expected {_TYPE_WORDS[typ]} (got {got})"
     if typ == "literal_error":
         return loc, f"must be one of {ctx.get('expected')} (got {_show(inp)})"
     if typ == "union_tag_invalid":
@@ -353,8 +359,9 @@ def _unwrap(tp: Any) -> Any:
             return tp
 
 
-def _raise_validation(exc: ValidationError, raw: Any, file: Any, prefix: Sequence[str | int] = (),
-                      model: type[BaseModel] | None = None) -> None:
+def _raise_validation(
+    exc: ValidationError, raw: Any, file: Any, prefix: Sequence[str | int] = (), model: type[BaseModel] | None = None
+) -> None:
     err = exc.errors(include_url=False)[0]  # one line: the first problem is the one to fix
     loc = _clean_loc(list(err["loc"]), raw)
     loc, msg = _message(err, loc, model)
@@ -451,7 +458,9 @@ def _check(sc: Scenario, raw: dict[str, Any], file: Path | None) -> None:
             plo = np.asarray(p.lo if p.lo is not None else vol.lo)
             phi = np.asarray(p.hi if p.hi is not None else vol.hi)
             if np.any(plo > phi):
-                raise ScenarioError(file, f"nodes[{i}].placement", f"lo {plo.tolist()} is above hi {phi.tolist()} on some axis")
+                raise ScenarioError(
+                    file, f"nodes[{i}].placement", f"lo {plo.tolist()} is above hi {phi.tolist()} on some axis"
+                )
         _check_protocol(g, i, raw, file)
         _check_mobility(g, i, file)
     # sweep grid keys must name real scenario keys and every value must validate
@@ -464,14 +473,19 @@ def _check(sc: Scenario, raw: dict[str, Any], file: Path | None) -> None:
             if loc and loc[0] == "sweep":
                 raise ScenarioError(file, f'sweep.grid."{key}"', "a sweep cannot sweep its own settings")
             if loc[:2] == ["simulation", "seed"]:
-                raise ScenarioError(file, f'sweep.grid."{key}"',
-                                    "seeds are derived per run from simulation.seed: set sweep.runs instead")
+                raise ScenarioError(
+                    file,
+                    f'sweep.grid."{key}"',
+                    "seeds are derived per run from simulation.seed: set sweep.runs instead",
+                )
             base = {k: v for k, v in raw.items() if k != "sweep"}
             for v in values:
                 try:
                     load_dict(base, file, overrides=[(loc, v)])
                 except ScenarioError as e:
-                    raise ScenarioError(file, f'sweep.grid."{key}"', f"value {_show(v)}: {e.key_path}: {e.message}") from None
+                    raise ScenarioError(
+                        file, f'sweep.grid."{key}"', f"value {_show(v)}: {e.key_path}: {e.message}"
+                    ) from None
 
 
 def _check_count(g: NodeGroupSpec, i: int, file: Path | None) -> None:
@@ -487,7 +501,9 @@ def _check_count(g: NodeGroupSpec, i: int, file: Path | None) -> None:
     elif g.count is None:
         g.count = implied
     elif g.count != implied:
-        raise ScenarioError(file, f"nodes[{i}].count", f"{g.count} differs from the {p.kind} placement's {implied} positions")
+        raise ScenarioError(
+            file, f"nodes[{i}].count", f"{g.count} differs from the {p.kind} placement's {implied} positions"
+        )
 
 
 def _inside(q: Sequence[float], lo: np.ndarray, hi: np.ndarray, file: Path | None, key: str) -> None:
@@ -519,7 +535,11 @@ def _check_protocol(g: NodeGroupSpec, i: int, raw: dict[str, Any], file: Path | 
     for k in g.params:
         if k not in fields:
             near = difflib.get_close_matches(k, sorted(fields), n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else (f" (allowed: {', '.join(sorted(fields))})" if fields else " (it takes none)")
+            hint = (
+                f" (did you mean {near[0]!r}?)"
+                if near
+                else (f" (allowed: {', '.join(sorted(fields))})" if fields else " (it takes none)")
+            )
             raise ScenarioError(file, f"nodes[{i}].params.{k}", f"unknown parameter of protocol {g.protocol!r}{hint}")
     try:
         validated = Params.model_validate(g.params)
@@ -537,15 +557,24 @@ def _check_mobility(g: NodeGroupSpec, i: int, file: Path | None) -> None:
     params = g.mobility.params()
     _check_finite(params, ["nodes", i, "mobility"], file)
     sig = inspect.signature(cls.__init__)
-    accepted = [n for n, p in sig.parameters.items()
-                if n not in ("self", "initial_positions", "box", "rng") and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    accepted = [
+        n
+        for n, p in sig.parameters.items()
+        if n not in ("self", "initial_positions", "box", "rng") and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+    ]
     if any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
         return
     for k in params:
         if k not in accepted:
             near = difflib.get_close_matches(k, accepted, n=1)
-            hint = f" (did you mean {near[0]!r}?)" if near else (f" (allowed: {', '.join(accepted)})" if accepted else " (it takes none)")
-            raise ScenarioError(file, f"nodes[{i}].mobility.{k}", f"unknown parameter of mobility model {g.mobility.model!r}{hint}")
+            hint = (
+                f" (did you mean {near[0]!r}?)"
+                if near
+                else (f" (allowed: {', '.join(accepted)})" if accepted else " (it takes none)")
+            )
+            raise ScenarioError(
+                file, f"nodes[{i}].mobility.{k}", f"unknown parameter of mobility model {g.mobility.model!r}{hint}"
+            )
 
 
 def mobility_class(model: str) -> type:
@@ -558,7 +587,11 @@ def mobility_class(model: str) -> type:
 def _ctd_columns(spec: CtdSSP, file: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     key = "environment.sound_speed.file"
     if spec.file is None:
-        return (np.asarray(spec.depth_m, float), np.asarray(spec.temperature_c, float), np.asarray(spec.salinity_psu, float))
+        return (
+            np.asarray(spec.depth_m, float),
+            np.asarray(spec.temperature_c, float),
+            np.asarray(spec.salinity_psu, float),
+        )
     p = Path(spec.file)
     if not p.is_absolute() and file is not None:
         p = file.parent / p
@@ -569,13 +602,19 @@ def _ctd_columns(spec: CtdSSP, file: Path | None) -> tuple[np.ndarray, np.ndarra
         raise ScenarioError(file, key, f"CTD file not found: {p}") from None
     except OSError as e:
         raise ScenarioError(file, key, f"cannot read CTD file {p}: {e.strerror}") from None
-    names = {"depth": ("depth_m", "depth"), "temperature": ("temperature_c", "temperature"), "salinity": ("salinity_psu", "salinity")}
+    names = {
+        "depth": ("depth_m", "depth"),
+        "temperature": ("temperature_c", "temperature"),
+        "salinity": ("salinity_psu", "salinity"),
+    }
     header = rows[0].keys() if rows else []
     cols = []
-    for what, options in names.items():
+    for options in names.values():
         col = next((c for c in options if c in header), None)
         if col is None:
-            raise ScenarioError(file, key, f"CTD file {p} has no {options[0]} column (columns: depth_m, temperature_c, salinity_psu)")
+            raise ScenarioError(
+                file, key, f"CTD file {p} has no {options[0]} column (columns: depth_m, temperature_c, salinity_psu)"
+            )
         try:
             cols.append(np.array([float(r[col]) for r in rows]))
         except (TypeError, ValueError):
@@ -597,7 +636,14 @@ def make_ssp(sc: Scenario) -> Any:
         if isinstance(spec, LayeredSSP):
             return ssp.Layered(np.asarray(spec.depths_m), np.asarray(spec.speeds_mps), bottom=bottom)
         if isinstance(spec, MunkSSP):
-            return ssp.Munk(spec.axis_depth_m, spec.axis_speed_mps, spec.epsilon, spec.scale_m, bottom=bottom, n_layers=spec.n_layers)
+            return ssp.Munk(
+                spec.axis_depth_m,
+                spec.axis_speed_mps,
+                spec.epsilon,
+                spec.scale_m,
+                bottom=bottom,
+                n_layers=spec.n_layers,
+            )
         if isinstance(spec, CtdSSP):
             if sc._ctd is None:
                 sc._ctd = _ctd_columns(spec, sc.path)
@@ -607,8 +653,9 @@ def make_ssp(sc: Scenario) -> Any:
     raise AssertionError(f"unhandled profile {spec!r}")
 
 
-def placement_positions(g: NodeGroupSpec, volume_lo: Sequence[float], volume_hi: Sequence[float],
-                        rng: np.random.Generator) -> np.ndarray:
+def placement_positions(
+    g: NodeGroupSpec, volume_lo: Sequence[float], volume_hi: Sequence[float], rng: np.random.Generator
+) -> np.ndarray:
     """Initial positions (count, 3) of a group (m).
 
     uniform: i.i.d. uniform in the placement box (default the volume), drawn from ``rng``;
@@ -623,8 +670,7 @@ def placement_positions(g: NodeGroupSpec, volume_lo: Sequence[float], volume_hi:
     if isinstance(p, UniformPlacement):
         assert g.count is not None
         return rng.uniform(lo, hi, size=(g.count, 3))
-    axes = [np.linspace(lo[k], hi[k], n) if n > 1 else np.array([(lo[k] + hi[k]) / 2.0])
-            for k, n in enumerate(p.shape)]
+    axes = [np.linspace(lo[k], hi[k], n) if n > 1 else np.array([(lo[k] + hi[k]) / 2.0]) for k, n in enumerate(p.shape)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
@@ -636,9 +682,14 @@ def _clock_factory(spec: Any) -> Any:
         skew = (spec.skew_ppm + spec.skew_std_ppm * rng.standard_normal()) * 1e-6
         offset = spec.offset_s + spec.offset_std_s * rng.standard_normal()
         needs_rng = spec.drift_std_ppm > 0.0 or spec.jitter_std_s > 0.0
-        return Clock(skew=float(skew), offset=float(offset), drift_std=spec.drift_std_ppm * 1e-6,
-                     drift_interval=spec.drift_interval_s, jitter_std=spec.jitter_std_s,
-                     rng=rng if needs_rng else None)
+        return Clock(
+            skew=float(skew),
+            offset=float(offset),
+            drift_std=spec.drift_std_ppm * 1e-6,
+            drift_interval=spec.drift_interval_s,
+            jitter_std=spec.jitter_std_s,
+            rng=rng if needs_rng else None,
+        )
 
     return make
 
@@ -649,11 +700,19 @@ def channel_config(sc: Scenario) -> Any:
 
     c = sc.channel
     return ChannelConfig(
-        max_range_m=c.max_range_m, bitrate_bps=c.bitrate_bps, source_level_db=c.source_level_db,
-        frequency_khz=c.frequency_khz, bandwidth_khz=c.bandwidth_khz, spreading=c.spreading,
-        shipping=c.noise.shipping, wind_mps=c.noise.wind_mps, snr_threshold_db=c.snr_threshold_db,
-        collision=c.collision, capture_threshold_db=c.capture_threshold_db,
-        jitter_std_s=c.jitter_std_s, reflections=c.reflections,
+        max_range_m=c.max_range_m,
+        bitrate_bps=c.bitrate_bps,
+        source_level_db=c.source_level_db,
+        frequency_khz=c.frequency_khz,
+        bandwidth_khz=c.bandwidth_khz,
+        spreading=c.spreading,
+        shipping=c.noise.shipping,
+        wind_mps=c.noise.wind_mps,
+        snr_threshold_db=c.snr_threshold_db,
+        collision=c.collision,
+        capture_threshold_db=c.capture_threshold_db,
+        jitter_std_s=c.jitter_std_s,
+        reflections=c.reflections,
     )
 
 
@@ -701,10 +760,19 @@ def build(sc: Scenario) -> Any:
             raise ScenarioError(file, f"nodes[{i}].mobility", str(e)) from None
         s = g.sensors
         sim.add_group(
-            cls, g.count, role=g.role, mobility=mobility, clocks=_clock_factory(g.clock),
-            params=g.params, name=g.name,
-            sensors=Sensors(depth_std=s.depth_noise_std_m, velocity_std=s.velocity_noise_std_mps,
-                            velocity=s.velocity_sensor, position_std=s.position_noise_std_m,
-                            position=s.position_fix),
+            cls,
+            g.count,
+            role=g.role,
+            mobility=mobility,
+            clocks=_clock_factory(g.clock),
+            params=g.params,
+            name=g.name,
+            sensors=Sensors(
+                depth_std=s.depth_noise_std_m,
+                velocity_std=s.velocity_noise_std_mps,
+                velocity=s.velocity_sensor,
+                position_std=s.position_noise_std_m,
+                position=s.position_fix,
+            ),
         )
     return sim

@@ -8,21 +8,21 @@ against the protocol's own model) are made in :mod:`aquasim_py.scenario`.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
+    "ROLES",
+    "ChannelSpec",
+    "EnvironmentSpec",
+    "MetricsSpec",
+    "NodeGroupSpec",
+    "OutputSpec",
     "Scenario",
     "SimulationSpec",
-    "EnvironmentSpec",
-    "ChannelSpec",
-    "NodeGroupSpec",
-    "TraceSpec",
-    "OutputSpec",
     "SweepSpec",
-    "MetricsSpec",
-    "ROLES",
+    "TraceSpec",
 ]
 
 ROLES = ("buoy", "anchor", "ordinary", "target", "sink")
@@ -79,7 +79,9 @@ class LayeredSSP(Strict):
     @model_validator(mode="after")
     def _same_length(self) -> LayeredSSP:
         if len(self.depths_m) != len(self.speeds_mps):
-            raise ValueError(f"depths_m and speeds_mps differ in length ({len(self.depths_m)} vs {len(self.speeds_mps)})")
+            raise ValueError(
+                f"depths_m and speeds_mps differ in length ({len(self.depths_m)} vs {len(self.speeds_mps)})"
+            )
         return self
 
 
@@ -115,9 +117,7 @@ class CtdSSP(Strict):
         return self
 
 
-SoundSpeedSpec = Annotated[
-    Union[ConstantSSP, IsogradientSSP, LayeredSSP, MunkSSP, CtdSSP], Field(discriminator="model")
-]
+SoundSpeedSpec = Annotated[ConstantSSP | IsogradientSSP | LayeredSSP | MunkSSP | CtdSSP, Field(discriminator="model")]
 
 
 class EnvironmentSpec(Strict):
@@ -128,7 +128,9 @@ class EnvironmentSpec(Strict):
     @model_validator(mode="after")
     def _bottom_below_volume(self) -> EnvironmentSpec:
         if self.bottom_m is not None and self.bottom_m < self.volume.hi[2]:
-            raise ValueError(f"bottom_m ({self.bottom_m}) is shallower than the volume's deepest point ({self.volume.hi[2]})")
+            raise ValueError(
+                f"bottom_m ({self.bottom_m}) is shallower than the volume's deepest point ({self.volume.hi[2]})"
+            )
         return self
 
 
@@ -149,7 +151,8 @@ class ChannelSpec(Strict):
     spreading: Annotated[float, Field(ge=1.0, le=2.0)] = Field(1.5, description="spreading exponent k")
     noise: NoiseSpec = Field(default_factory=NoiseSpec)
     loss_model: Literal["default", "none"] = Field(
-        "default", description="default: the SNR model of aquasim_py.channel.loss; none: no SNR loss")
+        "default", description="default: the SNR model of aquasim_py.channel.loss; none: no SNR loss"
+    )
     snr_threshold_db: float = Field(10.0, description="receptions below this SNR are lost (dB)")
     collision: Literal["none", "destructive", "capture"] = "destructive"
     capture_threshold_db: NonNegFloat = 6.0
@@ -179,9 +182,7 @@ class ExplicitPlacement(Strict):
     positions: Annotated[list[Vec3], Field(min_length=1)]
 
 
-PlacementSpec = Annotated[
-    Union[UniformPlacement, GridPlacement, ExplicitPlacement], Field(discriminator="kind")
-]
+PlacementSpec = Annotated[UniformPlacement | GridPlacement | ExplicitPlacement, Field(discriminator="kind")]
 
 
 class MobilitySpec(BaseModel):

@@ -29,7 +29,7 @@ import numpy as np
 from aquasim_py import metrics as _metrics
 from aquasim_py import scenario as _scenario
 
-__all__ = ["Job", "plan", "run_seed", "run_job", "run_jobs", "rows_to_csv", "DaskMissingError"]
+__all__ = ["DaskMissingError", "Job", "plan", "rows_to_csv", "run_job", "run_jobs", "run_seed"]
 
 Progress = Callable[[int, int], None]
 
@@ -88,7 +88,7 @@ def run_job(base: dict[str, Any], path: str | None, job: Job) -> dict[str, Any]:
         warmup_s=sc.metrics.warmup_s,
         unknown_roles=sc.metrics.unknown_roles,
     )
-    row: dict[str, Any] = {k: v for k, v in job.point}
+    row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
     row["seed"] = job.seed
     # plain Python numbers: a protocol's metrics may hand back numpy scalars
@@ -154,14 +154,19 @@ def run_jobs(
     return rows
 
 
-def _run_dask(scheduler: str, base: dict[str, Any], path: str | None, jobs: Sequence[Job],
-              pos: dict[int, int], done: Callable[[int, dict[str, Any]], None]) -> None:
+def _run_dask(
+    scheduler: str,
+    base: dict[str, Any],
+    path: str | None,
+    jobs: Sequence[Job],
+    pos: dict[int, int],
+    done: Callable[[int, dict[str, Any]], None],
+) -> None:
     try:
-        from dask.distributed import Client, as_completed as dask_completed
+        from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
     except ImportError as e:
-        raise DaskMissingError(
-            "--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'"
-        ) from e
+        raise DaskMissingError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from e
     with Client(scheduler) as client:
         futs = [client.submit(run_job, base, path, job, pure=False) for job in jobs]
         index = {f.key: job.index for f, job in zip(futs, jobs)}

@@ -23,27 +23,58 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-__all__ = ["TraceConfig", "Trace", "Table", "SCHEMAS", "load"]
+__all__ = ["SCHEMAS", "Table", "Trace", "TraceConfig", "load"]
 
 #: Column kinds: "f" float64, "i" int64, "c" string category (None = missing), "o" any object.
 SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
     "packets": (
-        ("time", "f"), ("event", "c"), ("reason", "c"), ("node", "i"), ("src", "i"),
-        ("dst", "i"), ("uid", "i"), ("kind", "c"), ("bits", "i"), ("tof", "f"),
-        ("snr_db", "f"), ("path", "c"), ("local_time", "f"),
+        ("time", "f"),
+        ("event", "c"),
+        ("reason", "c"),
+        ("node", "i"),
+        ("src", "i"),
+        ("dst", "i"),
+        ("uid", "i"),
+        ("kind", "c"),
+        ("bits", "i"),
+        ("tof", "f"),
+        ("snr_db", "f"),
+        ("path", "c"),
+        ("local_time", "f"),
     ),
     "positions": (
-        ("time", "f"), ("node", "i"), ("x", "f"), ("y", "f"), ("z", "f"),
-        ("vx", "f"), ("vy", "f"), ("vz", "f"),
+        ("time", "f"),
+        ("node", "i"),
+        ("x", "f"),
+        ("y", "f"),
+        ("z", "f"),
+        ("vx", "f"),
+        ("vy", "f"),
+        ("vz", "f"),
     ),
     "estimates": (
-        ("time", "f"), ("node", "i"), ("protocol", "c"), ("x", "f"), ("y", "f"), ("z", "f"),
-        ("true_x", "f"), ("true_y", "f"), ("true_z", "f"), ("error", "f"),
-        ("confidence", "f"), ("is_reference", "o"),
+        ("time", "f"),
+        ("node", "i"),
+        ("protocol", "c"),
+        ("x", "f"),
+        ("y", "f"),
+        ("z", "f"),
+        ("true_x", "f"),
+        ("true_y", "f"),
+        ("true_z", "f"),
+        ("error", "f"),
+        ("confidence", "f"),
+        ("is_reference", "o"),
     ),
     "clocks": (
-        ("time", "f"), ("node", "i"), ("protocol", "c"), ("skew", "f"), ("offset", "f"),
-        ("true_skew", "f"), ("true_offset", "f"), ("error", "f"),
+        ("time", "f"),
+        ("node", "i"),
+        ("protocol", "c"),
+        ("skew", "f"),
+        ("offset", "f"),
+        ("true_skew", "f"),
+        ("true_offset", "f"),
+        ("error", "f"),
     ),
 }
 
@@ -73,7 +104,7 @@ class _Column:
     collection of a long run).
     """
 
-    __slots__ = ("kind", "data", "append", "cats")
+    __slots__ = ("append", "cats", "data", "kind")
 
     def __init__(self, kind: str, n_missing: int = 0) -> None:
         self.kind = kind
@@ -225,7 +256,7 @@ class Table:
         for key, values in zip(self._schema, zip(*buf)):
             self.columns[key].push_many(values)
         if len(self.columns) != len(self._schema):
-            for key in list(self.columns)[len(self._schema):]:
+            for key in list(self.columns)[len(self._schema) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
 

@@ -69,8 +69,11 @@ def assert_user_error(rc: int, err: str, file: str, key: str, problem: str, out_
     assert re.search(problem, line), line
     assert "Traceback" not in err
     assert not out_dir.exists()
-    leftovers = [p.name for p in out_dir.parent.iterdir() if p.name.startswith(f".{out_dir.name}.")] \
-        if out_dir.parent.is_dir() else []
+    leftovers = (
+        [p.name for p in out_dir.parent.iterdir() if p.name.startswith(f".{out_dir.name}.")]
+        if out_dir.parent.is_dir()
+        else []
+    )
     assert leftovers == []
 
 
@@ -130,8 +133,11 @@ def test_nan_in_protocol_params(scen, tmp_path, capsys):
 
 def test_unknown_protocol(tmp_path, capsys):
     p = tmp_path / "bad.toml"
-    p.write_text(SCENARIO.replace('protocol = "beacon"\nplacement = { kind = "uniform"',
-                                  'protocol = "becon"\nplacement = { kind = "uniform"'))
+    p.write_text(
+        SCENARIO.replace(
+            'protocol = "beacon"\nplacement = { kind = "uniform"', 'protocol = "becon"\nplacement = { kind = "uniform"'
+        )
+    )
     out = tmp_path / "out"
     rc, _, err = run(capsys, p, "--out", out)
     assert_user_error(rc, err, "bad.toml", "nodes[1].protocol", r"unknown protocol 'becon' \(available: .*beacon", out)
@@ -142,7 +148,9 @@ def test_unknown_profile(tmp_path, capsys):
     p.write_text(SCENARIO.replace('model = "constant"', 'model = "pekeris"'))
     out = tmp_path / "out"
     rc, _, err = run(capsys, p, "--out", out)
-    assert_user_error(rc, err, "bad.toml", "environment.sound_speed.model", "unknown sound-speed profile 'pekeris'", out)
+    assert_user_error(
+        rc, err, "bad.toml", "environment.sound_speed.model", "unknown sound-speed profile 'pekeris'", out
+    )
 
 
 def test_protocol_parameter_of_wrong_type(tmp_path, capsys):
@@ -194,7 +202,9 @@ def test_unwritable_output_directory_from_scenario(scen, tmp_path, capsys, monke
     (tmp_path / "blocker").write_text("x")
     monkeypatch.chdir(tmp_path)
     rc, _, err = run(capsys, scen, "--set", 'output.directory="blocker/deeper/run"')
-    assert_user_error(rc, err, "scen.toml", "output.directory", "cannot write to", tmp_path / "blocker" / "deeper" / "run")
+    assert_user_error(
+        rc, err, "scen.toml", "output.directory", "cannot write to", tmp_path / "blocker" / "deeper" / "run"
+    )
 
 
 def test_bad_override_syntax(scen, tmp_path, capsys):
@@ -310,13 +320,25 @@ def test_real_subprocess(scen, tmp_path):
     exe = Path(sys.executable).parent / "aquasim-py"
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "aquasim_py.cli"]
     env = {**os.environ, "COLUMNS": "120"}
-    bad = subprocess.run(cmd + [str(scen), "--set", "nodes.1.count=0", "--out", str(tmp_path / "x")],
-                         capture_output=True, text=True, env=env, timeout=120)
+    bad = subprocess.run(
+        cmd + [str(scen), "--set", "nodes.1.count=0", "--out", str(tmp_path / "x")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
     assert bad.returncode == 2
     assert bad.stderr.splitlines() == [f"error: {scen}: nodes[1].count: must be >= 1 (got 0)"]
     assert not (tmp_path / "x").exists()
-    good = subprocess.run(cmd + [str(scen), "--out", str(tmp_path / "y")],
-                          capture_output=True, text=True, env=env, timeout=120)
+    good = subprocess.run(
+        cmd + [str(scen), "--out", str(tmp_path / "y")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
     assert good.returncode == 0, good.stderr
     assert "beacon.range_rmse_m" in good.stdout and (tmp_path / "y" / "summary.json").exists()
 

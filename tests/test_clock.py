@@ -143,7 +143,12 @@ def test_drift_statistics() -> None:
     assert steps.std() == pytest.approx(sigma, rel=0.03)
     # Across independent clocks, the skew after K steps spreads as sigma * sqrt(K).
     k = 100
-    final = np.array([Clock(drift_std=sigma, drift_interval=interval, rng=rng(1000 + i)).skew_at(k * interval + 1.0) for i in range(1500)])
+    final = np.array(
+        [
+            Clock(drift_std=sigma, drift_interval=interval, rng=rng(1000 + i)).skew_at(k * interval + 1.0)
+            for i in range(1500)
+        ]
+    )
     assert final.std() == pytest.approx(sigma * math.sqrt(k), rel=0.06)
 
 

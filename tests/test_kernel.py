@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -24,9 +23,16 @@ def test_rng_streams_are_keyed_and_stable():
     # creating other streams first changes nothing
     _ = [a.rng("node", i, "x") for i in range(10)]
     assert np.array_equal(a.rng("node", 3, "depth").random(5), b.rng("node", 3, "depth").random(5))
-    draws = {key: Simulation(7).rng(*key).random() for key in
-             [("node", 3, "depth"), ("node", 4, "depth"), ("node", "3", "depth"), ("node", 3, "velocity"),
-              ("group", "a", "mobility")]}
+    draws = {
+        key: Simulation(7).rng(*key).random()
+        for key in [
+            ("node", 3, "depth"),
+            ("node", 4, "depth"),
+            ("node", "3", "depth"),
+            ("node", 3, "velocity"),
+            ("group", "a", "mobility"),
+        ]
+    }
     assert len(set(draws.values())) == len(draws)
     assert Simulation(8).rng("node", 3, "depth").random() != draws[("node", 3, "depth")]
     with pytest.raises(ValueError):
@@ -47,8 +53,12 @@ def _noisy_world(n_extra: int, seed: int = 5) -> list[float]:
                 out.append(float(self.rng.random()))
 
     sim = Simulation(seed, ssp=C, channel=ChannelConfig(collision="none"))
-    sim.add_group(Reader, 2 + n_extra, positions=[[10.0 * i, 0.0, 50.0] for i in range(2 + n_extra)],
-                  sensors=Sensors(depth_std=1.0))
+    sim.add_group(
+        Reader,
+        2 + n_extra,
+        positions=[[10.0 * i, 0.0, 50.0] for i in range(2 + n_extra)],
+        sensors=Sensors(depth_std=1.0),
+    )
     sim.run(2.0)
     return out
 
@@ -155,14 +165,30 @@ class Chatter(Node):
 
 
 def _traces(tmp_path, seed, name):
-    sim = Simulation(seed, ssp=C, volume=BOX,
-                     channel=ChannelConfig(collision="capture", jitter_std_s=1e-5, max_range_m=2500.0),
-                     loss_model=lambda ray, cfg: 120.0 - 15.0 * np.log10(ray.length))
-    clocks = lambda i, rng: Clock(skew=rng.normal(0, 3e-5), offset=rng.normal(0, 0.1),  # noqa: E731
-                                  drift_std=1e-7, jitter_std=1e-6, rng=rng)
-    sim.add_group(Chatter, 6, mobility=lambda rng: RandomWalk(rng.uniform([0, 0, 0], [3000, 3000, 300], (6, 3)),
-                                                              BOX, rng),
-                  clocks=clocks, sensors=Sensors(depth_std=0.3))
+    sim = Simulation(
+        seed,
+        ssp=C,
+        volume=BOX,
+        channel=ChannelConfig(collision="capture", jitter_std_s=1e-5, max_range_m=2500.0),
+        loss_model=lambda ray, cfg: 120.0 - 15.0 * np.log10(ray.length),
+    )
+
+    def clocks(i, rng):
+        return Clock(
+            skew=rng.normal(0, 3e-5),
+            offset=rng.normal(0, 0.1),
+            drift_std=1e-7,
+            jitter_std=1e-6,
+            rng=rng,
+        )
+
+    sim.add_group(
+        Chatter,
+        6,
+        mobility=lambda rng: RandomWalk(rng.uniform([0, 0, 0], [3000, 3000, 300], (6, 3)), BOX, rng),
+        clocks=clocks,
+        sensors=Sensors(depth_std=0.3),
+    )
     sim.add_group(Chatter, 2, role="anchor", positions=[[1500.0, 1500.0, 10.0], [100.0, 2900.0, 200.0]])
     sim.run(120.0)
     out = tmp_path / name

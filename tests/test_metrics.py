@@ -19,12 +19,14 @@ def est_table(rows):
 @pytest.fixture
 def est():
     # node 1: errors 5 (3-4-5) then 0; node 2: error 13 (5-12-13); node 0 is an anchor (reference)
-    return est_table([
-        (1.0, 1, 3.0, 4.0, 0.0, 0.0, 0.0, 0.0, False),
-        (2.0, 1, 10.0, 10.0, 10.0, 10.0, 10.0, 10.0, False),
-        (1.5, 2, 5.0, 112.0, 0.0, 0.0, 100.0, 0.0, False),
-        (1.0, 0, 50.0, 50.0, 50.0, 0.0, 0.0, 0.0, True),
-    ])
+    return est_table(
+        [
+            (1.0, 1, 3.0, 4.0, 0.0, 0.0, 0.0, 0.0, False),
+            (2.0, 1, 10.0, 10.0, 10.0, 10.0, 10.0, 10.0, False),
+            (1.5, 2, 5.0, 112.0, 0.0, 0.0, 100.0, 0.0, False),
+            (1.0, 0, 50.0, 50.0, 50.0, 0.0, 0.0, 0.0, True),
+        ]
+    )
 
 
 def test_position_errors_and_rmse(est):
@@ -71,8 +73,9 @@ def test_coverage(est):
 
 
 def test_sync_error_stats():
-    clocks = pd.DataFrame({"time": [1.0, 2.0, 3.0, 4.0, 5.0], "node": [1, 2, 1, 2, 3],
-                           "error": [-1.0, 2.0, -3.0, 4.0, 10.0]})
+    clocks = pd.DataFrame(
+        {"time": [1.0, 2.0, 3.0, 4.0, 5.0], "node": [1, 2, 1, 2, 3], "error": [-1.0, 2.0, -3.0, 4.0, 10.0]}
+    )
     s = metrics.sync_error_stats(clocks, percentiles=(50, 90))
     assert s["mean_abs_error_s"] == pytest.approx((1 + 2 + 3 + 4 + 10) / 5)
     assert s["p50_abs_error_s"] == pytest.approx(3.0)  # median of 1, 2, 3, 4, 10
@@ -84,22 +87,33 @@ def test_sync_error_stats():
 
 
 def test_packet_counts():
-    p = pd.DataFrame({
-        "event": ["tx", "tx", "rx", "rx", "rx", "drop", "drop", "drop"],
-        "reason": [None, None, None, None, None, "collision", "snr", "collision"],
-    })
-    assert metrics.packet_counts(p) == {"sent": 2, "received": 3, "dropped": 3,
-                                        "dropped.collision": 2, "dropped.snr": 1}
+    p = pd.DataFrame(
+        {
+            "event": ["tx", "tx", "rx", "rx", "rx", "drop", "drop", "drop"],
+            "reason": [None, None, None, None, None, "collision", "snr", "collision"],
+        }
+    )
+    assert metrics.packet_counts(p) == {
+        "sent": 2,
+        "received": 3,
+        "dropped": 3,
+        "dropped.collision": 2,
+        "dropped.snr": 1,
+    }
     assert metrics.packet_counts(None) == {"sent": 0, "received": 0, "dropped": 0}
 
 
 def test_positions_at_interpolates_linear_motion_exactly():
     t = np.arange(0.0, 10.0, 1.0)
-    pos = pd.DataFrame({
-        "time": np.concatenate([t, t]), "node": [4] * 10 + [7] * 10,
-        "x": np.concatenate([2.0 * t, np.zeros(10)]), "y": np.concatenate([-t, np.full(10, 3.0)]),
-        "z": np.concatenate([np.full(10, 5.0), 0.5 * t]),
-    })
+    pos = pd.DataFrame(
+        {
+            "time": np.concatenate([t, t]),
+            "node": [4] * 10 + [7] * 10,
+            "x": np.concatenate([2.0 * t, np.zeros(10)]),
+            "y": np.concatenate([-t, np.full(10, 3.0)]),
+            "z": np.concatenate([np.full(10, 5.0), 0.5 * t]),
+        }
+    )
     q_node = np.array([7, 4, 4, 7, 4])
     q_time = np.array([2.25, 3.5, 0.0, 20.0, -1.0])
     got = metrics.positions_at(pos, q_node, q_time)

@@ -175,7 +175,9 @@ def test_coordinated_turn_is_an_exact_circle() -> None:
         np.testing.assert_allclose(p[:, :2], expected, rtol=0, atol=1e-8)
         np.testing.assert_allclose(np.linalg.norm(p[:, :2] - centre, axis=1), radius, rtol=0, atol=1e-8)
         np.testing.assert_allclose(p[:, 2], 50.0 + 0.2 * t, atol=1e-9)
-        np.testing.assert_allclose(m.velocity(t)[:, :2], speed[:, None] * np.column_stack([np.cos(h), np.sin(h)]), atol=1e-12)
+        np.testing.assert_allclose(
+            m.velocity(t)[:, :2], speed[:, None] * np.column_stack([np.cos(h), np.sin(h)]), atol=1e-12
+        )
 
 
 def test_coordinated_turn_straight_limit() -> None:
@@ -298,7 +300,15 @@ def test_meandering_current_matches_an_independent_ode_solution(scales) -> None:
 
 def test_meandering_current_parameter_draws() -> None:
     m = MeanderingCurrent(inside(BOX, 4000), BOX, gen(9))
-    for name, mean in [("k1", math.pi), ("k2", math.pi), ("k3", 2 * math.pi), ("iota", 3.0), ("omega", 1.0), ("k4", 1.0), ("k5", 1.0)]:
+    for name, mean in [
+        ("k1", math.pi),
+        ("k2", math.pi),
+        ("k3", 2 * math.pi),
+        ("iota", 3.0),
+        ("omega", 1.0),
+        ("k4", 1.0),
+        ("k5", 1.0),
+    ]:
         vals = getattr(m, name)
         assert vals.shape == (4000,)
         assert vals.mean() == pytest.approx(mean, rel=0.01)
@@ -329,7 +339,9 @@ def build(kind: str, p0: np.ndarray, box: Box, seed: int, speed: float) -> Mobil
     if kind == "cv":
         return ConstantVelocity(p0, box, r, velocity=r.normal(0, speed, (len(p0), 3)))
     if kind == "turn":
-        return CoordinatedTurn(p0, box, r, speed=speed, turn_rate=r.normal(0, 0.05, len(p0)), vz=r.normal(0, speed / 3, len(p0)))
+        return CoordinatedTurn(
+            p0, box, r, speed=speed, turn_rate=r.normal(0, 0.05, len(p0)), vz=r.normal(0, speed / 3, len(p0))
+        )
     if kind == "walk":
         return RandomWalk(p0, box, r, speed_min=0.0, speed_max=speed, leg_duration=5.0, vertical=True)
     if kind == "meander":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -26,7 +27,7 @@ class Sender(Node):
     """Node 0 broadcasts kinds at fixed true-equals-local times (perfect clock)."""
 
     name = "sender"
-    schedule: list[tuple[float, str]] = []
+    schedule: ClassVar[list[tuple[float, str]]] = []
 
     def run(self):
         for t, kind in self.schedule:
@@ -71,7 +72,7 @@ def test_naive_simpy_race_loses_a_packet():
         yield get | env.timeout(1.0)  # the timeout wins; `get` stays queued
         second = store.get()
         res = yield second | env.timeout(10.0)
-        got.append(res[second] if second in res else None)
+        got.append(res[second] if second in res else None)  # noqa: SIM401 (ConditionValue has no .get)
 
     def producer():
         yield env.timeout(2.0)
@@ -146,8 +147,13 @@ def test_depth_and_velocity_sensors():
     std_z, std_v = 0.5, 0.05
     v = np.array([0.3, -0.4, 0.1])
     sim = Simulation(11, ssp=C, volume=BOX)
-    ordinary = sim.add_group(Node, 1, role="ordinary", mobility=ConstantVelocity([[0, 0, 100.0]], BOX, velocity=v),
-                             sensors=Sensors(depth_std=std_z, velocity_std=std_v))[0]
+    ordinary = sim.add_group(
+        Node,
+        1,
+        role="ordinary",
+        mobility=ConstantVelocity([[0, 0, 100.0]], BOX, velocity=v),
+        sensors=Sensors(depth_std=std_z, velocity_std=std_v),
+    )[0]
     target = sim.add_group(Node, 1, role=Role.TARGET, positions=[[10.0, 0.0, 50.0]])[0]
     sim.run(10.0)  # true depth of the ordinary node is now 100 + 0.1 * 10 = 101 m
     z = np.array([ordinary.depth() for _ in range(4000)])
@@ -165,12 +171,12 @@ def test_position_fix_only_where_a_node_could_know_it():
     """Buoys and anchors have a GPS / survey fix by default; ordinary nodes and targets do not."""
     std = 0.8
     sim = Simulation(12, ssp=C, volume=BOX)
-    anchor = sim.add_group(Node, 1, role=Role.ANCHOR, positions=[[100.0, -200.0, 30.0]],
-                           sensors=Sensors(position_std=std))[0]
+    anchor = sim.add_group(
+        Node, 1, role=Role.ANCHOR, positions=[[100.0, -200.0, 30.0]], sensors=Sensors(position_std=std)
+    )[0]
     buoy = sim.add_group(Node, 1, role=Role.BUOY, positions=[[0.0, 0.0, 0.0]])[0]
     ordinary = sim.add_group(Node, 1, role=Role.ORDINARY, positions=[[5.0, 5.0, 50.0]])[0]
-    rov = sim.add_group(Node, 1, role=Role.ORDINARY, positions=[[9.0, 9.0, 90.0]],
-                        sensors=Sensors(position=True))[0]
+    rov = sim.add_group(Node, 1, role=Role.ORDINARY, positions=[[9.0, 9.0, 90.0]], sensors=Sensors(position=True))[0]
     sim.run(1.0)
     fixes = np.array([anchor.known_position() for _ in range(4000)])
     assert np.all(np.abs(fixes.mean(axis=0) - [100.0, -200.0, 30.0]) < 4 * std / math.sqrt(4000))
@@ -198,8 +204,20 @@ def test_log_estimate_and_clock_truth_columns():
     sim.run(20.0)
     f = sim.trace.frames()
     e = f["estimates"].iloc[0]
-    assert list(f["estimates"].columns[:12]) == ["time", "node", "protocol", "x", "y", "z", "true_x", "true_y",
-                                                   "true_z", "error", "confidence", "is_reference"]
+    assert list(f["estimates"].columns[:12]) == [
+        "time",
+        "node",
+        "protocol",
+        "x",
+        "y",
+        "z",
+        "true_x",
+        "true_y",
+        "true_z",
+        "error",
+        "confidence",
+        "is_reference",
+    ]
     assert (e.node, e.protocol, e.true_x, e.true_y, e.true_z) == (1, "proto", 1500.0, 0.0, 20.0)
     assert math.isclose(e.error, 5.0) and e.confidence == 0.7 and e["round"] == 1
     c = f["clocks"]
@@ -241,7 +259,7 @@ def _walk_public(node, sim):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     yield name, getattr(obj, name)
-            except Exception:  # noqa: BLE001 - e.g. env.now raising on purpose
+            except Exception:
                 continue
 
     def check(path, val):
@@ -267,8 +285,12 @@ def _walk_public(node, sim):
 
 def _moving_sim():
     sim = Simulation(3, ssp=C, volume=BOX)
-    sim.add_group(Node, 2, mobility=ConstantVelocity([P0, P1], BOX, velocity=[1.0, 0.5, 0.0]),
-                  clocks=[Clock(skew=1e-4, offset=0.25), Clock(skew=-2e-4, offset=3.0)])
+    sim.add_group(
+        Node,
+        2,
+        mobility=ConstantVelocity([P0, P1], BOX, velocity=[1.0, 0.5, 0.0]),
+        clocks=[Clock(skew=1e-4, offset=0.25), Clock(skew=-2e-4, offset=3.0)],
+    )
     sim.run(7.3)
     return sim
 
@@ -289,8 +311,11 @@ def test_ground_truth_walk_detects_leaks(leak):
     sim = _moving_sim()
     node = sim.nodes[1]
     value = {
-        "sim": sim, "clock": sim.clock_of(1), "position": sim.positions()[1].copy(),
-        "time": float(sim.now), "nested": type("Box", (), {"inner": sim.env})(),
+        "sim": sim,
+        "clock": sim.clock_of(1),
+        "position": sim.positions()[1].copy(),
+        "time": float(sim.now),
+        "nested": type("Box", (), {"inner": sim.env})(),
     }[leak]
     node.leaked = value
     with pytest.raises(AssertionError):

@@ -41,7 +41,8 @@ def test_broken_builtin_module_does_not_break_the_others(fresh, tmp_path, monkey
     pkg = tmp_path / "fakeprotos"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "good.py").write_text(textwrap.dedent("""
+    (pkg / "good.py").write_text(
+        textwrap.dedent("""
         from pydantic import BaseModel
         from aquasim_py.node import Node
         from aquasim_py.registry import register
@@ -51,7 +52,8 @@ def test_broken_builtin_module_does_not_break_the_others(fresh, tmp_path, monkey
             name = "good"
             class Params(BaseModel):
                 k: int = 1
-    """))
+    """)
+    )
     (pkg / "bad.py").write_text("raise ImportError('half written')\n")
     (pkg / "_private.py").write_text("raise RuntimeError('never imported')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -61,13 +63,16 @@ def test_broken_builtin_module_does_not_break_the_others(fresh, tmp_path, monkey
         monkeypatch.delitem(sys.modules, m)
     assert fresh.get("good").__name__ == "Good"
     assert fresh.available() == ["good"]
-    with pytest.raises(registry.UnknownProtocolError, match=r"'bad' is not available: fakeprotos.bad failed to import .*half written"):
+    with pytest.raises(
+        registry.UnknownProtocolError, match=r"'bad' is not available: fakeprotos.bad failed to import .*half written"
+    ):
         fresh.get("bad")
     assert "_private" not in fresh.load_errors()
 
 
 def test_entry_point_protocols(fresh, tmp_path, monkeypatch):
-    (tmp_path / "plugin_mac.py").write_text(textwrap.dedent("""
+    (tmp_path / "plugin_mac.py").write_text(
+        textwrap.dedent("""
         from pydantic import BaseModel
         from aquasim_py.node import Node
 
@@ -75,14 +80,16 @@ def test_entry_point_protocols(fresh, tmp_path, monkeypatch):
             name = "mac"
             class Params(BaseModel):
                 slots: int = 4
-    """))
+    """)
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     eps = [
         importlib.metadata.EntryPoint(name="plugin_mac", value="plugin_mac:MacNode", group=registry.ENTRY_POINT_GROUP),
         importlib.metadata.EntryPoint(name="broken", value="no_such_module:X", group=registry.ENTRY_POINT_GROUP),
     ]
-    monkeypatch.setattr(importlib.metadata, "entry_points",
-                        lambda group=None, **kw: eps if group == registry.ENTRY_POINT_GROUP else [])
+    monkeypatch.setattr(
+        importlib.metadata, "entry_points", lambda group=None, **kw: eps if group == registry.ENTRY_POINT_GROUP else []
+    )
     assert fresh.get("plugin_mac").__name__ == "MacNode"
     assert "beacon" in fresh.available()  # built-ins still there
     with pytest.raises(registry.UnknownProtocolError, match="entry point 'no_such_module:X' failed to load"):

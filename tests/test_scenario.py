@@ -77,8 +77,16 @@ def test_key_path_malformed(bad):
 
 @pytest.mark.parametrize(
     "text, value",
-    [("5", 5), ("1.5e3", 1500.0), ('"x y"', "x y"), ("[1, 2]", [1, 2]), ("{a = 1}", {"a": 1}),
-     ("true", True), ("plain words", "plain words"), ("constant", "constant")],
+    [
+        ("5", 5),
+        ("1.5e3", 1500.0),
+        ('"x y"', "x y"),
+        ("[1, 2]", [1, 2]),
+        ("{a = 1}", {"a": 1}),
+        ("true", True),
+        ("plain words", "plain words"),
+        ("constant", "constant"),
+    ],
 )
 def test_override_values_are_toml_with_string_fallback(text, value):
     assert scenario.parse_value(text) == value
@@ -93,7 +101,7 @@ def test_override_sets_nested_and_indexed_values():
 
 
 def test_override_into_a_scalar_is_an_error():
-    with pytest.raises(ScenarioError, match="cannot set a key inside simulation.seed"):
+    with pytest.raises(ScenarioError, match=r"cannot set a key inside simulation\.seed"):
         scenario.apply_override({"simulation": {"seed": 1}}, "simulation.seed.x", 1)
 
 
@@ -143,30 +151,50 @@ def test_integer_accepted_for_float_but_nothing_else_converted(base):
         ("environment.volume.lo=[0, 0]", "environment.volume.lo", r"at least 3"),
         ("environment.volume.hi=[1000, 800, -1]", "environment.volume", r"lo must be below hi"),
         ("environment.bottom_m=50", "environment", r"shallower than the volume"),
-        ('environment.sound_speed={model="layered", depths_m=[0, 10, 20], speeds_mps=[1500, 1490]}',
-         "environment.sound_speed", r"differ in length"),
-        ('environment.sound_speed={model="layered", depths_m=[5, 10], speeds_mps=[1500, 1501]}',
-         "environment.sound_speed", r"start at 0"),
-        ('environment.sound_speed={model="isogradient"}', "environment.sound_speed.gradient_per_s", "required key missing"),
-        ('environment.sound_speed={speed_mps=1500}', "environment.sound_speed.model", "required key missing"),
+        (
+            'environment.sound_speed={model="layered", depths_m=[0, 10, 20], speeds_mps=[1500, 1490]}',
+            "environment.sound_speed",
+            r"differ in length",
+        ),
+        (
+            'environment.sound_speed={model="layered", depths_m=[5, 10], speeds_mps=[1500, 1501]}',
+            "environment.sound_speed",
+            r"start at 0",
+        ),
+        (
+            'environment.sound_speed={model="isogradient"}',
+            "environment.sound_speed.gradient_per_s",
+            "required key missing",
+        ),
+        ("environment.sound_speed={speed_mps=1500}", "environment.sound_speed.model", "required key missing"),
         ('environment.sound_speed={model="ctd", file="x.csv", depth_m=[0, 1]}', "environment.sound_speed", "not both"),
         ('environment.sound_speed={model="ctd", file="nope.csv"}', "environment.sound_speed.file", "not found"),
         ('nodes.1.placement={kind="grid", shape=[2, 2, 2]}', "nodes[1].count", r"differs from the grid"),
         ('nodes.1.placement={kind="ring"}', "nodes[1].placement.kind", "unknown placement kind 'ring'"),
-        ('nodes.1.placement.hi=[900, 700, 500]', "nodes[1].placement.hi", "outside the volume"),
+        ("nodes.1.placement.hi=[900, 700, 500]", "nodes[1].placement.hi", "outside the volume"),
         ('nodes.1.name="group0"', "nodes[1].name", r"already the name of nodes\[0\]"),
         ('nodes.1.mobility={model="teleport"}', "nodes[1].mobility.model", "must be one of"),
-        ('nodes.1.mobility={model="constant_velocity", velocty=[1, 0, 0]}', "nodes[1].mobility.velocty",
-         "did you mean 'velocity'"),
-        ('nodes.1.mobility={model="constant_velocity", velocity=[1, nan, 0]}', "nodes[1].mobility.velocity[1]", "finite"),
+        (
+            'nodes.1.mobility={model="constant_velocity", velocty=[1, 0, 0]}',
+            "nodes[1].mobility.velocty",
+            "did you mean 'velocity'",
+        ),
+        (
+            'nodes.1.mobility={model="constant_velocity", velocity=[1, nan, 0]}',
+            "nodes[1].mobility.velocity[1]",
+            "finite",
+        ),
         ("nodes.1.clock.skew_std_ppm=-1", "nodes[1].clock.skew_std_ppm", r"must be >= 0"),
         ("nodes.1.sensors.depth_noise=1", "nodes[1].sensors.depth_noise", "did you mean 'depth_noise_std_m'"),
         ('channel.collision="loud"', "channel.collision", "must be one of"),
         ('trace.format="xlsx"', "trace.format", "must be one of"),
         ("sweep.runs=0", "sweep.runs", r"must be >= 1"),
-        ('sweep.grid={"channel.bitrate_bps"=[]}', 'sweep.grid.channel.bitrate_bps', "at least 1"),
-        ('sweep.grid={"channel.bitrate_bps"=[100, -5]}', 'sweep.grid."channel.bitrate_bps"',
-         r"value -5: channel.bitrate_bps: must be > 0"),
+        ('sweep.grid={"channel.bitrate_bps"=[]}', "sweep.grid.channel.bitrate_bps", "at least 1"),
+        (
+            'sweep.grid={"channel.bitrate_bps"=[100, -5]}',
+            'sweep.grid."channel.bitrate_bps"',
+            r"value -5: channel.bitrate_bps: must be > 0",
+        ),
         ('sweep.grid={"channel.bitrat"=[100]}', 'sweep.grid."channel.bitrat"', "unknown key"),
         ('sweep.grid={"simulation.seed"=[1, 2]}', 'sweep.grid."simulation.seed"', "set sweep.runs instead"),
         ('sweep.grid={"sweep.runs"=[1, 2]}', 'sweep.grid."sweep.runs"', "its own settings"),
@@ -196,9 +224,12 @@ def test_ctd_from_csv_file_relative_to_scenario(tmp_path):
     rows = "\n".join(f"{a},{b},{c}" for a, b, c in zip(d, T, S))
     (sub / "cast.csv").write_text("depth_m,temperature_c,salinity_psu\n" + rows + "\n")
     scen = tmp_path / "s.toml"
-    scen.write_text(BASE.replace(
-        "hi = [1000.0, 800.0, 100.0] }",
-        'hi = [1000.0, 800.0, 100.0] }\nsound_speed = { model = "ctd", file = "casts/cast.csv" }'))
+    scen.write_text(
+        BASE.replace(
+            "hi = [1000.0, 800.0, 100.0] }",
+            'hi = [1000.0, 800.0, 100.0] }\nsound_speed = { model = "ctd", file = "casts/cast.csv" }',
+        )
+    )
     sc = scenario.load(scen)
     prof = scenario.make_ssp(sc)
     inline = ssp_mod.from_ctd(d, T, S)
@@ -211,8 +242,12 @@ def test_ctd_from_csv_file_relative_to_scenario(tmp_path):
 def test_ctd_file_without_needed_column(tmp_path):
     (tmp_path / "cast.csv").write_text("depth_m,temp\n0,10\n10,9\n")
     scen = tmp_path / "s.toml"
-    scen.write_text(BASE.replace("hi = [1000.0, 800.0, 100.0] }",
-                                 'hi = [1000.0, 800.0, 100.0] }\nsound_speed = { model = "ctd", file = "cast.csv" }'))
+    scen.write_text(
+        BASE.replace(
+            "hi = [1000.0, 800.0, 100.0] }",
+            'hi = [1000.0, 800.0, 100.0] }\nsound_speed = { model = "ctd", file = "cast.csv" }',
+        )
+    )
     e = err_of(scen)
     assert e.key_path == "environment.sound_speed.file" and "temperature_c" in e.message
 
@@ -221,8 +256,11 @@ def test_ctd_file_without_needed_column(tmp_path):
     "table, cls, attrs",
     [
         ('{model="constant", speed_mps=1490}', ssp_mod.Constant, {"speed_mps": 1490.0}),
-        ('{model="isogradient", surface_speed_mps=1480, gradient_per_s=0.02}', ssp_mod.Isogradient,
-         {"surface_speed": 1480.0, "gradient": 0.02}),
+        (
+            '{model="isogradient", surface_speed_mps=1480, gradient_per_s=0.02}',
+            ssp_mod.Isogradient,
+            {"surface_speed": 1480.0, "gradient": 0.02},
+        ),
         ('{model="munk", axis_depth_m=1000}', ssp_mod.Munk, {"axis_depth": 1000.0}),
     ],
 )
@@ -235,16 +273,23 @@ def test_profiles_built_from_tables(base, table, cls, attrs):
 
 # --------------------------------------------------------------------------- building
 def test_grid_placement_positions():
-    g = scenario.load_dict(tomllib.loads(BASE), None, overrides=[
-        ("nodes.1.placement", {"kind": "grid", "shape": [3, 2, 1], "lo": [100, 100, 10], "hi": [900, 700, 90]}),
-        ("nodes.1.count", 6)]).nodes[1]
+    g = scenario.load_dict(
+        tomllib.loads(BASE),
+        None,
+        overrides=[
+            ("nodes.1.placement", {"kind": "grid", "shape": [3, 2, 1], "lo": [100, 100, 10], "hi": [900, 700, 90]}),
+            ("nodes.1.count", 6),
+        ],
+    ).nodes[1]
     pos = scenario.placement_positions(g, [0, 0, 0], [1000, 800, 100], np.random.default_rng(0))
     expect = [[x, y, 50.0] for x in (100.0, 500.0, 900.0) for y in (100.0, 700.0)]
     np.testing.assert_array_equal(pos, expect)
 
 
 def test_build_places_nodes_and_draws_clocks(base):
-    sc = scenario.load(base, overrides=["nodes.1.count=400", "nodes.1.clock={skew_ppm=5, skew_std_ppm=20, offset_std_s=0.01}"])
+    sc = scenario.load(
+        base, overrides=["nodes.1.count=400", "nodes.1.clock={skew_ppm=5, skew_std_ppm=20, offset_std_s=0.01}"]
+    )
     sim = scenario.build(sc)
     assert len(sim.nodes) == 402
     p = sim.positions(0.0)
@@ -265,10 +310,12 @@ def test_build_places_nodes_and_draws_clocks(base):
 
 def test_groups_draw_from_their_own_streams(base):
     a = scenario.build(scenario.load(base)).positions(0.0)
-    extra = ('nodes=[{role="anchor", protocol="beacon", placement={kind="explicit", positions=[[0.0, 0.0, 5.0], '
-             '[1000.0, 800.0, 5.0]]}}, {name="other", role="ordinary", count=3, protocol="beacon", '
-             'placement={kind="uniform"}}, {name="field", role="ordinary", count=50, protocol="beacon", '
-             'placement={kind="uniform", lo=[100.0, 100.0, 10.0], hi=[900.0, 700.0, 90.0]}}]')
+    extra = (
+        'nodes=[{role="anchor", protocol="beacon", placement={kind="explicit", positions=[[0.0, 0.0, 5.0], '
+        '[1000.0, 800.0, 5.0]]}}, {name="other", role="ordinary", count=3, protocol="beacon", '
+        'placement={kind="uniform"}}, {name="field", role="ordinary", count=50, protocol="beacon", '
+        'placement={kind="uniform", lo=[100.0, 100.0, 10.0], hi=[900.0, 700.0, 90.0]}}]'
+    )
     b = scenario.build(scenario.load(base, overrides=[extra])).positions(0.0)
     # adding a group before "field" leaves field's draws unchanged (streams keyed by name)
     np.testing.assert_array_equal(a[2:], b[5:])
@@ -277,8 +324,13 @@ def test_groups_draw_from_their_own_streams(base):
 
 
 def test_mobility_built_with_params(base):
-    sc = scenario.load(base, overrides=['nodes.1.mobility={model="constant_velocity", velocity=[0.5, 0.0, 0.0]}',
-                                        "nodes.1.placement.hi=[800, 700, 90]"])
+    sc = scenario.load(
+        base,
+        overrides=[
+            'nodes.1.mobility={model="constant_velocity", velocity=[0.5, 0.0, 0.0]}',
+            "nodes.1.placement.hi=[800, 700, 90]",
+        ],
+    )
     sim = scenario.build(sc)
     np.testing.assert_allclose(sim.positions(10.0)[2:] - sim.positions(0.0)[2:], [[5.0, 0.0, 0.0]] * 50)
 

@@ -75,8 +75,12 @@ def test_rows_depend_on_swept_values(scen):
     # more listeners, more ranges (same seed, same anchors)
     assert rows[1]["beacon.ranges"] > rows[0]["beacon.ranges"]
     # a run row equals a direct single run with the same seed and values
-    direct = scenario.load_dict(sc.to_dict(), scen, overrides=[(["nodes", 1, "count"], 4),
-                                                             (["channel", "jitter_std_s"], 0.0)], seed=jobs[1].seed)
+    direct = scenario.load_dict(
+        sc.to_dict(),
+        scen,
+        overrides=[(["nodes", 1, "count"], 4), (["channel", "jitter_std_s"], 0.0)],
+        seed=jobs[1].seed,
+    )
     sim = scenario.build(direct)
     sim.run(direct.simulation.duration_s)
     from aquasim_py import metrics
@@ -118,8 +122,16 @@ def test_sweep_without_sweep_table(tmp_path, capsys):
 
 
 def test_sweep_grid_value_rejected_by_physics_fails_before_running(scen, tmp_path, capsys):
-    rc = cli.main(["sweep", str(scen), "--out", str(tmp_path / "o"),
-                   "--set", 'sweep.grid={"nodes.1.mobility"=[{model="random_walk", speed_min=3.0, speed_max=1.0}]}'])
+    rc = cli.main(
+        [
+            "sweep",
+            str(scen),
+            "--out",
+            str(tmp_path / "o"),
+            "--set",
+            'sweep.grid={"nodes.1.mobility"=[{model="random_walk", speed_min=3.0, speed_max=1.0}]}',
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and len(err.splitlines()) == 1 and "nodes[1].mobility" in err
     assert not (tmp_path / "o").exists()
@@ -158,5 +170,5 @@ def test_csv_cells_round_trip_floats(tmp_path):
     assert cols == ["a", "run", "seed", "m", "v"]
     sweep.rows_to_csv(rows, cols, tmp_path / "x.csv")
     with open(tmp_path / "x.csv") as fh:
-        back = list(csv.DictReader(fh))[0]
+        back = next(iter(csv.DictReader(fh)))
     assert float(back["a"]) == 0.1 + 0.2 and np.isnan(float(back["m"])) and json.loads(back["v"]) == [1, 2]

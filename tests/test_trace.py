@@ -16,11 +16,30 @@ def test_design_tables_exist_with_design_columns_first():
     tr = Trace()
     frames = tr.frames()
     assert list(frames["packets"].columns[:11]) == [
-        "time", "event", "reason", "node", "src", "dst", "uid", "kind", "bits", "tof", "snr_db"]
+        "time",
+        "event",
+        "reason",
+        "node",
+        "src",
+        "dst",
+        "uid",
+        "kind",
+        "bits",
+        "tof",
+        "snr_db",
+    ]
     assert list(frames["positions"].columns) == ["time", "node", "x", "y", "z", "vx", "vy", "vz"]
     assert list(frames["estimates"].columns) == [c for c, _ in SCHEMAS["estimates"]]
     assert list(frames["clocks"].columns) == [
-        "time", "node", "protocol", "skew", "offset", "true_skew", "true_offset", "error"]
+        "time",
+        "node",
+        "protocol",
+        "skew",
+        "offset",
+        "true_skew",
+        "true_offset",
+        "error",
+    ]
 
 
 def test_rows_with_new_and_missing_columns():
@@ -50,8 +69,16 @@ def test_columns_widen_instead_of_failing():
 def test_extend_vectorized_rows():
     t = Table("positions", SCHEMAS["positions"])
     n = 4
-    t.extend(time=np.full(n, 2.0), node=np.arange(n), x=np.arange(n) * 1.5, y=np.zeros(n), z=np.ones(n),
-             vx=np.zeros(n), vy=np.zeros(n), vz=np.zeros(n))
+    t.extend(
+        time=np.full(n, 2.0),
+        node=np.arange(n),
+        x=np.arange(n) * 1.5,
+        y=np.zeros(n),
+        z=np.ones(n),
+        vx=np.zeros(n),
+        vy=np.zeros(n),
+        vz=np.zeros(n),
+    )
     t.append(time=3.0, node=0, x=1.0, y=2.0, z=3.0, vx=0.0, vy=0.0, vz=0.0, flag="late")
     df = t.frame()
     assert df.x.tolist() == [0.0, 1.5, 3.0, 4.5, 1.0] and df.node.tolist() == [0, 1, 2, 3, 0]
@@ -75,9 +102,18 @@ def test_csv_round_trip_is_exact_and_byte_stable(tmp_path):
     vals = [0.1 + 0.2, 1 / 3, 1e-300, -2.5e17, math.pi * 1e-9, 123456789.123456789]
     tr = Trace()
     for i, v in enumerate(vals):
-        tr.append("clocks", time=float(i), node=i, protocol="p", skew=v, offset=-v, true_skew=0.0,
-                  true_offset=v * 3, error=v / 7)
-    tr.append("events", time=1.0, node=0, what="x,y \"quoted\"", ok=True)
+        tr.append(
+            "clocks",
+            time=float(i),
+            node=i,
+            protocol="p",
+            skew=v,
+            offset=-v,
+            true_skew=0.0,
+            true_offset=v * 3,
+            error=v / 7,
+        )
+    tr.append("events", time=1.0, node=0, what='x,y "quoted"', ok=True)
     tr.write(tmp_path / "a")
     tr.write(tmp_path / "b")
     for name in ("clocks.csv", "events.csv", "packets.csv"):
@@ -99,8 +135,9 @@ def test_write_rejects_unknown_format_and_load_missing_dir(tmp_path):
 def test_parquet_round_trip(tmp_path):
     pytest.importorskip("pyarrow")
     tr = Trace()
-    tr.append("clocks", time=1.0, node=0, protocol="p", skew=1e-5, offset=0.1, true_skew=0.0,
-              true_offset=0.0, error=0.1)
+    tr.append(
+        "clocks", time=1.0, node=0, protocol="p", skew=1e-5, offset=0.1, true_skew=0.0, true_offset=0.0, error=0.1
+    )
     tr.write(tmp_path, fmt="parquet")
     back = trace.load(tmp_path)
     assert back["clocks"]["skew"].tolist() == [1e-5]

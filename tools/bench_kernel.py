@@ -70,8 +70,12 @@ class BenchBeacon(Node):
 def build_kernel(pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: float = 0.0) -> Simulation:
     cls = type("B", (BenchBeacon,), {"listen": listen})
     box = Box([-1.0, -1.0, 0.0], [10_001.0, 10_001.0, 200.0])
-    sim = Simulation(seed, ssp=Constant(SPEED), volume=box,
-                     channel=ChannelConfig(max_range_m=rng_m, bitrate_bps=BITRATE, collision="destructive"))
+    sim = Simulation(
+        seed,
+        ssp=Constant(SPEED),
+        volume=box,
+        channel=ChannelConfig(max_range_m=rng_m, bitrate_bps=BITRATE, collision="destructive"),
+    )
     if speed > 0.0:
         # horizontal headings drawn per node: the channel then re-solves every delay per packet
         head = np.random.default_rng(seed + 1).uniform(0.0, 2.0 * np.pi, len(pos))
@@ -112,8 +116,9 @@ def build_bare(pos: np.ndarray, rng_m: float, phases: np.ndarray) -> tuple[simpy
     return env, count
 
 
-def run_both(pos: np.ndarray, rng_m: float, until: float, listen: bool, seed: int, speed: float,
-             chunk: float = 2.0) -> dict[str, float]:
+def run_both(
+    pos: np.ndarray, rng_m: float, until: float, listen: bool, seed: int, speed: float, chunk: float = 2.0
+) -> dict[str, float]:
     """Advance the kernel and the bare loop alternately, ``chunk`` simulated seconds at a time,
     summing each one's CPU time: load from other jobs then hits both alike."""
     sim = build_kernel(pos, rng_m, listen, seed, speed)
@@ -140,9 +145,19 @@ def run_both(pos: np.ndarray, rng_m: float, until: float, listen: bool, seed: in
     t_frames = time.perf_counter() - t1
     ev = p["event"].astype(str)
     decided = int((ev == "rx").sum() + (ev == "drop").sum())
-    return {"wall_s": wall_k, "cpu_s": cpu_k, "receptions": decided, "rx": int((ev == "rx").sum()),
-            "tx": int((ev == "tx").sum()), "rate": decided / cpu_k, "peak_rss_growth_mb": (rss1 - rss0) / 1024.0,
-            "frames_s": t_frames, "bare_cpu_s": cpu_b, "bare_deliveries": count[0], "bare_rate": count[0] / cpu_b}
+    return {
+        "wall_s": wall_k,
+        "cpu_s": cpu_k,
+        "receptions": decided,
+        "rx": int((ev == "rx").sum()),
+        "tx": int((ev == "tx").sum()),
+        "rate": decided / cpu_k,
+        "peak_rss_growth_mb": (rss1 - rss0) / 1024.0,
+        "frames_s": t_frames,
+        "bare_cpu_s": cpu_b,
+        "bare_deliveries": count[0],
+        "bare_rate": count[0] / cpu_b,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -152,8 +167,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--until", type=float, default=500.0, help="simulated seconds")
     ap.add_argument("--quick", action="store_true", help="50 simulated seconds")
     ap.add_argument("--no-listen", action="store_true", help="nodes never call recv (modem buffers fill)")
-    ap.add_argument("--speed", type=float, default=0.0,
-                    help="node speed (m/s): > 0 moves every node (no per-sender link cache, fixed point per delivery)")
+    ap.add_argument(
+        "--speed",
+        type=float,
+        default=0.0,
+        help="node speed (m/s): > 0 moves every node (no per-sender link cache, fixed point per delivery)",
+    )
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
     until = 50.0 if args.quick else args.until
@@ -162,14 +181,20 @@ def main(argv: list[str] | None = None) -> int:
     np.fill_diagonal(d, np.inf)
     mean_nb = float((d <= rng_m).sum(axis=1).mean())
     k = run_both(pos, rng_m, until, not args.no_listen, args.seed, args.speed)
-    print(f"nodes {args.nodes}, mean neighbours {mean_nb:.2f} (range {rng_m:.0f} m), {until:g} s simulated, "
-          f"nodes {'do not listen' if args.no_listen else 'drain their inbox'}, "
-          f"{'moving at %g m/s' % args.speed if args.speed > 0 else 'static'}")
-    print(f"kernel : wall {k['wall_s']:.2f} s (CPU {k['cpu_s']:.2f} s), {k['tx']} tx, {k['receptions']} "
-          f"receptions decided ({k['rx']} delivered), {k['rate']:,.0f} receptions per CPU second, "
-          f"peak RSS growth {k['peak_rss_growth_mb']:.0f} MB, frames() {k['frames_s']:.2f} s")
-    print(f"bare   : CPU {k['bare_cpu_s']:.2f} s, {k['bare_deliveries']} deliveries, "
-          f"{k['bare_rate']:,.0f} deliveries per CPU second")
+    print(
+        f"nodes {args.nodes}, mean neighbours {mean_nb:.2f} (range {rng_m:.0f} m), {until:g} s simulated, "
+        f"nodes {'do not listen' if args.no_listen else 'drain their inbox'}, "
+        f"{f'moving at {args.speed:g} m/s' if args.speed > 0 else 'static'}"
+    )
+    print(
+        f"kernel : wall {k['wall_s']:.2f} s (CPU {k['cpu_s']:.2f} s), {k['tx']} tx, {k['receptions']} "
+        f"receptions decided ({k['rx']} delivered), {k['rate']:,.0f} receptions per CPU second, "
+        f"peak RSS growth {k['peak_rss_growth_mb']:.0f} MB, frames() {k['frames_s']:.2f} s"
+    )
+    print(
+        f"bare   : CPU {k['bare_cpu_s']:.2f} s, {k['bare_deliveries']} deliveries, "
+        f"{k['bare_rate']:,.0f} deliveries per CPU second"
+    )
     print(f"ratio kernel / bare SimPy: {k['rate'] / k['bare_rate']:.3f} (target >= 0.25)")
     return 0
 

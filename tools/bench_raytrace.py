@@ -19,8 +19,8 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
-from typing import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -34,8 +34,9 @@ class Case:
     pairs: int
 
 
-def random_pairs(n: int, seed: int = 0, depth_m: float = 1000.0, span_m: float = 5000.0
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def random_pairs(
+    n: int, seed: int = 0, depth_m: float = 1000.0, span_m: float = 5000.0
+) -> tuple[np.ndarray, np.ndarray]:
     """n (src, dst) pairs uniform in a span x span x depth box (m)."""
     rng = np.random.default_rng(seed)
     lo, hi = np.array([0.0, 0.0, 0.0]), np.array([span_m, span_m, depth_m])
@@ -55,8 +56,11 @@ def case_isogradient_time(n: int) -> Case:
 def case_isogradient_time_checked(n: int) -> Case:
     """Negative gradient plus a bottom: the surface/bottom (vertex) check is on."""
     src, dst = random_pairs(n)
-    return Case("isogradient travel_time (a = -0.05, bottom)",
-                lambda: isogradient.travel_time(1520.0, -0.05, src, dst, bottom=1000.0), n)
+    return Case(
+        "isogradient travel_time (a = -0.05, bottom)",
+        lambda: isogradient.travel_time(1520.0, -0.05, src, dst, bottom=1000.0),
+        n,
+    )
 
 
 def case_isogradient_eigenray(n: int) -> Case:
@@ -66,8 +70,7 @@ def case_isogradient_eigenray(n: int) -> Case:
 
 def case_isogradient_gradient(n: int) -> Case:
     src, dst = random_pairs(n)
-    return Case("isogradient travel_time_gradient",
-                lambda: isogradient.travel_time_gradient(1480.0, 0.1, src, dst), n)
+    return Case("isogradient travel_time_gradient", lambda: isogradient.travel_time_gradient(1480.0, 0.1, src, dst), n)
 
 
 #: (case function, number of pairs in a full run); the layered cases are appended here
@@ -102,8 +105,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, float | str]]:
     for make, n in CASES:
         case = make(max(n // scale, 1))
         rate = case.pairs / best_seconds(case.run, repeats)
-        rows.append({"case": case.label, "pairs": case.pairs, "pairs_per_s": rate,
-                     "vs_baseline": base_rate / rate})
+        rows.append({"case": case.label, "pairs": case.pairs, "pairs_per_s": rate, "vs_baseline": base_rate / rate})
     width = max(len(str(r["case"])) for r in rows)
     print(f"{'case':<{width}}  {'pairs':>9}  {'pairs/s':>12}  {'time / baseline':>15}")
     for r in rows:
@@ -130,8 +132,11 @@ def case_layered_time(n: int) -> Case:
 
     prof = _layered_profile()
     src, dst = random_pairs(n)
-    return Case("layered travel_time, 10 layers (direct only)",
-                lambda: layered.travel_time(prof, src, dst, reflections="none"), n)
+    return Case(
+        "layered travel_time, 10 layers (direct only)",
+        lambda: layered.travel_time(prof, src, dst, reflections="none"),
+        n,
+    )
 
 
 def case_layered_time_fallback(n: int) -> Case:
@@ -140,8 +145,11 @@ def case_layered_time_fallback(n: int) -> Case:
 
     prof = _layered_profile()
     src, dst = random_pairs(n)
-    return Case("layered travel_time, 10 layers (reflection fallback)",
-                lambda: layered.travel_time(prof, src, dst, reflections="fallback"), n)
+    return Case(
+        "layered travel_time, 10 layers (reflection fallback)",
+        lambda: layered.travel_time(prof, src, dst, reflections="fallback"),
+        n,
+    )
 
 
 def case_layered_gradient(n: int) -> Case:
@@ -149,8 +157,7 @@ def case_layered_gradient(n: int) -> Case:
 
     prof = _layered_profile()
     src, dst = random_pairs(n)
-    return Case("layered travel_time_gradient, 10 layers",
-                lambda: layered.travel_time_gradient(prof, src, dst), n)
+    return Case("layered travel_time_gradient, 10 layers", lambda: layered.travel_time_gradient(prof, src, dst), n)
 
 
 def layered_cases() -> list[tuple[Callable[[int], Case], int]]:

@@ -141,14 +141,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(f"{args.runs} runs, cpu_count={result['cpu_count']}, 1-min load average "
-              f"{load0:.2f} before, {result['load_avg_1min_after']:.2f} after")
+        print(
+            f"{args.runs} runs, cpu_count={result['cpu_count']}, 1-min load average "
+            f"{load0:.2f} before, {result['load_avg_1min_after']:.2f} after"
+        )
         print("1 worker : wall", " ".join(f"{t:.2f}s" for t in serial), " cpu", " ".join(f"{t:.2f}s" for t in cpu1))
-        print(f"{args.workers} workers: wall", " ".join(f"{t:.2f}s" for t in parallel), " cpu",
-              " ".join(f"{t:.2f}s" for t in cpun))
+        print(
+            f"{args.workers} workers: wall",
+            " ".join(f"{t:.2f}s" for t in parallel),
+            " cpu",
+            " ".join(f"{t:.2f}s" for t in cpun),
+        )
         print(f"speed-up (best/best): {result['speedup_best']:.2f}x; rows identical: {same}")
-        print("machine ceiling now (ideal CPU-bound jobs, same worker count):",
-              " ".join(f"{c:.2f}x" for c in ceiling))
+        print("machine ceiling now (ideal CPU-bound jobs, same worker count):", " ".join(f"{c:.2f}x" for c in ceiling))
     return 0 if same else 1
 
 

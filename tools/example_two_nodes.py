@@ -61,22 +61,25 @@ def main(argv: list[str]) -> int:
     sim = Simulation(seed=7, ssp=ssp, channel=ChannelConfig(collision="destructive"))
     buoy_pos, node_pos = [0.0, 0.0, 5.0], [1200.0, 500.0, 80.0]
     sim.add_group(PingPong, 1, role=Role.BUOY, positions=[buoy_pos])
-    sim.add_group(PingPong, 1, role=Role.ORDINARY, positions=[node_pos],
-                  clocks=[Clock(skew=50e-6, offset=0.2)])
+    sim.add_group(PingPong, 1, role=Role.ORDINARY, positions=[node_pos], clocks=[Clock(skew=50e-6, offset=0.2)])
     sim.run(60.0)
     frames = sim.trace.frames()
     ex = frames["exchange"]
     true_delay = float(travel_time(ssp, buoy_pos, node_pos))
     print(f"profile: {ssp}")
     print(f"true one-way delay {true_delay * 1e3:.6f} ms")
-    print("(the node's 50 ppm fast clock reads its 0.564 s turnaround, 64-bit reception + 0.5 s wait, "
-          "28 us long, so the delay comes out 14 us short)")
+    print(
+        "(the node's 50 ppm fast clock reads its 0.564 s turnaround, 64-bit reception + 0.5 s wait, "
+        "28 us long, so the delay comes out 14 us short)"
+    )
     for _, r in ex.iterrows():
         # node clock minus true time in the middle of the exchange (the buoy's clock is true time)
         t_mid = r.t1 + true_delay + 0.282
         true_offset = 50e-6 * t_mid + 0.2
-        print(f"t = {r.time:6.2f} s: delay {r.delay_s * 1e3:.6f} ms (error {(r.delay_s - true_delay) * 1e6:+.2f} us), "
-              f"offset {r.offset_s:.6f} s (error {(r.offset_s - true_offset) * 1e6:+.2f} us)")
+        print(
+            f"t = {r.time:6.2f} s: delay {r.delay_s * 1e3:.6f} ms (error {(r.delay_s - true_delay) * 1e6:+.2f} us), "
+            f"offset {r.offset_s:.6f} s (error {(r.offset_s - true_offset) * 1e6:+.2f} us)"
+        )
     p = frames["packets"]
     print("packets:", p["event"].value_counts().to_dict())
     sim.trace.write(out)

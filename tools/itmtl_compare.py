@@ -45,12 +45,22 @@ MOBILITY = {
     "turn": {"model": "coordinated_turn", "speed": 1.0, "turn_rate": 0.01},
     "random_walk": {"model": "random_walk", "speed_min": 0.5, "speed_max": 1.5, "leg_duration": 60.0},
 }
-KEYS = ("sync_final_mean_s", "sync_final_mean_all_s", "loc_nmse", "loc_rmse_m", "loc_rmse_fixed_m", "coverage_final",
-        "coverage_upper_bound", "promoted_share")
+KEYS = (
+    "sync_final_mean_s",
+    "sync_final_mean_all_s",
+    "loc_nmse",
+    "loc_rmse_m",
+    "loc_rmse_fixed_m",
+    "coverage_final",
+    "coverage_upper_bound",
+    "promoted_share",
+)
 ITMTL_ONLY = ("ssp_depths_m", "ssp_speeds_mps")
 
 
-def run(variant: str, seed: int, duration: float, mobility: str, promotion: bool = False) -> tuple[dict[str, float], pd.DataFrame]:
+def run(
+    variant: str, seed: int, duration: float, mobility: str, promotion: bool = False
+) -> tuple[dict[str, float], pd.DataFrame]:
     proto, extra = VARIANTS[variant]
     raw = tomllib.loads(SCEN.read_text())
     raw["simulation"].update(seed=seed, duration_s=duration)
@@ -79,8 +89,9 @@ def main() -> None:
     ap.add_argument("--mobility", choices=list(MOBILITY), default="meandering")
     ap.add_argument("--variants", nargs="*", default=list(VARIANTS))
     ap.add_argument("--out", type=Path, default=None)
-    ap.add_argument("--promotion", action="store_true",
-                    help="let ITMTL promote nodes (the paper's Figs 9-14 use anchors only)")
+    ap.add_argument(
+        "--promotion", action="store_true", help="let ITMTL promote nodes (the paper's Figs 9-14 use anchors only)"
+    )
     a = ap.parse_args()
     res: dict[str, list[dict[str, float]]] = {}
     rounds: dict[str, list[pd.DataFrame]] = {}
@@ -90,20 +101,27 @@ def main() -> None:
             res.setdefault(v, []).append(m)
             rounds.setdefault(v, []).append(pr.assign(seed=s))
     mean = {v: {k: float(np.nanmean([r.get(k, np.nan) for r in rs])) for k in KEYS} for v, rs in res.items()}
-    lines = [f"{a.seeds} seeds, {a.duration:g} s, mobility {a.mobility}, promotion {'on' if a.promotion else 'off'}: "
-             "means over seeds", "",
-             "| variant | sync covered (us) | sync all (us) | NMSE | RMSE (m) | RMSE fixes (m) | coverage | bound | promoted |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"{a.seeds} seeds, {a.duration:g} s, mobility {a.mobility}, promotion {'on' if a.promotion else 'off'}: "
+        "means over seeds",
+        "",
+        "| variant | sync covered (us) | sync all (us) | NMSE | RMSE (m) | RMSE fixes (m) | coverage | bound | promoted |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for v, m in mean.items():
-        lines.append(f"| {v} | {m['sync_final_mean_s'] * 1e6:.1f} | {m['sync_final_mean_all_s'] * 1e6:.1f} | "
-                     f"{m['loc_nmse']:.3g} | {m['loc_rmse_m']:.2f} | {m['loc_rmse_fixed_m']:.2f} | {m['coverage_final']:.2f} | "
-                     f"{m['coverage_upper_bound']:.2f} | {m['promoted_share']:.2f} |")
+        lines.append(
+            f"| {v} | {m['sync_final_mean_s'] * 1e6:.1f} | {m['sync_final_mean_all_s'] * 1e6:.1f} | "
+            f"{m['loc_nmse']:.3g} | {m['loc_rmse_m']:.2f} | {m['loc_rmse_fixed_m']:.2f} | {m['coverage_final']:.2f} | "
+            f"{m['coverage_upper_bound']:.2f} | {m['promoted_share']:.2f} |"
+        )
     if "ITMTL" in mean and "ITMTL-wsc" in mean:
         w, i = mean["ITMTL-wsc"], mean["ITMTL"]
         lines.append("")
-        lines.append(f"ITMTL-wsc vs ITMTL: sync error (covered) higher by "
-                     f"{100 * (w['sync_final_mean_s'] / i['sync_final_mean_s'] - 1):.1f} % (paper: up to 56.67 %); "
-                     f"NMSE higher by {100 * (w['loc_nmse'] / i['loc_nmse'] - 1):.1f} % (paper: about 25.8 %)")
+        lines.append(
+            f"ITMTL-wsc vs ITMTL: sync error (covered) higher by "
+            f"{100 * (w['sync_final_mean_s'] / i['sync_final_mean_s'] - 1):.1f} % (paper: up to 56.67 %); "
+            f"NMSE higher by {100 * (w['loc_nmse'] / i['loc_nmse'] - 1):.1f} % (paper: about 25.8 %)"
+        )
     text = "\n".join(lines)
     print(text)
     if a.out is not None:

@@ -62,13 +62,18 @@ def main() -> None:
         for d in a.densities:
             ms = [run(a.nodes, d, share, s, a.duration) for s in range(1, a.seeds + 1)]
             rows.append((share, d, {k: float(np.nanmean([m.get(k, np.nan) for m in ms])) for k in KEYS}))
-    lines = [f"{a.nodes} nodes, {a.seeds} seeds, {a.duration:g} s per point: means over seeds", "",
-             "| anchors | density | coverage (end) | coverage (ever) | graph bound | sync covered (us) | NMSE | promoted |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"{a.nodes} nodes, {a.seeds} seeds, {a.duration:g} s per point: means over seeds",
+        "",
+        "| anchors | density | coverage (end) | coverage (ever) | graph bound | sync covered (us) | NMSE | promoted |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for share, d, m in rows:
-        lines.append(f"| {share:.0%} | {d:g} | {m['coverage_final']:.2f} | {m['coverage']:.2f} | "
-                     f"{m['coverage_upper_bound']:.2f} | {m['sync_final_mean_s'] * 1e6:.1f} | {m['loc_nmse']:.3g} | "
-                     f"{m['promoted_share']:.2f} |")
+        lines.append(
+            f"| {share:.0%} | {d:g} | {m['coverage_final']:.2f} | {m['coverage']:.2f} | "
+            f"{m['coverage_upper_bound']:.2f} | {m['sync_final_mean_s'] * 1e6:.1f} | {m['loc_nmse']:.3g} | "
+            f"{m['promoted_share']:.2f} |"
+        )
     text = "\n".join(lines)
     print(text)
     if a.out is not None:

@@ -22,14 +22,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy.integrate import solve_ivp  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.integrate import solve_ivp
 
-from aquasim_py.channel import Isogradient, Layered, PathKind, eigenray, isogradient  # noqa: E402
+from aquasim_py.channel import Isogradient, Layered, PathKind, eigenray, isogradient
 
-CHANNEL = Layered([0, 50, 120, 200, 300, 420, 550, 700, 850, 1000, 1200],
-                  1500.0 + np.array([0, -5, -12, -20, -24, -20, -14, -8, -2, 4, 8.0]), bottom=1200.0)
+CHANNEL = Layered(
+    [0, 50, 120, 200, 300, 420, 550, 700, 850, 1000, 1200],
+    1500.0 + np.array([0, -5, -12, -20, -24, -20, -14, -8, -2, 4, 8.0]),
+    bottom=1200.0,
+)
 
 
 def trace_ray(prof: Layered, z0: float, theta0: float, x_end: float, bottom: float) -> np.ndarray:
@@ -39,7 +42,7 @@ def trace_ray(prof: Layered, z0: float, theta0: float, x_end: float, bottom: flo
     g = np.diff(c) / np.diff(d)
 
     def rhs(s, y):
-        x, z, th = y
+        _x, z, th = y
         k = min(max(np.searchsorted(d, z, side="right") - 1, 0), g.size - 1)
         cz = c[k] + g[k] * (z - d[k])
         return [np.cos(th), np.sin(th), -np.cos(th) * g[k] / cz]
@@ -98,8 +101,13 @@ def ray_fan(out: Path) -> Path:
         kind = PathKind(int(ray.path[i])).name.lower()
         ax_r.plot(xz[:, 0] / 1e3, xz[:, 1], "k", lw=2.0)
         ax_r.plot(rx[i, 0] / 1e3, rx[i, 2], "o", ms=8, mfc="yellow", mec="k")
-        ax_r.annotate(f"{ray.time[i]:.4f} s ({kind})", (rx[i, 0] / 1e3, rx[i, 2]), textcoords="offset points",
-                      xytext=(6, 6), fontsize=8)
+        ax_r.annotate(
+            f"{ray.time[i]:.4f} s ({kind})",
+            (rx[i, 0] / 1e3, rx[i, 2]),
+            textcoords="offset points",
+            xytext=(6, 6),
+            fontsize=8,
+        )
     ax_r.plot(0, z_src, "k*", ms=12)
     ax_r.set_xlim(0, x_end / 1e3)
     ax_r.set_ylim(bottom, 0)

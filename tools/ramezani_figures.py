@@ -23,17 +23,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from aquasim_py.protocols.ramezani.math import (  # noqa: E402
+from aquasim_py.protocols.ramezani.math import (
     CUBE_VERTICES,
     PAPER_A,
     PAPER_B,
     TETRAHEDRON,
     batched_ekf,
-    essp_model,
     ddn_variance,
+    essp_model,
     fix_crb,
     fix_crb_ddn,
     localize_batch,
@@ -44,9 +44,16 @@ from aquasim_py.protocols.ramezani.math import (  # noqa: E402
 )
 
 
-def localization_point(ref: np.ndarray, sigma_t: float, draws: int, rng: np.random.Generator,
-                       a: float = PAPER_A, b: float = PAPER_B, anchors: np.ndarray = TETRAHEDRON,
-                       k_e_s2: float | None = None) -> dict:
+def localization_point(
+    ref: np.ndarray,
+    sigma_t: float,
+    draws: int,
+    rng: np.random.Generator,
+    a: float = PAPER_A,
+    b: float = PAPER_B,
+    anchors: np.ndarray = TETRAHEDRON,
+    k_e_s2: float | None = None,
+) -> dict:
     """One point of Figs. 6 / 7 / 8: RMSE of GNA-ESSP and GNA-ASSP and sqrt(mean CRB) (m).
     ``k_e_s2`` set: distance-dependent noise (eqs 34-36, Fig. 7) instead of ``sigma_t``; the
     estimators then stay the unweighted least squares of eq 29."""
@@ -66,7 +73,7 @@ def localization_point(ref: np.ndarray, sigma_t: float, draws: int, rng: np.rand
     # essp_water: the model only in the water, failed rows re-solved (step halving + LM); assp
     for name, model, cont in (("essp", "essp", True), ("essp_water", "essp", False), ("assp", "assp", False)):
         tf, gf = tof_functions(model, b, a, anchors, continued=cont)
-        Xe, ok, rescued = localize_batch(anchors, t, tf, gf, sigma_t, anchors.mean(axis=0), rescue=not cont)
+        Xe, ok, _rescued = localize_batch(anchors, t, tf, gf, sigma_t, anchors.mean(axis=0), rescue=not cont)
         e2 = np.sum((Xe - X) ** 2, axis=1)
         row[f"rmse_{name}"] = float(np.sqrt(np.nanmean(e2)))
         row[f"plain_fail_{name}"] = float(1.0 - ok.mean())
@@ -133,8 +140,16 @@ def fig11(runs: int, seed: int) -> list[dict]:
     for x0 in (500.0, 1500.0):
         for s_ms in (0.01, 0.05, 0.1, 0.5, 1.0, 2.0):
             r = tracking_monte_carlo(runs, seed=seed, x0=(x0, 50.0, 50.0), sigma_t=s_ms * 1e-3, pcrb_runs=200)
-            rows.append({"x0": x0, "sigma_ms": s_ms, "rmse_essp": r.rmse("essp"), "rmse_assp": r.rmse("assp"),
-                         "sqrt_pcrb": r.sqrt_pcrb(), "rejected": r.rejected})
+            rows.append(
+                {
+                    "x0": x0,
+                    "sigma_ms": s_ms,
+                    "rmse_essp": r.rmse("essp"),
+                    "rmse_assp": r.rmse("assp"),
+                    "sqrt_pcrb": r.sqrt_pcrb(),
+                    "rejected": r.rejected,
+                }
+            )
             seed += 1
     return rows
 
@@ -143,8 +158,9 @@ def fig14(runs: int, seed: int) -> list[dict]:
     rows = []
     for n in range(4, 9):
         r = tracking_monte_carlo(runs, seed=seed, anchors=CUBE_VERTICES[:n], pcrb_runs=200)
-        rows.append({"anchors": n, "rmse_essp": r.rmse("essp"), "rmse_assp": r.rmse("assp"),
-                     "sqrt_pcrb": r.sqrt_pcrb()})
+        rows.append(
+            {"anchors": n, "rmse_essp": r.rmse("essp"), "rmse_assp": r.rmse("assp"), "sqrt_pcrb": r.sqrt_pcrb()}
+        )
         seed += 1
     return rows
 
@@ -173,15 +189,34 @@ def _plot_loc(rows: list[dict], xkey: str, xlabel: str, path: Path, title: str, 
     plt.close(fig)
 
 
-def write_outputs(out: Path, f6: list[dict], f7: list[dict], f8: list[dict], f10: dict, f11: list[dict], f14: list[dict],
-                  curve: object, draws: int, runs: int) -> str:
+def write_outputs(
+    out: Path,
+    f6: list[dict],
+    f7: list[dict],
+    f8: list[dict],
+    f10: dict,
+    f11: list[dict],
+    f14: list[dict],
+    curve: object,
+    draws: int,
+    runs: int,
+) -> str:
     out.mkdir(parents=True, exist_ok=True)
-    _plot_loc(f6, "x_ref", "x of the reference point (m), y = z = 50", out / "fig6.png",
-              "Fig. 6: RMSE vs distance, sigma_t = 1 ms")
+    _plot_loc(
+        f6,
+        "x_ref",
+        "x of the reference point (m), y = z = 50",
+        out / "fig6.png",
+        "Fig. 6: RMSE vs distance, sigma_t = 1 ms",
+    )
     for k_e in K_E_FIG7:
-        _plot_loc([r for r in f7 if r["k_e"] == k_e], "x_ref", "x of the reference point (m), y = z = 50",
-                  out / f"fig7_ke{10 * np.log10(k_e):.0f}dB.png",
-                  f"Fig. 7: distance-dependent noise, K_E = {10 * np.log10(k_e):.0f} dB")
+        _plot_loc(
+            [r for r in f7 if r["k_e"] == k_e],
+            "x_ref",
+            "x of the reference point (m), y = z = 50",
+            out / f"fig7_ke{10 * np.log10(k_e):.0f}dB.png",
+            f"Fig. 7: distance-dependent noise, K_E = {10 * np.log10(k_e):.0f} dB",
+        )
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
     for ax, x in zip(axs, (50.0, 400.0)):
         rr = [r for r in f8 if r["x_ref"] == x]
@@ -210,12 +245,13 @@ def write_outputs(out: Path, f6: list[dict], f7: list[dict], f8: list[dict], f10
     k = np.arange(1, len(tr) + 1)
     for m in ("essp", "assp"):
         axs[1].semilogy(k, np.linalg.norm(f10[m] - tr, axis=1), lw=0.8, label=f"EKF-{m.upper()} error")
-    axs[1].semilogy(np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.pcrb), "k:",
-                    label="sqrt(mean PCRB), x0 = 500 m")
-    axs[1].semilogy(np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.mse["essp"]), "C0--",
-                    label="EKF-ESSP RMSE_k, x0 = 500 m")
-    axs[1].semilogy(np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.mse["assp"]), "C1--",
-                    label="EKF-ASSP RMSE_k, x0 = 500 m")
+    axs[1].semilogy(np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.pcrb), "k:", label="sqrt(mean PCRB), x0 = 500 m")
+    axs[1].semilogy(
+        np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.mse["essp"]), "C0--", label="EKF-ESSP RMSE_k, x0 = 500 m"
+    )
+    axs[1].semilogy(
+        np.arange(1, curve.pcrb.size + 1), np.sqrt(curve.mse["assp"]), "C1--", label="EKF-ASSP RMSE_k, x0 = 500 m"
+    )
     axs[1].set_xlabel("frame k")
     axs[1].set_ylabel("error (m)")
     axs[1].legend(fontsize=7)
@@ -254,48 +290,83 @@ def write_outputs(out: Path, f6: list[dict], f7: list[dict], f8: list[dict], f10
     fig.savefig(out / "fig14.png", dpi=120)
     plt.close(fig)
 
-    L = [f"### Fig. 6: RMSE vs distance (sigma_t = 1 ms, {draws} draws per point)", "",
-         "| x_ref (m) | sqrt(mean CRB) (m) | GNA-ESSP RMSE (m) | ESSP / CRB | ESSP, water-only model + rescue (m) "
-         "| its plain Alg. 1 failures | GNA-ASSP RMSE (m) | ASSP / CRB |",
-         "|---|---|---|---|---|---|---|---|"]
-    for r in f6:
-        L.append(f"| {r['x_ref']:g} | {r['sqrt_crb']:.4g} | {r['rmse_essp']:.4g} | {r['rmse_essp'] / r['sqrt_crb']:.3f} "
-                 f"| {r['rmse_essp_water']:.4g} | {100 * r['plain_fail_essp_water']:.1f} % "
-                 f"| {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |")
-    L += ["", f"### Fig. 7: RMSE vs distance, distance-dependent noise (l_r = 1000 m, "
-          f"beta = 2, L = 1 dB/km; {draws} draws per point)", "",
-          "| K_E (s^2) | x_ref (m) | rms ToF noise (ms) | sqrt(mean CRB) (m) | GNA-ESSP RMSE (m) | ESSP / CRB "
-          "| ESSP, water-only model + rescue (m) | its plain Alg. 1 failures | GNA-ASSP RMSE (m) | ASSP / CRB |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
+    L = [
+        f"### Fig. 6: RMSE vs distance (sigma_t = 1 ms, {draws} draws per point)",
+        "",
+        "| x_ref (m) | sqrt(mean CRB) (m) | GNA-ESSP RMSE (m) | ESSP / CRB | ESSP, water-only model + rescue (m) "
+        "| its plain Alg. 1 failures | GNA-ASSP RMSE (m) | ASSP / CRB |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    L.extend(
+        f"| {r['x_ref']:g} | {r['sqrt_crb']:.4g} | {r['rmse_essp']:.4g} | {r['rmse_essp'] / r['sqrt_crb']:.3f} "
+        f"| {r['rmse_essp_water']:.4g} | {100 * r['plain_fail_essp_water']:.1f} % "
+        f"| {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |"
+        for r in f6
+    )
+    L += [
+        "",
+        f"### Fig. 7: RMSE vs distance, distance-dependent noise (l_r = 1000 m, "
+        f"beta = 2, L = 1 dB/km; {draws} draws per point)",
+        "",
+        "| K_E (s^2) | x_ref (m) | rms ToF noise (ms) | sqrt(mean CRB) (m) | GNA-ESSP RMSE (m) | ESSP / CRB "
+        "| ESSP, water-only model + rescue (m) | its plain Alg. 1 failures | GNA-ASSP RMSE (m) | ASSP / CRB |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in f7:
-        L.append(f"| {r['k_e']:g} | {r['x_ref']:g} | {r['rms_noise_ms']:.3g} | {r['sqrt_crb']:.4g} | {r['rmse_essp']:.4g} "
-                 f"| {r['rmse_essp'] / r['sqrt_crb']:.3f} | {r['rmse_essp_water']:.4g} "
-                 f"| {100 * r['plain_fail_essp_water']:.1f} % | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |")
-    L += ["", f"### Fig. 8: RMSE vs SSP steepness a (sigma_t = 1 ms, {draws} draws per point)", "",
-          "| x_ref (m) | a (1/s) | GNA-ESSP RMSE (m) | sqrt(mean CRB) (m) | ESSP / CRB | GNA-ASSP RMSE (m) | ASSP / CRB |",
-          "|---|---|---|---|---|---|---|"]
+        L.append(
+            f"| {r['k_e']:g} | {r['x_ref']:g} | {r['rms_noise_ms']:.3g} | {r['sqrt_crb']:.4g} | {r['rmse_essp']:.4g} "
+            f"| {r['rmse_essp'] / r['sqrt_crb']:.3f} | {r['rmse_essp_water']:.4g} "
+            f"| {100 * r['plain_fail_essp_water']:.1f} % | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |"
+        )
+    L += [
+        "",
+        f"### Fig. 8: RMSE vs SSP steepness a (sigma_t = 1 ms, {draws} draws per point)",
+        "",
+        "| x_ref (m) | a (1/s) | GNA-ESSP RMSE (m) | sqrt(mean CRB) (m) | ESSP / CRB | GNA-ASSP RMSE (m) | ASSP / CRB |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in f8:
-        L.append(f"| {r['x_ref']:g} | {r['a']:g} | {r['rmse_essp']:.4g} | {r['sqrt_crb']:.4g} "
-                 f"| {r['rmse_essp'] / r['sqrt_crb']:.3f} | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |")
-    L += ["", f"### Fig. 11: tracking RMSE over frames 300-500 vs sigma_t ({runs} trajectories per point)", "",
-          "| x0 (m) | sigma_t (ms) | EKF-ESSP RMSE (m) | sqrt(mean PCRB) (m) | ESSP / PCRB | EKF-ASSP RMSE (m) | ASSP / PCRB |",
-          "|---|---|---|---|---|---|---|"]
+        L.append(
+            f"| {r['x_ref']:g} | {r['a']:g} | {r['rmse_essp']:.4g} | {r['sqrt_crb']:.4g} "
+            f"| {r['rmse_essp'] / r['sqrt_crb']:.3f} | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_crb']:.3f} |"
+        )
+    L += [
+        "",
+        f"### Fig. 11: tracking RMSE over frames 300-500 vs sigma_t ({runs} trajectories per point)",
+        "",
+        "| x0 (m) | sigma_t (ms) | EKF-ESSP RMSE (m) | sqrt(mean PCRB) (m) | ESSP / PCRB | EKF-ASSP RMSE (m) | ASSP / PCRB |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in f11:
-        L.append(f"| {r['x0']:g} | {r['sigma_ms']:g} | {r['rmse_essp']:.4g} | {r['sqrt_pcrb']:.4g} "
-                 f"| {r['rmse_essp'] / r['sqrt_pcrb']:.3f} | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_pcrb']:.3f} |")
-    L += ["", f"### Fig. 14: tracking RMSE over frames 300-500 vs number of anchors (sigma_t = 1 ms, {runs} trajectories)", "",
-          "| anchors | EKF-ESSP RMSE (m) | sqrt(mean PCRB) (m) | ESSP / PCRB | EKF-ASSP RMSE (m) |",
-          "|---|---|---|---|---|"]
+        L.append(
+            f"| {r['x0']:g} | {r['sigma_ms']:g} | {r['rmse_essp']:.4g} | {r['sqrt_pcrb']:.4g} "
+            f"| {r['rmse_essp'] / r['sqrt_pcrb']:.3f} | {r['rmse_assp']:.4g} | {r['rmse_assp'] / r['sqrt_pcrb']:.3f} |"
+        )
+    L += [
+        "",
+        f"### Fig. 14: tracking RMSE over frames 300-500 vs number of anchors (sigma_t = 1 ms, {runs} trajectories)",
+        "",
+        "| anchors | EKF-ESSP RMSE (m) | sqrt(mean PCRB) (m) | ESSP / PCRB | EKF-ASSP RMSE (m) |",
+        "|---|---|---|---|---|",
+    ]
     for r in f14:
-        L.append(f"| {r['anchors']} | {r['rmse_essp']:.4g} | {r['sqrt_pcrb']:.4g} | {r['rmse_essp'] / r['sqrt_pcrb']:.3f} "
-                 f"| {r['rmse_assp']:.4g} |")
+        L.append(
+            f"| {r['anchors']} | {r['rmse_essp']:.4g} | {r['sqrt_pcrb']:.4g} | {r['rmse_essp'] / r['sqrt_pcrb']:.3f} "
+            f"| {r['rmse_assp']:.4g} |"
+        )
     c = curve
-    L += ["", f"### Tracking, paper set-up (x0 = [500, 50, 50], sigma_t = 1 ms, {runs} trajectories)", "",
-          "| frames | EKF-ESSP RMSE (m) | EKF-ASSP RMSE (m) | sqrt(mean PCRB) (m) | mean distance to the anchors' centroid (m) |",
-          "|---|---|---|---|---|"]
+    L += [
+        "",
+        f"### Tracking, paper set-up (x0 = [500, 50, 50], sigma_t = 1 ms, {runs} trajectories)",
+        "",
+        "| frames | EKF-ESSP RMSE (m) | EKF-ASSP RMSE (m) | sqrt(mean PCRB) (m) | mean distance to the anchors' centroid (m) |",
+        "|---|---|---|---|---|",
+    ]
     for k1, k2 in ((1, 100), (101, 200), (201, 300), (301, 400), (401, 500), (300, 500)):
-        L.append(f"| {k1}-{k2} | {c.rmse('essp', k1, k2):.4g} | {c.rmse('assp', k1, k2):.4g} | {c.sqrt_pcrb(k1, k2):.4g} "
-                 f"| {c.distance[k1 - 1:k2].mean():.0f} |")
+        L.append(
+            f"| {k1}-{k2} | {c.rmse('essp', k1, k2):.4g} | {c.rmse('assp', k1, k2):.4g} | {c.sqrt_pcrb(k1, k2):.4g} "
+            f"| {c.distance[k1 - 1 : k2].mean():.0f} |"
+        )
     L.append("")
     L.append(f"Trajectories redrawn because the depth random walk left the water: {100 * c.rejected:.0f} %.")
     text = "\n".join(L) + "\n"

@@ -30,18 +30,22 @@ SCENARIO = ROOT / "scenarios" / "stvf.toml"
 PAPER = {"avg_rmse_m": 7.09, "share_below_avg": 0.785, "converge_within_5": 0.8907}
 
 
-def overrides_for(protocol: str, nodes: int, beacon_share: float, duration: float,
-                  seed: int, extra: dict[str, Any]) -> list[str]:
+def overrides_for(
+    protocol: str, nodes: int, beacon_share: float, duration: float, seed: int, extra: dict[str, Any]
+) -> list[str]:
     """--set overrides for one run: network scaled at constant density, the protocol on both
     groups, and the experiment's parameters (keys relative to the unknown nodes' params when
     they start with 'p.')."""
     side = 500.0 * math.sqrt(nodes / 200.0)
     nb = max(1, int(round(nodes * beacon_share)))
     out = [
-        f"simulation.duration_s={duration}", f"simulation.seed={seed}",
+        f"simulation.duration_s={duration}",
+        f"simulation.seed={seed}",
         f"environment.volume.hi=[{side}, {side}, 30.0]",
-        f"nodes[0].count={nb}", f"nodes[1].count={nodes - nb}",
-        f"nodes[0].protocol={protocol}", f"nodes[1].protocol={protocol}",
+        f"nodes[0].count={nb}",
+        f"nodes[1].count={nodes - nb}",
+        f"nodes[0].protocol={protocol}",
+        f"nodes[1].protocol={protocol}",
     ]
     for k, v in extra.items():
         if k.startswith("p."):
@@ -74,8 +78,11 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
     row.update(m)
     row["cpu_s"] = cpu
     # the whole run's CPU over all of its localizations, not only the scored ones
-    total = m["localizations"] if job.get("t_min") is None else localization_metrics(
-        frames, job["protocol"])["localizations"]
+    total = (
+        m["localizations"]
+        if job.get("t_min") is None
+        else localization_metrics(frames, job["protocol"])["localizations"]
+    )
     row["cpu_per_localization_ms"] = 1e3 * cpu / max(total, 1.0)
     if job.get("keep"):
         row["_frames"] = frames
@@ -88,9 +95,16 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     def add(protocol: str, share: float, extra: dict[str, Any], **tags: Any) -> None:
         for s in range(args.seeds):
             seed = args.seed + s
-            jobs.append(dict(experiment=name, protocol=protocol, beacon_share=share, seed=seed,
-                             overrides=overrides_for(protocol, args.nodes, share, args.duration, seed, extra),
-                             **tags))
+            jobs.append(
+                dict(
+                    experiment=name,
+                    protocol=protocol,
+                    beacon_share=share,
+                    seed=seed,
+                    overrides=overrides_for(protocol, args.nodes, share, args.duration, seed, extra),
+                    **tags,
+                )
+            )
 
     shares = [0.10, 0.15, 0.20, 0.25, 0.30]
     if name == "fig3":
@@ -104,8 +118,14 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     elif name in ("fig7", "fig8", "fig9"):
         slmp_extra = {"nodes[1].params.training_s": args.training}
         if name == "fig7":
-            points = [("density", d, {"channel.max_range_m": round(math.sqrt(d * 250000 / (200 * math.pi)), 2),
-                                      "p.range_m": 100.0}) for d in args.densities]
+            points = [
+                (
+                    "density",
+                    d,
+                    {"channel.max_range_m": round(math.sqrt(d * 250000 / (200 * math.pi)), 2), "p.range_m": 100.0},
+                )
+                for d in args.densities
+            ]
         elif name == "fig8":
             points = [("delta", d, {"p.delta": d}) for d in (0.8, 0.85, 0.9, 0.95, 0.97, 0.99, 1.0)]
         else:
@@ -126,8 +146,7 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
         }
         for variant, extra in variants.items():
             add("stvf", 0.20, extra, t_min=args.training, variant=variant)
-        add("slmp", 0.20, {"nodes[1].params.training_s": args.training}, t_min=args.training,
-            variant="SLMP")
+        add("slmp", 0.20, {"nodes[1].params.training_s": args.training}, t_min=args.training, variant="SLMP")
     else:
         raise SystemExit(f"unknown experiment {name!r}")
     return jobs
@@ -165,8 +184,7 @@ def _plot_bars(df: pd.DataFrame, x: str, ys: list[tuple[str, str]], path: Path, 
     fig, axes = plt.subplots(1, len(ys), figsize=(6 * len(ys), 0.5 * len(order) + 1.5), sharey=True)
     for ax, (col, label) in zip(np.atleast_1d(axes), ys):
         stats = df.groupby(x)[col].agg(["mean", "sem"]).reindex(order)
-        colors = ["tab:blue" if p == "slmp" else "tab:orange"
-                  for p in df.groupby(x)["protocol"].first().reindex(order)]
+        colors = ["tab:blue" if p == "slmp" else "tab:orange" for p in df.groupby(x)["protocol"].first().reindex(order)]
         ax.barh(range(len(order)), stats["mean"], xerr=stats["sem"].fillna(0), color=colors, capsize=3)
         ax.set_yticks(range(len(order)), order)
         ax.set_xlabel(label)
@@ -188,8 +206,13 @@ def headline(args: argparse.Namespace, out: Path) -> None:
     rows = []
     frames = None
     for s in range(args.seeds):
-        job = dict(experiment="headline", protocol="stvf", seed=args.seed + s, keep=s == 0,
-                   overrides=overrides_for("stvf", args.nodes, 0.2, args.duration, args.seed + s, {}))
+        job = dict(
+            experiment="headline",
+            protocol="stvf",
+            seed=args.seed + s,
+            keep=s == 0,
+            overrides=overrides_for("stvf", args.nodes, 0.2, args.duration, args.seed + s, {}),
+        )
         row = run_one(job)
         if s == 0:
             frames = row.pop("_frames")
@@ -201,8 +224,11 @@ def headline(args: argparse.Namespace, out: Path) -> None:
     from aquasim_py.protocols.stvf.metrics import localization_metrics
 
     late = localization_metrics(frames, "stvf", t_min=args.training)
-    print(f"seed {args.seed}, t >= {args.training} s (SLMP's window):",
-          {k: round(v, 4) for k, v in late.items()}, flush=True)
+    print(
+        f"seed {args.seed}, t >= {args.training} s (SLMP's window):",
+        {k: round(v, 4) for k, v in late.items()},
+        flush=True,
+    )
     frames["estimates"].to_csv(out / "headline_estimates.csv", index=False)
     e = frames["estimates"]
     e = e[e["protocol"] == "stvf"]
@@ -227,36 +253,73 @@ def headline(args: argparse.Namespace, out: Path) -> None:
     fig.tight_layout()
     fig.savefig(out / "fig5_fig6.png", dpi=120)
     plt.close(fig)
-    summary = df[["avg_rmse_m", "share_below_avg", "converge_within_5", "mean_iterations", "coverage",
-                  "cpu_s", "cpu_per_localization_ms"]].agg(["mean", "std"])
+    summary = df[
+        [
+            "avg_rmse_m",
+            "share_below_avg",
+            "converge_within_5",
+            "mean_iterations",
+            "coverage",
+            "cpu_s",
+            "cpu_per_localization_ms",
+        ]
+    ].agg(["mean", "std"])
     print(summary.to_string())
     print("paper:", PAPER)
 
 
 # experiment -> (x column, group column, [(y column, label)], title)
 FIGURES: dict[str, tuple[str, str, list[tuple[str, str]], str]] = {
-    "fig3": ("n_ref", "beacon_share", [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
-             "Fig. 3: STVF vs Nr"),
-    "fig4": ("n_samples", "beacon_share", [("mean_error_m", "localization error (m)"),
-                                           ("cpu_per_localization_ms", "CPU per localization, whole run (ms)")],
-             "Fig. 4: STVF vs samples"),
-    "fig7": ("density", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
-             "Fig. 7, density: STVF vs SLMP"),
-    "fig8": ("delta", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
-             "Fig. 8, confidence threshold: STVF vs SLMP"),
-    "fig9": ("noise_ratio", "protocol", [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
-             "Fig. 9, ranging noise std / delay: STVF vs SLMP"),
-    "ablation": ("variant", "protocol", [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
-                 "STVF variants against SLMP, density 16, 20 % beacons"),
+    "fig3": (
+        "n_ref",
+        "beacon_share",
+        [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
+        "Fig. 3: STVF vs Nr",
+    ),
+    "fig4": (
+        "n_samples",
+        "beacon_share",
+        [
+            ("mean_error_m", "localization error (m)"),
+            ("cpu_per_localization_ms", "CPU per localization, whole run (ms)"),
+        ],
+        "Fig. 4: STVF vs samples",
+    ),
+    "fig7": (
+        "density",
+        "protocol",
+        [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+        "Fig. 7, density: STVF vs SLMP",
+    ),
+    "fig8": (
+        "delta",
+        "protocol",
+        [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+        "Fig. 8, confidence threshold: STVF vs SLMP",
+    ),
+    "fig9": (
+        "noise_ratio",
+        "protocol",
+        [("coverage", "coverage"), ("mean_error_m", "localization error (m)")],
+        "Fig. 9, ranging noise std / delay: STVF vs SLMP",
+    ),
+    "ablation": (
+        "variant",
+        "protocol",
+        [("mean_error_m", "localization error (m)"), ("coverage", "coverage")],
+        "STVF variants against SLMP, density 16, 20 % beacons",
+    ),
 }
 
 
 def report(name: str, df: pd.DataFrame, args: argparse.Namespace, out: Path) -> None:
     """PNG (mean +- s.e.m. over seeds) and a printed table for one experiment's runs."""
     x, group, ys, title = FIGURES[name]
-    setup = (f"{args.nodes} nodes, {args.duration:g} s, {df['seed'].nunique()} seed(s)"
-             + f", scored t >= {args.training if group == 'protocol' else (args.score_from or 0):g} s"
-             + "; mean +- s.e.m.")
+    setup = (
+        f"{args.nodes} nodes, {args.duration:g} s, {df['seed'].nunique()} seed(s)"
+        + f", scored t >= {args.training if group == 'protocol' else (args.score_from or 0):g} s"
+        + "; mean +- s.e.m."
+    )
     if pd.api.types.is_numeric_dtype(df[x]):
         _plot_xy(df, x, group, ys, out / f"{name}.png", f"{title}\n({setup})")
     else:
@@ -274,14 +337,20 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--training", type=float, default=100.0, help="SLMP beacon training (s)")
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--score-from", type=float, default=None,
-                    help="fig3/fig4: score STVF on t >= this (s), after its start-up transient")
-    ap.add_argument("--densities", type=float, nargs="+", default=[6, 8, 12, 16, 20, 24],
-                    help="node densities of fig7")
+    ap.add_argument(
+        "--score-from",
+        type=float,
+        default=None,
+        help="fig3/fig4: score STVF on t >= this (s), after its start-up transient",
+    )
+    ap.add_argument("--densities", type=float, nargs="+", default=[6, 8, 12, 16, 20, 24], help="node densities of fig7")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=str(ROOT / "out" / "stvf_figures"))
-    ap.add_argument("--replot", action="store_true",
-                    help="redraw the PNGs and tables from the CSVs already in --out (give the same set-up options)")
+    ap.add_argument(
+        "--replot",
+        action="store_true",
+        help="redraw the PNGs and tables from the CSVs already in --out (give the same set-up options)",
+    )
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

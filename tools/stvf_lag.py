@@ -63,8 +63,7 @@ def variants() -> dict[str, tuple[vf.STVFPrior, int]]:
 def fix(refs: np.ndarray, ranges: np.ndarray) -> np.ndarray:
     """Nonlinear least-squares position (m) from ranges, started at the linear multilateration
     (what SLMP computes)."""
-    return least_squares(lambda p: np.linalg.norm(refs - p, axis=1) - ranges,
-                         multilaterate(refs, ranges)).x
+    return least_squares(lambda p: np.linalg.norm(refs - p, axis=1) - ranges, multilaterate(refs, ranges)).x
 
 
 def velocity(t: np.ndarray | float) -> np.ndarray:
@@ -121,9 +120,16 @@ def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[s
     e, lag = stats("stvf")
     its = np.concatenate([r["its"][burn:] for r in runs])
     prop = np.concatenate([r["prop"][burn:] for r in runs])
-    return {"variant": name, "error_m": e, "behind_m": lag, "iterations": float(its.mean()),
-            "within_5": float((its <= 5).mean()), "proposal_std_m": float(np.median(prop)),
-            "ls3_m": stats("ls3")[0], "ls6_m": stats("ls6")[0]}
+    return {
+        "variant": name,
+        "error_m": e,
+        "behind_m": lag,
+        "iterations": float(its.mean()),
+        "within_5": float((its <= 5).mean()),
+        "proposal_std_m": float(np.median(prop)),
+        "ls3_m": stats("ls3")[0],
+        "ls6_m": stats("ls6")[0],
+    }
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -144,8 +150,10 @@ def main(argv: list[str] | None = None) -> None:
     head = f"{'variant':<22}{'error m':>9}{'behind m':>10}{'iters':>7}{'<=5':>6}{'prop std m':>11}"
     print(head + f"{'LS(3) m':>9}{'LS(6) m':>9}")
     for r in rows:
-        print(f"{r['variant']:<22}{r['error_m']:>9.2f}{r['behind_m']:>10.2f}{r['iterations']:>7.1f}"
-              f"{r['within_5']:>6.2f}{r['proposal_std_m']:>11.3f}{r['ls3_m']:>9.2f}{r['ls6_m']:>9.2f}")
+        print(
+            f"{r['variant']:<22}{r['error_m']:>9.2f}{r['behind_m']:>10.2f}{r['iterations']:>7.1f}"
+            f"{r['within_5']:>6.2f}{r['proposal_std_m']:>11.3f}{r['ls3_m']:>9.2f}{r['ls6_m']:>9.2f}"
+        )
 
 
 if __name__ == "__main__":

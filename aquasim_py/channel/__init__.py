@@ -12,7 +12,19 @@ from .raytrace import (
 from .ssp import Constant, Isogradient, Layered, Munk, SoundSpeedProfile, from_ctd, mackenzie
 
 __all__ = [
-    "Constant", "Isogradient", "Layered", "Munk", "SoundSpeedProfile", "from_ctd", "mackenzie",
-    "Eigenray", "PathKind",
-    "eigenray", "reflected_eigenray", "straight_line_time", "travel_time", "travel_time_gradient", "why_no_path",
+    "Constant",
+    "Eigenray",
+    "Isogradient",
+    "Layered",
+    "Munk",
+    "PathKind",
+    "SoundSpeedProfile",
+    "eigenray",
+    "from_ctd",
+    "mackenzie",
+    "reflected_eigenray",
+    "straight_line_time",
+    "travel_time",
+    "travel_time_gradient",
+    "why_no_path",
 ]

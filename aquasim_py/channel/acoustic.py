@@ -50,12 +50,23 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..kernel import Simulation, _NodeCore
     from .ssp import SoundSpeedProfile
 
-__all__ = ["ChannelConfig", "AcousticChannel", "LossModel", "no_snr", "physical_snr", "default_loss_model",
-           "PATH_NAMES"]
+__all__ = [
+    "PATH_NAMES",
+    "AcousticChannel",
+    "ChannelConfig",
+    "LossModel",
+    "default_loss_model",
+    "no_snr",
+    "physical_snr",
+]
 
 #: path kind code -> name in the packets table
-PATH_NAMES = {int(PathKind.NONE): "none", int(PathKind.DIRECT): "direct",
-              int(PathKind.SURFACE): "surface", int(PathKind.BOTTOM): "bottom"}
+PATH_NAMES = {
+    int(PathKind.NONE): "none",
+    int(PathKind.DIRECT): "direct",
+    int(PathKind.SURFACE): "surface",
+    int(PathKind.BOTTOM): "bottom",
+}
 
 _ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver core, packet, tof, path, dst)
 
@@ -132,8 +143,12 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     from . import loss
 
     noise, band = _snr_constants(config)
-    return (np.asarray(config.source_level_db, dtype=float)
-            - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading) - noise - band)
+    return (
+        np.asarray(config.source_level_db, dtype=float)
+        - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading)
+        - noise
+        - band
+    )
 
 
 @lru_cache(maxsize=64)
@@ -153,8 +168,9 @@ def default_loss_model() -> LossModel:
 class AcousticChannel:
     """Delivers packets between the nodes of a :class:`~aquasim_py.kernel.Simulation`."""
 
-    def __init__(self, sim: Simulation, ssp: SoundSpeedProfile, config: ChannelConfig,
-                 loss_model: LossModel | None = None) -> None:
+    def __init__(
+        self, sim: Simulation, ssp: SoundSpeedProfile, config: ChannelConfig, loss_model: LossModel | None = None
+    ) -> None:
         self._sim = sim
         self._env = sim.env
         self.ssp = ssp
@@ -195,8 +211,7 @@ class AcousticChannel:
         env.timeout(start - now).callbacks.append(later)
         return done
 
-    def _start(self, core: _NodeCore, dst: int | None, kind: str, payload: Any, bits: int,
-               duration: float) -> float:
+    def _start(self, core: _NodeCore, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         env = self._env
         t0 = env.now
@@ -239,7 +254,7 @@ class AcousticChannel:
                     log = rcore.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
-                        del log[:bisect_left(log, forget, key=_ARRIVAL)]
+                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 env.timeout(end - t0, sig).callbacks.append(finish)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
@@ -254,13 +269,14 @@ class AcousticChannel:
                     log = rcore.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
-                        del log[:bisect_left(log, forget, key=_ARRIVAL)]
+                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 if intended:
                     env.timeout(end - t0, sig).callbacks.append(finish)
         return tx_local
 
-    def _links(self, src: int, t0: float) -> tuple[frozenset[int], list[tuple[Any, float, str, float]],
-                                                   list[tuple[int, str, float, str, float]]]:
+    def _links(
+        self, src: int, t0: float
+    ) -> tuple[frozenset[int], list[tuple[Any, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
 
         heard: (receiver core, delay s, path name, SNR dB) of signals that reach the receiver;
@@ -299,8 +315,9 @@ class AcousticChannel:
             self._static_links[src] = (n, out)
         return out
 
-    def _arrivals(self, t0: float, p_src: NDArray[np.float64], cand: NDArray[np.intp],
-                  p_rx: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.int8], NDArray[np.float64]]:
+    def _arrivals(
+        self, t0: float, p_src: NDArray[np.float64], cand: NDArray[np.intp], p_rx: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.int8], NDArray[np.float64]]:
         """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point)."""
         ssp = self.ssp
         refl = self.config.reflections
@@ -321,8 +338,15 @@ class AcousticChannel:
                 # answer, and the exact iteration below then stops after one query per receiver.
                 v0 = sim.velocities(t0)[cand[active]]
                 fields["time"][active] = _linear_fixed_point(
-                    ssp, refl, p_src, p_rx[active], v0, fields["time"][active],
-                    fields["arrival_angle"][active], fields["path"][active])
+                    ssp,
+                    refl,
+                    p_src,
+                    p_rx[active],
+                    v0,
+                    fields["time"][active],
+                    fields["arrival_angle"][active],
+                    fields["path"][active],
+                )
             else:
                 fields, active = start
             time = fields["time"]
@@ -373,17 +397,32 @@ class AcousticChannel:
                     if self._destructive:
                         break
                     power += 10.0 ** (e[2] / 10.0)
-            if hit and (self._destructive or
-                        not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
+            if hit and (self._destructive or not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
         if reason is not None:
-            self._row((arr, "drop", reason, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits,
-                       tof, snr, path, math.nan))
+            self._row(
+                (
+                    arr,
+                    "drop",
+                    reason,
+                    rcore.index,
+                    pkt.src,
+                    dst_code,
+                    pkt.uid,
+                    pkt.kind,
+                    pkt.bits,
+                    tof,
+                    snr,
+                    path,
+                    math.nan,
+                )
+            )
             return
         rx_local = rcore.stamp(arr)
         rcore.deliver(Reception(pkt, rx_local, snr))
-        self._row((arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits,
-                   tof, snr, path, rx_local))
+        self._row(
+            (arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local)
+        )
 
     def _prune(self, core: _NodeCore) -> None:
         """Forget own transmissions that can no longer overlap a pending reception.
@@ -399,9 +438,17 @@ class AcousticChannel:
 
 # -- straight-line start of the moving-receiver fixed point -----------------------------------------
 
-def _linear_fixed_point(ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.float64],
-                        p0: NDArray[np.float64], v: NDArray[np.float64], t_start: NDArray[np.float64],
-                        arrival_angle: NDArray[np.float64], path: NDArray[np.int8]) -> NDArray[np.float64]:
+
+def _linear_fixed_point(
+    ssp: SoundSpeedProfile,
+    refl: str,
+    p_src: NDArray[np.float64],
+    p0: NDArray[np.float64],
+    v: NDArray[np.float64],
+    t_start: NDArray[np.float64],
+    arrival_angle: NDArray[np.float64],
+    path: NDArray[np.int8],
+) -> NDArray[np.float64]:
     """Delay t (s) solving t = T(p_src, p0 + v t) for receivers at p0 (m, (k, 3)) moving in
     straight lines at v (m/s), given t_start = T(p_src, p0) and the arrival angle of that ray.
 
@@ -422,9 +469,14 @@ def _linear_fixed_point(ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.flo
     return _secant_fixed_point(_travel_time_fn(ssp, refl, p_src, path), p0, v, t_start, slope)
 
 
-def _constant_start(ssp: Constant, refl: str, p_src: NDArray[np.float64], p_rx: NDArray[np.float64],
-                    moving: NDArray[np.bool_], v: NDArray[np.float64]
-                    ) -> tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None:
+def _constant_start(
+    ssp: Constant,
+    refl: str,
+    p_src: NDArray[np.float64],
+    p_rx: NDArray[np.float64],
+    moving: NDArray[np.bool_],
+    v: NDArray[np.float64],
+) -> tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None:
     """Constant profile: the eigenray fields of the candidates before the exact iteration, and
     the moving receivers to iterate (``active``), without tracing rays to their send-time
     positions: a straight ray exists iff both ends are in the water (the ray tracer's own
@@ -470,8 +522,13 @@ def _constant_moving_root(c: float, d: NDArray[np.float64], v: NDArray[np.float6
     return (dv + np.sqrt(dv * dv + a * np.einsum("ij,ij->i", d, d))) / a
 
 
-def _slope_along(ssp: SoundSpeedProfile, p_src: NDArray[np.float64], p0: NDArray[np.float64],
-                 v: NDArray[np.float64], arrival_angle: NDArray[np.float64]) -> NDArray[np.float64]:
+def _slope_along(
+    ssp: SoundSpeedProfile,
+    p_src: NDArray[np.float64],
+    p0: NDArray[np.float64],
+    v: NDArray[np.float64],
+    arrival_angle: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """d/dt T(p_src, p0 + v t) at t = 0: grad T . v, with grad T the slowness vector at the
     receiver, (cos th e_h + sin th e_z) / c(z) (th the arrival grazing angle, positive down,
     e_h the horizontal direction of travel). 0 where unknown (plain iteration then)."""
@@ -485,21 +542,25 @@ def _slope_along(ssp: SoundSpeedProfile, p_src: NDArray[np.float64], p0: NDArray
     return np.where(np.isfinite(k) & (np.abs(k) < 0.5), k, 0.0)
 
 
-def _travel_time_fn(ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.float64],
-                    path: NDArray[np.int8]) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+def _travel_time_fn(
+    ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.float64], path: NDArray[np.int8]
+) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """The cheapest exact first-arrival time (s) from ``p_src`` to receivers (k, 3) whose current
     arrival has kind ``path``: the isogradient closed form directly when every arrival is the
     direct arc and reflections cannot be earlier, else the full eigenray."""
-    if (isinstance(ssp, Isogradient) and refl in ("none", "fallback")
-            and bool((path == PathKind.DIRECT).all())):
+    if isinstance(ssp, Isogradient) and refl in ("none", "fallback") and bool((path == PathKind.DIRECT).all()):
         b, a, bottom = ssp.surface_speed, ssp.gradient, ssp.bottom
         return lambda dst: isogradient.travel_time(b, a, p_src, dst, bottom=bottom)
     return lambda dst: eigenray(ssp, p_src, dst, reflections=refl).time
 
 
-def _secant_fixed_point(travel: Callable[[NDArray[np.float64]], NDArray[np.float64]],
-                        p0: NDArray[np.float64], v: NDArray[np.float64], t_start: NDArray[np.float64],
-                        slope: NDArray[np.float64]) -> NDArray[np.float64]:
+def _secant_fixed_point(
+    travel: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    p0: NDArray[np.float64],
+    v: NDArray[np.float64],
+    t_start: NDArray[np.float64],
+    slope: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """Fixed point of t = G(t) = travel(p0 + v t) by secant steps on t - G(t), vectorized.
 
     The first secant uses the known point (0, t_start) and ``slope`` = G'(0); later ones the

@@ -34,11 +34,11 @@ from numpy.typing import ArrayLike, NDArray
 from .rays import Eigenray, PathKind
 
 __all__ = [
+    "arc_length",
     "eigenray",
+    "straight_line_time",
     "travel_time",
     "travel_time_gradient",
-    "straight_line_time",
-    "arc_length",
     "turning_depth",
 ]
 
@@ -89,8 +89,9 @@ def _time(a: ArrayLike, D: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatA
         return np.where(aa > 0.0, 2.0 * np.arcsinh(aa * D / (2.0 * g)) / aa, D / g)
 
 
-def _turning(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, S: FloatArray
-             ) -> tuple[FloatArray, NDArray[np.bool_]]:
+def _turning(
+    a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, S: FloatArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Depth of the arc's vertex (eqs 21-22) and whether it lies strictly between the end points.
 
     The vertex is strictly inside the arc iff theta_1 theta_2 < 0, i.e. |dz| S < |a| R^2.
@@ -106,8 +107,16 @@ def _turning(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: F
     return np.where(has, zv, np.nan), has
 
 
-def _blocked(a: ArrayLike, b: ArrayLike, z1: FloatArray, z2: FloatArray, zv: FloatArray | float,
-             c1: FloatArray, c2: FloatArray, bottom: float | None) -> NDArray[np.bool_]:
+def _blocked(
+    a: ArrayLike,
+    b: ArrayLike,
+    z1: FloatArray,
+    z2: FloatArray,
+    zv: FloatArray | float,
+    c1: FloatArray,
+    c2: FloatArray,
+    bottom: float | None,
+) -> NDArray[np.bool_]:
     """True where the direct arc is not in the water column [0, bottom] or the speed is not positive.
 
     ``zv`` is the turning depth (NaN where none; NaN compares False).
@@ -134,8 +143,9 @@ def _blocked(a: ArrayLike, b: ArrayLike, z1: FloatArray, z2: FloatArray, zv: Flo
     return bad
 
 
-def _vertex_if_needed(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray,
-                      c2: FloatArray, bottom: float | None) -> FloatArray | float:
+def _vertex_if_needed(
+    a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, c2: FloatArray, bottom: float | None
+) -> FloatArray | float:
     """Turning depth for the water-column check, skipped (NaN) when it cannot matter: with
     a > 0 the vertex is the deepest point of the arc, so without a bottom it never leaves."""
     if bottom is None and not bool(np.any(np.asarray(a) < 0.0)):
@@ -143,15 +153,14 @@ def _vertex_if_needed(a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArr
     return _turning(a, R2, dz, z1, c1, c1 + c2)[0]
 
 
-def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None
-                ) -> FloatArray:
+def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None) -> FloatArray:
     """Direct-arc travel time (s) from ``src`` to ``dst`` (..., 3) in c = b + a z (eq 13).
 
     NaN where the direct arc would leave the water (above z = 0 or below ``bottom``, m), or
     where the speed is not positive. Exact for equal depths (eq 12), vertical pairs (eq 14),
     a -> 0 and coincident points (t = 0).
     """
-    dx, dy, z1, z2, R2 = _split(src, dst)
+    _dx, _dy, z1, z2, R2 = _split(src, dst)
     dz = z2 - z1
     c1 = b + np.multiply(a, z1)
     c2 = b + np.multiply(a, z2)
@@ -166,14 +175,15 @@ def turning_depth(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) ->
 
     With a > 0 it is the deepest point of the arc, with a < 0 the shallowest.
     """
-    dx, dy, z1, z2, R2 = _split(src, dst)
+    _dx, _dy, z1, z2, R2 = _split(src, dst)
     c1 = b + np.multiply(a, z1)
     c2 = b + np.multiply(a, z2)
     return _turning(a, R2, z2 - z1, z1, c1, c1 + c2)[0]
 
 
-def _angles_length(a: ArrayLike, R2: FloatArray, dz: FloatArray, c1: FloatArray, c2: FloatArray
-                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+def _angles_length(
+    a: ArrayLike, R2: FloatArray, dz: FloatArray, c1: FloatArray, c2: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Launch angle, arrival angle (rad, from horizontal, positive down) and arc length (m, eq 19)."""
     a = np.asarray(a, dtype=float)
     S = c1 + c2
@@ -200,14 +210,13 @@ def _angles_length(a: ArrayLike, R2: FloatArray, dz: FloatArray, c1: FloatArray,
 
 def arc_length(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> FloatArray:
     """Arc length (m) of the direct eigenray (eq 19), without the water-column check."""
-    dx, dy, z1, z2, R2 = _split(src, dst)
+    _dx, _dy, z1, z2, R2 = _split(src, dst)
     c1 = b + np.multiply(a, z1)
     c2 = b + np.multiply(a, z2)
     return _angles_length(a, R2, z2 - z1, c1, c2)[2]
 
 
-def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None
-             ) -> Eigenray:
+def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None) -> Eigenray:
     """Direct eigenray from ``src`` to ``dst`` (..., 3) in c = b + a z (eqs 3-22).
 
     Fields: time (s, eq 13), length (m, eq 19), launch/arrival grazing angles (rad, from the
@@ -217,7 +226,7 @@ def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom:
     angles are NaN; ``turning_depth`` then still reports the offending vertex (why there is no
     direct path).
     """
-    dx, dy, z1, z2, R2 = _split(src, dst)
+    _dx, _dy, z1, z2, R2 = _split(src, dst)
     dz = z2 - z1
     c1 = b + np.multiply(a, z1)
     c2 = b + np.multiply(a, z2)
@@ -238,8 +247,9 @@ def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom:
     )
 
 
-def travel_time_gradient(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike,
-                         bottom: float | None = None) -> FloatArray:
+def travel_time_gradient(
+    b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None
+) -> FloatArray:
     """d t / d dst (s/m), shape (..., 3): exact derivative of eq 13 (what eqs 15-18 compute).
 
     Equals the slowness vector at the receiver, (cos(theta_2) e_h, sin(theta_2)) / c2.
@@ -271,7 +281,7 @@ def straight_line_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLik
     (eq 24); evaluated as (D / c1) log1p(d) / d with d = a dz / c1, so equal depths give D / c(z)
     and a = 0 gives D / b exactly.
     """
-    dx, dy, z1, z2, R2 = _split(src, dst)
+    _dx, _dy, z1, z2, R2 = _split(src, dst)
     dz = z2 - z1
     c1 = b + np.multiply(a, z1)
     D = np.sqrt(R2 + dz * dz)

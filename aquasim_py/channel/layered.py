@@ -40,17 +40,17 @@ from .rays import Eigenray, PathKind
 from .ssp import Layered
 
 __all__ = [
-    "eigenray",
-    "travel_time",
-    "travel_time_gradient",
-    "straight_line_time",
-    "why_no_path",
-    "reflected_eigenray",
-    "combine_arrivals",
-    "REASON_SHADOW",
-    "REASON_SURFACE",
     "REASON_BOTTOM",
     "REASON_OUTSIDE",
+    "REASON_SHADOW",
+    "REASON_SURFACE",
+    "combine_arrivals",
+    "eigenray",
+    "reflected_eigenray",
+    "straight_line_time",
+    "travel_time",
+    "travel_time_gradient",
+    "why_no_path",
 ]
 
 Reflections = Literal["none", "fallback", "all"]
@@ -325,8 +325,7 @@ def _turning(inv, c, g, full: bool, deriv: bool = False):
         return x, np.arctanh(w) / ag, np.arctan2(w, s) / (p * ag)
 
 
-def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False,
-            deriv: bool = False):
+def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False, deriv: bool = False):
     """Range X(phi) (NaN where the family has no ray), and when ``full`` also time, arc
     length and turning depth, for invariants p = p_max cos(phi). With ``deriv`` the second
     value is d X / d phi instead."""
@@ -543,8 +542,10 @@ def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
     best.length[same] = 0.0
     best.ang_a[same] = best.ang_b[same] = 0.0
     best.ok[same] = True
-    flat = (za == zb) & (x > 0.0) & (
-        (st.g[geo.ka] == 0.0) | ((za == st.z[geo.ka]) & (geo.ka > 0) & (st.g[np.maximum(geo.ka - 1, 0)] == 0.0))
+    flat = (
+        (za == zb)
+        & (x > 0.0)
+        & ((st.g[geo.ka] == 0.0) | ((za == st.z[geo.ka]) & (geo.ka > 0) & (st.g[np.maximum(geo.ka - 1, 0)] == 0.0)))
     )
     best.time[flat] = x[flat] / geo.ca[flat]
     best.length[flat] = x[flat]
@@ -729,7 +730,9 @@ def eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: R
     return combine_arrivals(parts, reflections)
 
 
-def travel_time(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> NDArray[np.float64]:
+def travel_time(
+    profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback"
+) -> NDArray[np.float64]:
     """First-arrival travel time (s); NaN where there is no path."""
     return eigenray(profile, src, dst, reflections=reflections).time
 
@@ -752,13 +755,17 @@ def slowness_gradient(profile, src: ArrayLike, dst: ArrayLike, ray: Eigenray) ->
     return np.stack([ch * ux, ch * uy, sh], axis=-1)
 
 
-def travel_time_gradient(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> NDArray[np.float64]:
+def travel_time_gradient(
+    profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback"
+) -> NDArray[np.float64]:
     """d travel_time / d dst (s/m), shape (..., 3); NaN where there is no path."""
     ray = eigenray(profile, src, dst, reflections=reflections)
     return slowness_gradient(profile, src, dst, ray)
 
 
-def reflected_eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, boundary: Literal["surface", "bottom"]) -> Eigenray:
+def reflected_eigenray(
+    profile: Layered, src: ArrayLike, dst: ArrayLike, boundary: Literal["surface", "bottom"]
+) -> Eigenray:
     """First arrival with exactly one reflection off ``boundary`` (profile mirrored about it)."""
     shape, s, d, x = _pairs(src, dst)
     st = _stack(profile, _deepest(s, d))
@@ -766,8 +773,9 @@ def reflected_eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, boundar
     return _to_eigenray(_reflected(st, s[:, 2], d[:, 2], x, boundary), kind, shape)
 
 
-def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike, *, assume_no_direct: bool = False
-                ) -> NDArray[np.object_]:
+def why_no_path(
+    profile: Layered, src: ArrayLike, dst: ArrayLike, *, assume_no_direct: bool = False
+) -> NDArray[np.object_]:
     """Why there is no direct eigenray, per pair ("" where there is one): a point outside
     the water; the rays that would connect the points leave the water (only a reflected
     path exists: the reason names the boundary of the earliest one); or a shadow zone.
@@ -785,8 +793,11 @@ def why_no_path(profile: Layered, src: ArrayLike, dst: ArrayLike, *, assume_no_d
         # the direct ray in the profile continued past the boundaries: where does it turn?
         ext, off = st.extended()
         a = _direct(ext, zs[i] + off, zr[i] + off, x[i])
-        out[i] = np.where(a.ok & (a.turn < off), REASON_SURFACE,
-                          np.where(a.ok & (a.turn > st.zmax + off), REASON_BOTTOM, REASON_SHADOW))
+        out[i] = np.where(
+            a.ok & (a.turn < off),
+            REASON_SURFACE,
+            np.where(a.ok & (a.turn > st.zmax + off), REASON_BOTTOM, REASON_SHADOW),
+        )
     return out.reshape(shape)
 
 
@@ -794,7 +805,7 @@ def straight_line_time(profile: Layered, src: ArrayLike, dst: ArrayLike) -> NDAr
     """Straight-ray time (s): distance times the mean slowness over the depth interval,
     t = |d - s| / |dz| * integral dz / c(z) (Ramezani et al., eq 23, layer by layer);
     1 / c(z) when both depths are equal."""
-    shape, s, d, x = _pairs(src, dst)
+    shape, s, d, _x = _pairs(src, dst)
     st = _stack(profile, _deepest(s, d))
     z1 = np.minimum(s[:, 2], d[:, 2])
     z2 = np.maximum(s[:, 2], d[:, 2])

@@ -16,17 +16,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "thorp_absorption_db_per_km",
-    "spreading_loss_db",
-    "path_loss_db",
-    "noise_turbulence_db",
-    "noise_shipping_db",
-    "noise_wind_db",
-    "noise_thermal_db",
     "noise_psd_db",
+    "noise_shipping_db",
+    "noise_thermal_db",
+    "noise_turbulence_db",
+    "noise_wind_db",
+    "path_loss_db",
     "snr_db",
-    "tof_noise_variance_s2",
+    "spreading_loss_db",
+    "thorp_absorption_db_per_km",
     "tof_noise_variance_derivative_s2_per_m",
+    "tof_noise_variance_s2",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -76,8 +76,11 @@ def path_loss_db(
     coefficient at ``f_khz`` unless ``absorption_db_per_km`` is given (the paper's Fig. 5 uses
     1 dB/km). As in eq 35 the absorption acts over l - l0, so A(l0, f) = 0 dB.
     """
-    alpha = thorp_absorption_db_per_km(f_khz) if absorption_db_per_km is None else np.asarray(
-        absorption_db_per_km, dtype=float)
+    alpha = (
+        thorp_absorption_db_per_km(f_khz)
+        if absorption_db_per_km is None
+        else np.asarray(absorption_db_per_km, dtype=float)
+    )
     length = np.asarray(length_m, dtype=float)
     return spreading_loss_db(length, k, l0_m) + (length - l0_m) * 1e-3 * alpha
 
@@ -114,8 +117,12 @@ def noise_thermal_db(f_khz: ArrayLike) -> FloatArray:
 
 def noise_psd_db(f_khz: ArrayLike, shipping: float = 0.5, wind_mps: float = 0.0) -> FloatArray:
     """Total ambient noise PSD (dB re 1 uPa^2/Hz): power sum of the four components."""
-    parts = (noise_turbulence_db(f_khz), noise_shipping_db(f_khz, shipping),
-             noise_wind_db(f_khz, wind_mps), noise_thermal_db(f_khz))
+    parts = (
+        noise_turbulence_db(f_khz),
+        noise_shipping_db(f_khz, shipping),
+        noise_wind_db(f_khz, wind_mps),
+        noise_thermal_db(f_khz),
+    )
     return 10.0 * np.log10(sum(10.0 ** (p / 10.0) for p in parts))
 
 
@@ -138,8 +145,12 @@ def snr_db(
     bw = np.asarray(bandwidth_hz, dtype=float)
     if np.any(~(bw > 0.0)):
         raise ValueError("bandwidth must be positive (Hz)")
-    return (np.asarray(source_level_db, dtype=float) - path_loss_db(length_m, f_khz, k, l0_m)
-            - noise_psd_db(f_khz, shipping, wind_mps) - 10.0 * np.log10(bw))
+    return (
+        np.asarray(source_level_db, dtype=float)
+        - path_loss_db(length_m, f_khz, k, l0_m)
+        - noise_psd_db(f_khz, shipping, wind_mps)
+        - 10.0 * np.log10(bw)
+    )
 
 
 def _absorption_per_m_ln(f_khz: ArrayLike | None, absorption_db_per_km: ArrayLike | None) -> FloatArray:

@@ -8,7 +8,7 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PathKind", "Eigenray"]
+__all__ = ["Eigenray", "PathKind"]
 
 
 class PathKind(IntEnum):

@@ -25,11 +25,11 @@ from .rays import Eigenray, PathKind
 from .ssp import Constant, Isogradient, SoundSpeedProfile
 
 __all__ = [
-    "travel_time",
-    "travel_time_gradient",
     "eigenray",
     "reflected_eigenray",
     "straight_line_time",
+    "travel_time",
+    "travel_time_gradient",
     "why_no_path",
 ]
 
@@ -75,15 +75,18 @@ def _constant_direct(ssp: Constant, s: NDArray[np.float64], d: NDArray[np.float6
     )
 
 
-def reflected_eigenray(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike,
-                       boundary: Literal["surface", "bottom"]) -> Eigenray:
+def reflected_eigenray(
+    ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, boundary: Literal["surface", "bottom"]
+) -> Eigenray:
     """First arrival with one reflection off ``boundary`` ("surface" or "bottom"): the direct
     eigenray of the profile mirrored about that boundary, to the receiver's image."""
     s, d = _pairs(src, dst)
     return layered.reflected_eigenray(ssp.to_layered(), s, d, boundary)
 
 
-def eigenray(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> Eigenray:
+def eigenray(
+    ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback"
+) -> Eigenray:
     """First-arrival eigenray from ``src`` to ``dst`` (..., 3): time (s), arc length (m, eq 19),
     launch / arrival grazing angles (rad, positive down), turning depth (m, NaN if none,
     eqs 21-22) and ``path`` (:class:`PathKind`). NaN / ``PathKind.NONE`` where no path."""
@@ -107,7 +110,9 @@ def eigenray(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflecti
         if name == "bottom" and ssp.bottom is None:
             continue
         r = layered.reflected_eigenray(lay, s[need], d[need], name)
-        full = {f: np.full(need.shape, np.nan) for f in ("time", "length", "launch_angle", "arrival_angle", "turning_depth")}
+        full = {
+            f: np.full(need.shape, np.nan) for f in ("time", "length", "launch_angle", "arrival_angle", "turning_depth")
+        }
         for f in full:
             full[f][need] = getattr(r, f)
         path = np.full(need.shape, np.int8(PathKind.NONE), dtype=np.int8)
@@ -116,7 +121,9 @@ def eigenray(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflecti
     return layered.combine_arrivals(parts, reflections)
 
 
-def travel_time(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback") -> NDArray[np.float64]:
+def travel_time(
+    ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback"
+) -> NDArray[np.float64]:
     """First-arrival travel time (s) from ``src`` to ``dst`` (..., 3); NaN where no path."""
     _check_mode(reflections)
     s, d = _pairs(src, dst)
@@ -127,8 +134,9 @@ def travel_time(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, refle
     return eigenray(ssp, s, d, reflections=reflections).time
 
 
-def travel_time_gradient(ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *,
-                         reflections: Reflections = "fallback") -> NDArray[np.float64]:
+def travel_time_gradient(
+    ssp: SoundSpeedProfile, src: ArrayLike, dst: ArrayLike, *, reflections: Reflections = "fallback"
+) -> NDArray[np.float64]:
     """d travel_time / d dst (s/m), shape (..., 3); NaN where no path.
 
     Isogradient direct paths: the exact derivative of eq 13 (eqs 15-18). Every other arrival:

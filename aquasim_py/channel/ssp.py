@@ -21,13 +21,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "SoundSpeedProfile",
     "Constant",
     "Isogradient",
     "Layered",
     "Munk",
-    "mackenzie",
+    "SoundSpeedProfile",
     "from_ctd",
+    "mackenzie",
 ]
 
 
@@ -106,9 +106,7 @@ class Isogradient(SoundSpeedProfile):
             raise ValueError(f"Isogradient: surface_speed must be positive, got {b!r}")
         bottom = _check_bottom(self.bottom)
         if a < 0.0 and bottom is not None and b + a * bottom <= 0.0:
-            raise ValueError(
-                f"Isogradient: speed b + a*z becomes non-positive above the bottom ({bottom} m)"
-            )
+            raise ValueError(f"Isogradient: speed b + a*z becomes non-positive above the bottom ({bottom} m)")
         object.__setattr__(self, "surface_speed", b)
         object.__setattr__(self, "gradient", a)
         object.__setattr__(self, "bottom", bottom)
@@ -124,8 +122,7 @@ class Isogradient(SoundSpeedProfile):
             zmax = 0.99 * self.surface_speed / -self.gradient
         else:
             zmax = 1.0e4
-        return Layered([0.0, zmax], [self.surface_speed, self.surface_speed + self.gradient * zmax],
-                       bottom=self.bottom)
+        return Layered([0.0, zmax], [self.surface_speed, self.surface_speed + self.gradient * zmax], bottom=self.bottom)
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,9 +16,9 @@ from ._linalg import spd_inverse, symmetrize
 from .errors import DegenerateGeometryError, SingularMatrixError
 
 __all__ = [
-    "fisher_information",
     "crb",
     "crb_trace",
+    "fisher_information",
     "measurement_information",
     "pcrb_information",
     "pcrb_position",

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "EstimationError",
     "DegenerateGeometryError",
+    "EstimationError",
     "InsufficientMeasurementsError",
     "SingularMatrixError",
 ]

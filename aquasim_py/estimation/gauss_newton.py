@@ -12,8 +12,8 @@ Estimation does not import the channel: the caller passes the functions in.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import scipy.optimize as sopt
@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, EstimationError, InsufficientMeasurementsError
 
-__all__ = ["GNResult", "gauss_newton", "gauss_newton_batch", "tof_model", "constant_speed_tof"]
+__all__ = ["GNResult", "constant_speed_tof", "gauss_newton", "gauss_newton_batch", "tof_model"]
 
 Array = NDArray[np.float64]
 ResidualFn = Callable[[Array], tuple[Array, Array]]
@@ -145,8 +145,9 @@ def gauss_newton(
             return cache["last"][1]
 
         try:
-            sol = sopt.least_squares(res, xb, jac=jac, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                                     max_nfev=200 * (x.size + 1))
+            sol = sopt.least_squares(
+                res, xb, jac=jac, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200 * (x.size + 1)
+            )
             lm_ok = bool(np.all(np.isfinite(sol.x)))
         except (ValueError, np.linalg.LinAlgError):
             lm_ok = False
@@ -186,7 +187,7 @@ def gauss_newton_batch(
     not reach ``tol`` within ``max_iter``.
     """
     X = np.array(X0, dtype=float, ndmin=2)
-    B, n = X.shape
+    B, _n = X.shape
     active = np.ones(B, dtype=bool)
     failed = np.zeros(B, dtype=bool)
     done = np.zeros(B, dtype=bool)

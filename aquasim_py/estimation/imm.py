@@ -22,8 +22,8 @@ model-matched updates, model-probability update and combination.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -77,7 +77,9 @@ class IMM:
                 m = IMMModel(m, np.arange(m.n))
             idx = np.asarray(m.index, dtype=int)
             if idx.size != m.motion.n or np.any(idx < 0) or np.any(idx >= self.n) or np.unique(idx).size != idx.size:
-                raise ValueError(f"model {type(m.motion).__name__}: index must be {m.motion.n} distinct joint indices < {self.n}")
+                raise ValueError(
+                    f"model {type(m.motion).__name__}: index must be {m.motion.n} distinct joint indices < {self.n}"
+                )
             self.models.append(IMMModel(m.motion, idx))
         r = len(self.models)
         if r < 1:
@@ -166,6 +168,7 @@ class IMM:
                 Hj = np.atleast_2d(np.asarray(H, dtype=float))[:, idx]
                 res = kf_update(self.xs[j], self.Ps[j], z, Hj, R)
             else:
+
                 def hj(xj: Array, j: int = j) -> Array:
                     return h(self._embed(j, xj, self.Ps[j])[0])
 

@@ -7,15 +7,15 @@ innovation log-likelihood, which the IMM uses as its model likelihood.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._linalg import cho_factor, cho_solve, symmetrize
 
-__all__ = ["UpdateResult", "kf_predict", "ekf_predict", "kf_update", "ekf_update"]
+__all__ = ["UpdateResult", "ekf_predict", "ekf_update", "kf_predict", "kf_update"]
 
 Array = NDArray[np.float64]
 _LOG_2PI = float(np.log(2.0 * np.pi))

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, InsufficientMeasurementsError
 
-__all__ = ["multilaterate", "tdoa_ls", "TDOAResult"]
+__all__ = ["TDOAResult", "multilaterate", "tdoa_ls"]
 
 Array = NDArray[np.float64]
 
@@ -34,8 +34,7 @@ def _anchors(anchors: ArrayLike) -> Array:
 
 def _solve(M: Array, b: Array, what: str) -> Array:
     if M.shape[0] < M.shape[1]:
-        raise InsufficientMeasurementsError(
-            f"{what}: {M.shape[0]} independent equations for {M.shape[1]} unknowns")
+        raise InsufficientMeasurementsError(f"{what}: {M.shape[0]} independent equations for {M.shape[1]} unknowns")
     # column scaling so that the rank test is not fooled by mixed units (m vs range)
     scale = np.linalg.norm(M, axis=0)
     scale[scale == 0] = 1.0
@@ -43,7 +42,8 @@ def _solve(M: Array, b: Array, what: str) -> Array:
     if rank < M.shape[1] or sv[-1] <= _RCOND * sv[0]:
         raise DegenerateGeometryError(
             f"{what}: the anchor geometry cannot fix the position (linear system of rank "
-            f"{int(np.sum(sv > _RCOND * sv[0]))} < {M.shape[1]}: collinear or coplanar anchors?)")
+            f"{int(np.sum(sv > _RCOND * sv[0]))} < {M.shape[1]}: collinear or coplanar anchors?)"
+        )
     return sol / scale
 
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["MotionModel", "ConstantVelocity", "CoordinatedTurn", "cv_matrices", "cwna_noise"]
+__all__ = ["ConstantVelocity", "CoordinatedTurn", "MotionModel", "cv_matrices", "cwna_noise"]
 
 Array = NDArray[np.float64]
 
@@ -139,8 +139,12 @@ def _turn_coefficients(w: Array, T: float) -> tuple[Array, Array, Array, Array]:
     ds_se = T * T * (-u / 3 + u * u2 / 30 - u * u2**2 / 840 + u * u2**3 / 45360)
     # d/du[(1-cos u)/u] = 1/2 - u^2/8 + u^4/144 - u^6/5760 + u^8/403200
     dc_se = T * T * (0.5 - u2 / 8 + u2**2 / 144 - u2**3 / 5760 + u2**4 / 403200)
-    return (np.where(small, s_se, s_cf), np.where(small, c_se, c_cf),
-            np.where(small, ds_se, ds_cf), np.where(small, dc_se, dc_cf))
+    return (
+        np.where(small, s_se, s_cf),
+        np.where(small, c_se, c_cf),
+        np.where(small, ds_se, ds_cf),
+        np.where(small, dc_se, dc_cf),
+    )
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ informative measurements do not underflow.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,16 +18,16 @@ from scipy.special import logsumexp
 from ._linalg import cho_factor
 
 __all__ = [
-    "propagate",
+    "effective_sample_size",
     "gaussian_log_likelihood",
     "normalize_log_weights",
-    "update_log_weights",
-    "effective_sample_size",
-    "systematic_resample",
-    "residual_resample",
+    "propagate",
     "resample",
-    "weighted_mean",
+    "residual_resample",
+    "systematic_resample",
+    "update_log_weights",
     "weighted_cov",
+    "weighted_mean",
 ]
 
 Array = NDArray[np.float64]

@@ -48,18 +48,18 @@ __all__ = [
     "ClockFit",
     "Exchanges",
     "fit_clock",
-    "round_trip",
-    "split_delays",
-    "regression_points",
-    "itmtl_sync",
     "half_round_trip_sync",
-    "tshl_skew",
-    "tshl_offset",
-    "tshl_sync",
+    "itmtl_sync",
     "mu_sync",
     "neighbour_velocity",
-    "to_true",
+    "regression_points",
+    "round_trip",
+    "split_delays",
     "sync_error",
+    "to_true",
+    "tshl_offset",
+    "tshl_skew",
+    "tshl_sync",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -130,7 +130,9 @@ def sync_error(local: ArrayLike, true: ArrayLike, alpha: float, beta: float) -> 
     return to_true(local, alpha, beta) - np.asarray(true, dtype=float)
 
 
-def fit_clock(t: ArrayLike, T: ArrayLike, w: ArrayLike | None = None, alpha_fixed: float | None = None) -> tuple[float, float]:
+def fit_clock(
+    t: ArrayLike, T: ArrayLike, w: ArrayLike | None = None, alpha_fixed: float | None = None
+) -> tuple[float, float]:
     """Weighted least-squares line ``T = alpha t + beta`` (ITMTL eqs 24-28).
 
     Centred sums avoid the cancellation of the normal equations at large ``t``. With one

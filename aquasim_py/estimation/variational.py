@@ -23,22 +23,22 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "POS",
     "STVFPrior",
     "VariationalResult",
-    "POS",
-    "predict",
-    "initial_prior",
-    "state_moments",
-    "speed_moment",
     "gamma_update",
-    "mean_update",
-    "wishart_update",
-    "variational_update",
+    "initial_prior",
     "localization_confidence",
+    "mean_update",
     "measurement_confidence",
-    "select_references",
-    "promote",
+    "predict",
     "project_delay",
+    "promote",
+    "select_references",
+    "speed_moment",
+    "state_moments",
+    "variational_update",
+    "wishart_update",
 ]
 
 #: indices of (x, y) in the state [x, vx, y, vy]: the paper's selection matrix A.
@@ -114,9 +114,7 @@ def predict(
     """Variational prediction of q(mu_t) (eq 11): mu^p = mu*_{t-1},
     Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions)."""
     mu_p = np.array(mu_prev, dtype=float)
-    cov = np.linalg.inv(np.asarray(mu_precision_prev, float)) + np.linalg.inv(
-        np.asarray(transition, float)
-    )
+    cov = np.linalg.inv(np.asarray(mu_precision_prev, float)) + np.linalg.inv(np.asarray(transition, float))
     return mu_p, _sym(np.linalg.inv(cov))
 
 
@@ -194,7 +192,12 @@ def speed_moment(
 
 
 def gamma_update(
-    shape: float, rate: float, z: ArrayLike, refs: ArrayLike, position: ArrayLike, speed: float,
+    shape: float,
+    rate: float,
+    z: ArrayLike,
+    refs: ArrayLike,
+    position: ArrayLike,
+    speed: float,
     z_scale: float = 1e3,
 ) -> tuple[float, float]:
     """Gamma update of q(zeta) (eq 22): alpha* = alpha + Nr/2,
@@ -217,8 +220,13 @@ def mean_update(
 
 
 def wishart_update(
-    second_moment: ArrayLike, state: ArrayLike, mu: ArrayLike, mu_second_moment: ArrayLike,
-    scale: ArrayLike, *, scale_inv: NDArray[np.float64] | None = None,
+    second_moment: ArrayLike,
+    state: ArrayLike,
+    mu: ArrayLike,
+    mu_second_moment: ArrayLike,
+    scale: ArrayLike,
+    *,
+    scale_inv: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Wishart scale of q(lam_t) (eqs 14, 18):
     W* = (<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1)^-1 (dof n* = n + 1).
@@ -227,8 +235,7 @@ def wishart_update(
     m = np.asarray(mu, float)
     w_inv = np.linalg.inv(np.asarray(scale, float)) if scale_inv is None else scale_inv
     mat = (
-        np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s)
-        + np.asarray(mu_second_moment, float) + w_inv
+        np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s) + np.asarray(mu_second_moment, float) + w_inv
     )
     return _sym(np.linalg.inv(_sym(mat)))
 
@@ -278,14 +285,11 @@ def variational_update(
             eps_s = rng.standard_normal((prior.n_state_samples, 4))
             eps_v = rng.standard_normal(prior.n_speed_samples)
         s1, s2 = state_moments(mu, lam, z, refs, speed, zeta, eps_s, prior.z_scale)
-        speed = speed_moment(
-            s1[POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale
-        )
+        speed = speed_moment(s1[POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale)
         # Parameters from the current expectations, then the expectations (Algorithm 1 order).
         new_mu, mu_prec = mean_update(lam, s1, mu_p, lp)
         w_star = wishart_update(s2, s1, mu, mu_mu, prior.wishart_scale, scale_inv=w_inv)
-        shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed,
-                                   prior.z_scale)
+        shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed, prior.z_scale)
         step = float(np.linalg.norm(new_mu[POS] - mu[POS]))
         mu = new_mu
         mu_mu = np.outer(mu, mu) + np.linalg.inv(mu_prec)
@@ -295,8 +299,17 @@ def variational_update(
             converged = True
             break
     return VariationalResult(
-        state=s1, state_second_moment=s2, mu=mu, mu_precision=mu_prec, lam=lam, speed=speed,
-        zeta=zeta, noise_shape=shape, noise_rate=rate, iterations=it, converged=converged,
+        state=s1,
+        state_second_moment=s2,
+        mu=mu,
+        mu_precision=mu_prec,
+        lam=lam,
+        speed=speed,
+        zeta=zeta,
+        noise_shape=shape,
+        noise_rate=rate,
+        iterations=it,
+        converged=converged,
     )
 
 

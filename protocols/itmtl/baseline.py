@@ -8,15 +8,16 @@ estimates are the raw fixes (the node's position at its Req, logged when the rou
 
 from __future__ import annotations
 
+import contextlib
 from typing import ClassVar
 
 import numpy as np
 
-from aquasim_py.estimation.sync import ClockFit, Exchanges, split_delays
 from aquasim_py.channel.ssp import Constant
+from aquasim_py.estimation.sync import ClockFit, Exchanges, split_delays
 
-from .reqres import ReqResNode, Round
 from .math import DelayModel, multilaterate, position_fix
+from .reqres import ReqResNode, Round
 
 
 class BaselineNode(ReqResNode):
@@ -53,10 +54,8 @@ class BaselineNode(ReqResNode):
         ref_pos = np.array([a.pos for a in ans])
         if len(ans) >= self.params.min_refs:
             S = np.array([(a.T4 - a.T1) / self.alpha - (a.t3 - a.t2) for a in ans])
-            try:
+            with contextlib.suppress(np.linalg.LinAlgError):
                 self.p_est = multilaterate(ref_pos, 0.5 * S * self.params.mean_speed_mps, depth)
-            except np.linalg.LinAlgError:
-                pass
         fit = self.fit()
         self.alpha, self.beta = fit.alpha, fit.beta
         self.synced = True
@@ -70,5 +69,11 @@ class BaselineNode(ReqResNode):
         sel = np.array(self.rounds) == rnd.index
         fx = position_fix(self.model, ref_pos, tau_f[sel], self.p_est, depth=depth)
         self.p_est = fx.position
-        self.log_estimate(*fx.position, confidence=np.nan, is_reference=False, round=rnd.index,
-                          n_refs=len(ans), residual_m=fx.rms_residual * self.params.mean_speed_mps)
+        self.log_estimate(
+            *fx.position,
+            confidence=np.nan,
+            is_reference=False,
+            round=rnd.index,
+            n_refs=len(ans),
+            residual_m=fx.rms_residual * self.params.mean_speed_mps,
+        )

@@ -22,6 +22,7 @@ The clock, regression and baseline maths (generic) live in :mod:`aquasim_py.esti
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,16 +33,16 @@ from aquasim_py.channel import straight_line_time, travel_time, travel_time_grad
 from aquasim_py.channel.ssp import SoundSpeedProfile
 
 __all__ = [
-    "TdoaResult",
-    "tdoa_pivot",
-    "initial_clock",
     "DelayModel",
-    "multilaterate",
     "Fix",
-    "position_fix",
+    "TdoaResult",
     "fix_confidence",
-    "reference_variance",
+    "initial_clock",
+    "multilaterate",
+    "position_fix",
     "promote",
+    "reference_variance",
+    "tdoa_pivot",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -250,10 +251,8 @@ def position_fix(
         p0[2] = depth
     axes = [0, 1] if depth is not None else [0, 1, 2]
     if not model.compensate:
-        try:
+        with contextlib.suppress(np.linalg.LinAlgError):
             p0 = multilaterate(ref, model.mean_speed * tau, depth)
-        except np.linalg.LinAlgError:
-            pass
 
     def full(u: FloatArray) -> FloatArray:
         p = p0.copy()
@@ -269,7 +268,9 @@ def position_fix(
         return sw[:, None] * model.gradients(ref, full(u))[0][:, axes]
 
     # scale: residuals in s, unknowns in m; x_scale keeps the trust region in metres
-    sol = least_squares(res, p0[axes], jac=jac, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=50)
+    sol = least_squares(
+        res, p0[axes], jac=jac, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=50
+    )
     J = jac(sol.x)
     try:
         cov = np.linalg.inv(J.T @ J)

@@ -161,14 +161,18 @@ def round_table(tables: Mapping[str, pd.DataFrame], name: str) -> str:
     pr = per_round(tables, name)
     if len(pr) == 0:
         return f"{name}: no ordinary-node estimates"
-    lines = [f"{name}: ordinary nodes per round (nodes = localized that round; sync over them, 'all' over every ordinary node)",
-             f"{'round':>5} {'nodes':>5} {'promoted':>8} {'sync mean (us)':>15} {'sync p95 (us)':>14} {'loc RMSE (m)':>13} {'sync all (us)':>14}"]
+    lines = [
+        f"{name}: ordinary nodes per round (nodes = localized that round; sync over them, 'all' over every ordinary node)",
+        f"{'round':>5} {'nodes':>5} {'promoted':>8} {'sync mean (us)':>15} {'sync p95 (us)':>14} {'loc RMSE (m)':>13} {'sync all (us)':>14}",
+    ]
     for r, row in pr.iterrows():
         n_nodes = row.get("nodes", 0)
         n_prom = row.get("promoted", 0)
         n_nodes = 0 if not np.isfinite(n_nodes) else int(n_nodes)
         n_prom = 0 if not np.isfinite(n_prom) else int(n_prom)
-        lines.append(f"{int(r):>5} {n_nodes:>5} {n_prom:>8} "
-                     f"{row.get('sync_mean_s', np.nan) * 1e6:>15.2f} {row.get('sync_p95_s', np.nan) * 1e6:>14.2f} "
-                     f"{row.get('loc_rmse_m', np.nan):>13.3f} {row.get('sync_all_mean_s', np.nan) * 1e6:>14.2f}")
+        lines.append(
+            f"{int(r):>5} {n_nodes:>5} {n_prom:>8} "
+            f"{row.get('sync_mean_s', np.nan) * 1e6:>15.2f} {row.get('sync_p95_s', np.nan) * 1e6:>14.2f} "
+            f"{row.get('loc_rmse_m', np.nan):>13.3f} {row.get('sync_all_mean_s', np.nan) * 1e6:>14.2f}"
+        )
     return "\n".join(lines)

@@ -40,7 +40,6 @@ from aquasim_py.estimation.motion import ConstantVelocity, CoordinatedTurn
 from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
 from aquasim_py.registry import register
 
-from .reqres import ReqResNode, ReqResParams, Round
 from .math import (
     DelayModel,
     fix_confidence,
@@ -50,6 +49,7 @@ from .math import (
     promote,
     tdoa_pivot,
 )
+from .reqres import ReqResNode, ReqResParams, Round
 
 __all__ = ["ItmtlNode"]
 
@@ -60,28 +60,44 @@ class ItmtlParams(ReqResParams):
     compensate: bool = Field(True, description="stratification compensation through the ray tracer (False = ITMTL-wsc)")
     imm: bool = Field(True, description="IMM (CV KF + coordinated-turn EKF) filtering of the fixes; False = raw fixes")
     motion_split: bool = Field(True, description="relative-motion split of the round trip (False = half round trip)")
-    motion_mode: Literal["relative", "separate"] = Field("relative", description="Delta from the relative LOS speed (paper) or node/reference motion separately")
-    own_velocity: Literal["track", "sensor", "none"] = Field("track", description="where the node's own velocity comes from")
-    min_skew_span_s: float = Field(20.0, ge=0, description="fit the skew only once the data span this long (s); before, offset only")
+    motion_mode: Literal["relative", "separate"] = Field(
+        "relative", description="Delta from the relative LOS speed (paper) or node/reference motion separately"
+    )
+    own_velocity: Literal["track", "sensor", "none"] = Field(
+        "track", description="where the node's own velocity comes from"
+    )
+    min_skew_span_s: float = Field(
+        20.0, ge=0, description="fit the skew only once the data span this long (s); before, offset only"
+    )
     max_outer_iter: int = Field(4, ge=1, description="phase 2-3 iterations per round")
     outer_tol_m: float = Field(0.01, gt=0, description="stop when the fix moves less (m)")
-    weighted: bool = Field(True, description="weighted least squares: fix by announced position std, regression by time-point variance")
+    weighted: bool = Field(
+        True, description="weighted least squares: fix by announced position std, regression by time-point variance"
+    )
     residual_scale_m: float = Field(5.0, gt=0, description="range residual that drives confidence to 0 (m)")
     promotion: bool = Field(True, description="promote confident ordinary nodes to references")
     promote_threshold: float = Field(0.9, ge=0, le=1, description="confidence needed for promotion")
-    ref_max_std_m: float = Field(3.0, gt=0, description="a promoted node answers only while its position std stays below this (m)")
+    ref_max_std_m: float = Field(
+        3.0, gt=0, description="a promoted node answers only while its position std stays below this (m)"
+    )
     promote_min_rounds: int = Field(3, ge=1, description="consecutive confident rounds before promotion")
     imm_q_cv: float = Field(1e-3, gt=0, description="CV acceleration noise density (m^2/s^3)")
     imm_q_ct: float = Field(1e-3, gt=0, description="CT acceleration noise density (m^2/s^3)")
     imm_q_turn: float = Field(1e-6, gt=0, description="CT turn-rate noise density (rad^2/s^3)")
     imm_switch: float = Field(0.05, gt=0, lt=1, description="IMM mode switching probability per round")
     max_coast_rounds: int = Field(2, ge=0, description="rounds without a fix after which the track is dropped from use")
-    speed_prior_mps: float = Field(1.5, gt=0, description="velocity std per axis when the node's velocity is unknown (m/s)")
-    ref_time_weight: float = Field(1.0, ge=0, description="factor on the reference's announced time variance in the regression weights")
+    speed_prior_mps: float = Field(
+        1.5, gt=0, description="velocity std per axis when the node's velocity is unknown (m/s)"
+    )
+    ref_time_weight: float = Field(
+        1.0, ge=0, description="factor on the reference's announced time variance in the regression weights"
+    )
     gate_chi2: float = Field(13.8, gt=0, description="innovation gate (chi-square, 2 dof; 13.8 = 99.9 %)")
     gate_floor_m: float = Field(20.0, ge=0, description="std added to the gate's innovation covariance (m)")
     fix_max_std_m: float = Field(20.0, gt=0, description="fixes less determined than this are not used (m)")
-    max_speed_mps: float = Field(5.0, gt=0, description="a track faster than this is not used for the motion split (m/s)")
+    max_speed_mps: float = Field(
+        5.0, gt=0, description="a track faster than this is not used for the motion split (m/s)"
+    )
     fix_std_floor_m: float = Field(0.5, gt=0, description="floor of the fix noise std fed to the IMM (m)")
 
 
@@ -154,13 +170,15 @@ class ItmtlNode(ReqResNode):
         if not self.params.motion_split:
             return np.zeros(n), np.zeros(n)
         pos = np.array([self._round_pos.get(r, np.full(3, np.nan)) for r in self._ex_round])
-        vel = np.array([self._round_vel.get(r) if self._round_vel.get(r) is not None else np.zeros(3)
-                        for r in self._ex_round])
+        vel = np.array(
+            [self._round_vel.get(r) if self._round_vel.get(r) is not None else np.zeros(3) for r in self._ex_round]
+        )
         ok = np.all(np.isfinite(pos), axis=1)
         kn, kr = np.zeros(n), np.zeros(n)
         if ok.any():
-            a, b = self.model.motion_rates(np.array(self._ref_pos)[ok], pos[ok], vel[ok],
-                                           np.array(self._ref_vel)[ok], self.params.motion_mode)
+            a, b = self.model.motion_rates(
+                np.array(self._ref_pos)[ok], pos[ok], vel[ok], np.array(self._ref_vel)[ok], self.params.motion_mode
+            )
             kn[ok], kr[ok] = a, b
         return kn, kr
 
@@ -256,7 +274,11 @@ class ItmtlNode(ReqResNode):
         tau_f, _ = split_delays(ex, self.alpha)
         alt = position_fix(self.model, ref_pos, tau_f[sel], np.append(mirror, depth), depth=depth)
         apart = np.linalg.norm(alt.position - fix.position) > 2.0 * self.params.residual_scale_m
-        return bool(apart and alt.rms_residual <= 2.0 * fix.rms_residual + self.params.residual_scale_m / self.params.mean_speed_mps / 5)
+        return bool(
+            apart
+            and alt.rms_residual
+            <= 2.0 * fix.rms_residual + self.params.residual_scale_m / self.params.mean_speed_mps / 5
+        )
 
     def _imm_step(self, t1: float, fix: np.ndarray | None, R: np.ndarray | None) -> None:
         """Predict the IMM to true time t1 and (if a fix came) update it."""
@@ -265,11 +287,12 @@ class ItmtlNode(ReqResNode):
             if fix is None:
                 return
             x0 = np.array([fix[0], fix[1], 0.0, 0.0, 0.0])
-            P0 = np.diag([R[0, 0], R[1, 1], 1.0, 1.0, 0.01 ** 2])
+            P0 = np.diag([R[0, 0], R[1, 1], 1.0, 1.0, 0.01**2])
             P0[:2, :2] = R
             Pi = np.array([[1 - p.imm_switch, p.imm_switch], [p.imm_switch, 1 - p.imm_switch]])
-            self.imm_filter = IMM([ConstantVelocity(2, 1.0, p.imm_q_cv), CoordinatedTurn(2, 1.0, p.imm_q_ct, p.imm_q_turn)],
-                                  Pi, x0, P0)
+            self.imm_filter = IMM(
+                [ConstantVelocity(2, 1.0, p.imm_q_cv), CoordinatedTurn(2, 1.0, p.imm_q_ct, p.imm_q_turn)], Pi, x0, P0
+            )
             self._imm_t = t1
             return
         f = self.imm_filter
@@ -353,8 +376,14 @@ class ItmtlNode(ReqResNode):
             ex = self._exchanges(*self._rates())
             sel = np.array(self._ex_round) == r
             tau_f, _ = split_delays(ex, self.alpha)
-            fix = position_fix(self.model, ref_pos, tau_f[sel], rough, depth=depth,
-                               weights=1.0 / (p.fix_std_floor_m**2 + ref_pstd**2) if p.weighted else None)
+            fix = position_fix(
+                self.model,
+                ref_pos,
+                tau_f[sel],
+                rough,
+                depth=depth,
+                weights=1.0 / (p.fix_std_floor_m**2 + ref_pstd**2) if p.weighted else None,
+            )
             moved = float(np.linalg.norm(fix.position - rough))
             rough = fix.position
             self._round_pos[r] = rough
@@ -445,13 +474,28 @@ class ItmtlNode(ReqResNode):
         self.conf_hist.append(conf)
         if self.is_reference and not self.is_anchor and self.position_std() > p.ref_max_std_m:
             self.is_reference = False  # demoted: its position is no longer good enough to share
-        if p.promotion and not self.is_reference and not lost and self.position_std() <= p.ref_max_std_m and promote(self.conf_hist, p.promote_threshold, p.promote_min_rounds):
+        if (
+            p.promotion
+            and not self.is_reference
+            and not lost
+            and self.position_std() <= p.ref_max_std_m
+            and promote(self.conf_hist, p.promote_threshold, p.promote_min_rounds)
+        ):
             self.is_reference = True
 
         now = self.ref_time(self.local_time())
         pos_now = self.estimated_position_at(now)
         self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
         if not lost:
-            self.log_estimate(pos_now[0], pos_now[1], depth, confidence=conf, is_reference=self.is_reference,
-                              round=r, n_refs=len(ans), residual_m=res_m, fixed=fix is not None,
-                              promoted_refs=int(sum(a.conf < 1.0 for a in ans)))
+            self.log_estimate(
+                pos_now[0],
+                pos_now[1],
+                depth,
+                confidence=conf,
+                is_reference=self.is_reference,
+                round=r,
+                n_refs=len(ans),
+                residual_m=res_m,
+                fixed=fix is not None,
+                promoted_refs=int(sum(a.conf < 1.0 for a in ans)),
+            )

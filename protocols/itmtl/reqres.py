@@ -54,7 +54,9 @@ class ReqResParams(BaseModel):
     mean_speed_mps: float = Field(1500.0, gt=0, description="sound speed of straight-line models (m/s)")
     ssp_depths_m: list[float] = Field(default_factory=list, description="depths of the node's sound-speed profile (m)")
     ssp_speeds_mps: list[float] = Field(default_factory=list, description="speeds at those depths (m/s)")
-    velocity_sensor_std_mps: float = Field(0.02, ge=0, description="assumed std of a velocity sensor reading, per axis (m/s)")
+    velocity_sensor_std_mps: float = Field(
+        0.02, ge=0, description="assumed std of a velocity sensor reading, per axis (m/s)"
+    )
     stamp_std_s: float = Field(2e-5, gt=0, description="assumed MAC timestamp precision (s)")
 
 
@@ -186,18 +188,36 @@ class ReqResNode(Node):
             pkt = rec.packet
             if pkt.kind == REQ and self.answers_requests():
                 hold = p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
-                self._replies.append((rec.rx_local + hold, pkt.src, {
-                    "round": pkt.payload["round"], "T2_local": rec.rx_local,
-                }))
-            elif pkt.kind == RES and current is not None and pkt.dst == self.id \
-                    and pkt.payload["round"] == current.index:
+                self._replies.append(
+                    (
+                        rec.rx_local + hold,
+                        pkt.src,
+                        {
+                            "round": pkt.payload["round"],
+                            "T2_local": rec.rx_local,
+                        },
+                    )
+                )
+            elif (
+                pkt.kind == RES and current is not None and pkt.dst == self.id and pkt.payload["round"] == current.index
+            ):
                 pl = pkt.payload
                 a_ref, b_ref = pl["clock"]
-                current.answers.append(Answer(
-                    pkt.src, current.T1, pl["t2"], (pkt.tx_local - b_ref) / a_ref, rec.rx_local,
-                    np.asarray(pl["pos"], float), np.asarray(pl["vel"], float), float(pl["conf"]),
-                    float(pl["pos_std"]), float(pl["vel_std"]), float(pl["time_std"]),
-                ))
+                current.answers.append(
+                    Answer(
+                        pkt.src,
+                        current.T1,
+                        pl["t2"],
+                        (pkt.tx_local - b_ref) / a_ref,
+                        rec.rx_local,
+                        np.asarray(pl["pos"], float),
+                        np.asarray(pl["vel"], float),
+                        float(pl["conf"]),
+                        float(pl["pos_std"]),
+                        float(pl["vel_std"]),
+                        float(pl["time_std"]),
+                    )
+                )
 
     def answers_requests(self) -> bool:
         return self.is_reference
@@ -217,10 +237,17 @@ class ReqResNode(Node):
             # t3 is the frame's own MAC transmit stamp (``Packet.tx_local``, set by the modem as
             # the first bit leaves); the frame carries the clock model that turns it into
             # reference time (identity for buoys and anchors).
-            payload = {"round": info["round"], "t2": t2, "clock": (self.alpha, self.beta),
-                       "pos": tuple(map(float, pos)), "vel": tuple(map(float, vel)),
-                       "conf": float(self.confidence), "pos_std": self.position_std(),
-                       "vel_std": self.velocity_std(), "time_std": self.time_std(t2)}
+            payload = {
+                "round": info["round"],
+                "t2": t2,
+                "clock": (self.alpha, self.beta),
+                "pos": tuple(map(float, pos)),
+                "vel": tuple(map(float, vel)),
+                "conf": float(self.confidence),
+                "pos_std": self.position_std(),
+                "vel_std": self.velocity_std(),
+                "time_std": self.time_std(t2),
+            }
             yield self.send(dst, RES, payload, self.params.res_bits)
 
     # -- subclasses -------------------------------------------------------------------------------

@@ -15,9 +15,9 @@ of the ray from the anchor (source) to the target (receiver), so d t / d x is th
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -36,10 +36,25 @@ from aquasim_py.estimation import (
 )
 
 __all__ = [
-    "PAPER_B", "PAPER_A", "CUBE_VERTICES", "TETRAHEDRON",
-    "v_bar", "essp_model", "assp_model", "tof_functions",
-    "paper_transition", "simulate_trajectories", "batched_ekf", "EKFRun",
-    "fix_crb", "fix_crb_ddn", "ddn_variance", "pcrb_along", "localize_batch", "TrackingMC", "tracking_monte_carlo",
+    "CUBE_VERTICES",
+    "PAPER_A",
+    "PAPER_B",
+    "TETRAHEDRON",
+    "EKFRun",
+    "TrackingMC",
+    "assp_model",
+    "batched_ekf",
+    "ddn_variance",
+    "essp_model",
+    "fix_crb",
+    "fix_crb_ddn",
+    "localize_batch",
+    "paper_transition",
+    "pcrb_along",
+    "simulate_trajectories",
+    "tof_functions",
+    "tracking_monte_carlo",
+    "v_bar",
 ]
 
 Array = NDArray[np.float64]
@@ -50,10 +65,18 @@ PAPER_B, PAPER_A = 1480.0, 0.1
 #: the eight vertices of the paper's 100 m cube; the first four form the regular tetrahedron
 #: (the non-coplanar choice of four whose centroid is the paper's [50, 50, 50]); Fig. 14 adds
 #: the others one by one
-CUBE_VERTICES = np.array([
-    [0.0, 0.0, 0.0], [100.0, 100.0, 0.0], [100.0, 0.0, 100.0], [0.0, 100.0, 100.0],
-    [100.0, 0.0, 0.0], [0.0, 100.0, 0.0], [0.0, 0.0, 100.0], [100.0, 100.0, 100.0],
-])
+CUBE_VERTICES = np.array(
+    [
+        [0.0, 0.0, 0.0],
+        [100.0, 100.0, 0.0],
+        [100.0, 0.0, 100.0],
+        [0.0, 100.0, 100.0],
+        [100.0, 0.0, 0.0],
+        [0.0, 100.0, 0.0],
+        [0.0, 0.0, 100.0],
+        [100.0, 100.0, 100.0],
+    ]
+)
 TETRAHEDRON = CUBE_VERTICES[:4]
 
 
@@ -76,8 +99,7 @@ def essp_model(b: float, a: float, *, continued: bool = False) -> tuple[TofFn, T
     if continued:
         return partial(_continued_time, b, a), partial(_continued_grad, b, a)
     ssp = Isogradient(b, a)
-    return (partial(travel_time, ssp, reflections="none"),
-            partial(travel_time_gradient, ssp, reflections="none"))
+    return (partial(travel_time, ssp, reflections="none"), partial(travel_time_gradient, ssp, reflections="none"))
 
 
 def _continued_parts(b: float, a: float, src: Array, dst: Array) -> tuple[Array, ...]:
@@ -115,8 +137,9 @@ def assp_model(b: float, a: float, anchors: ArrayLike) -> tuple[TofFn, TofFn]:
     return constant_speed_tof(v_bar(b, a, anchors))
 
 
-def tof_functions(model: str, b: float, a: float, anchors: ArrayLike, *, continued: bool = False
-                  ) -> tuple[TofFn, TofFn]:
+def tof_functions(
+    model: str, b: float, a: float, anchors: ArrayLike, *, continued: bool = False
+) -> tuple[TofFn, TofFn]:
     """The ToF model by name: ``"essp"`` (exact SSP; ``continued`` as in :func:`essp_model`) or
     ``"assp"`` (average speed)."""
     if model == "essp":
@@ -127,8 +150,9 @@ def tof_functions(model: str, b: float, a: float, anchors: ArrayLike, *, continu
 
 
 # --------------------------------------------------------------------------- localization
-def fix_crb(anchors: ArrayLike, x: ArrayLike, b: float, a: float, sigma_t: float,
-            sigma_z: float | None = None) -> Array:
+def fix_crb(
+    anchors: ArrayLike, x: ArrayLike, b: float, a: float, sigma_t: float, sigma_z: float | None = None
+) -> Array:
     """CRB (m^2, trace of I^-1, eqs 30-33) of one fix at true positions x (..., 3) with
     distance-independent ToF noise ``sigma_t`` (s) and, if given, a depth measurement of std
     ``sigma_z`` (m, eq 37). The gradient is the exact isogradient one (eqs 15-18)."""
@@ -143,8 +167,18 @@ def fix_crb(anchors: ArrayLike, x: ArrayLike, b: float, a: float, sigma_t: float
     return crb_trace(J, var)
 
 
-def ddn_variance(anchors: ArrayLike, x: ArrayLike, b: float, a: float, k_e_s2: float, *, l0_m: float = 1000.0,
-                 beta: float = 2.0, absorption_db_per_km: float = 1.0, step_m: float = 1e-3) -> tuple[Array, Array]:
+def ddn_variance(
+    anchors: ArrayLike,
+    x: ArrayLike,
+    b: float,
+    a: float,
+    k_e_s2: float,
+    *,
+    l0_m: float = 1000.0,
+    beta: float = 2.0,
+    absorption_db_per_km: float = 1.0,
+    step_m: float = 1e-3,
+) -> tuple[Array, Array]:
     """Distance-dependent ToF noise (eqs 34-36) at true positions x (..., 3): the variance
     (..., N) s^2 of each anchor's ToF from the direct arc's length l (eq 19), and its gradient
     d sigma^2 / dx (..., N, 3) = d sigma^2 / dl * dl / dx (eq 36). dl/dx by central differences
@@ -159,8 +193,9 @@ def ddn_variance(anchors: ArrayLike, x: ArrayLike, b: float, a: float, k_e_s2: f
     kw = dict(k=beta, l0_m=l0_m, absorption_db_per_km=absorption_db_per_km)
     var = tof_noise_variance_s2(length, k_e_s2, **kw)
     e = np.eye(3) * step_m
-    dl = np.stack([(arc_length(b, a, A, x + e[i]) - arc_length(b, a, A, x - e[i])) / (2 * step_m)
-                   for i in range(3)], axis=-1)
+    dl = np.stack(
+        [(arc_length(b, a, A, x + e[i]) - arc_length(b, a, A, x - e[i])) / (2 * step_m) for i in range(3)], axis=-1
+    )
     dvar = tof_noise_variance_derivative_s2_per_m(length, k_e_s2, **kw)[..., None] * dl
     return var, dvar
 
@@ -174,9 +209,20 @@ def fix_crb_ddn(anchors: ArrayLike, x: ArrayLike, b: float, a: float, k_e_s2: fl
     return crb_trace(grad(A, x[..., None, :]), var, dvar)
 
 
-def localize_batch(anchors: ArrayLike, tofs: ArrayLike, time_fn: TofFn, grad_fn: TofFn, sigma_t: float,
-                   x0: ArrayLike, *, depth: ArrayLike | None = None, sigma_z: float | None = None,
-                   max_iter: int = 7, tol: float = 1e-3, rescue: bool = True) -> tuple[Array, Array, Array]:
+def localize_batch(
+    anchors: ArrayLike,
+    tofs: ArrayLike,
+    time_fn: TofFn,
+    grad_fn: TofFn,
+    sigma_t: float,
+    x0: ArrayLike,
+    *,
+    depth: ArrayLike | None = None,
+    sigma_z: float | None = None,
+    max_iter: int = 7,
+    tol: float = 1e-3,
+    rescue: bool = True,
+) -> tuple[Array, Array, Array]:
     """Algorithm 1 (K = ``max_iter``, eps = ``tol``) on B draws at once, ToFs (B, N) in s.
 
     Rows where the plain algorithm fails (an iterate leaves the model's domain, e.g. above the
@@ -195,8 +241,9 @@ def localize_batch(anchors: ArrayLike, tofs: ArrayLike, time_fn: TofFn, grad_fn:
         zd = None if depth is None else np.broadcast_to(np.asarray(depth, dtype=float), (B,))
         # a loop only over the failed rows (a few per cent): the robust solver is sequential
         for i in np.flatnonzero(~ok):
-            f1 = tof_model(anchors, t[i], time_fn, grad_fn, sigma=sigma_t,
-                           depth=None if zd is None else zd[i], sigma_depth=sigma_z)
+            f1 = tof_model(
+                anchors, t[i], time_fn, grad_fn, sigma=sigma_t, depth=None if zd is None else zd[i], sigma_depth=sigma_z
+            )
             try:
                 X[i] = gauss_newton(f1, X0[i], max_iter, tol).x
                 rescued[i] = True
@@ -216,9 +263,18 @@ def paper_transition(Ts: float, q_xy: float = 1e-2, q_z: float = 1e-3) -> tuple[
     return Phi, Q
 
 
-def simulate_trajectories(rng: np.random.Generator, n: int, K: int, x0: ArrayLike, v0: ArrayLike = (0.0, 0.0, 0.0),
-                          *, Ts: float = 10.0, q_xy: float = 1e-2, q_z: float = 1e-3,
-                          z_max: float | None = None) -> tuple[Array, float]:
+def simulate_trajectories(
+    rng: np.random.Generator,
+    n: int,
+    K: int,
+    x0: ArrayLike,
+    v0: ArrayLike = (0.0, 0.0, 0.0),
+    *,
+    Ts: float = 10.0,
+    q_xy: float = 1e-2,
+    q_z: float = 1e-3,
+    z_max: float | None = None,
+) -> tuple[Array, float]:
     """n true state sequences s_0..s_K (n, K+1, 6) of s_k = Phi s_{k-1} + w_k (eq 38).
 
     The linear model lets a depth random walk leave the water (its std after 500 frames is
@@ -232,8 +288,9 @@ def simulate_trajectories(rng: np.random.Generator, n: int, K: int, x0: ArrayLik
     while out.shape[0] < n:
         m = max(2 * (n - out.shape[0]), 16)
         w = rng.standard_normal((m, K, 3)) * std
-        v = np.concatenate([np.broadcast_to(np.asarray(v0, float), (m, 1, 3)),
-                            np.asarray(v0, float) + np.cumsum(w, axis=1)], axis=1)
+        v = np.concatenate(
+            [np.broadcast_to(np.asarray(v0, float), (m, 1, 3)), np.asarray(v0, float) + np.cumsum(w, axis=1)], axis=1
+        )
         # x_k = x_{k-1} + Ts v_{k-1}
         x = np.asarray(x0, float) + Ts * np.concatenate([np.zeros((m, 1, 3)), np.cumsum(v[:, :-1], axis=1)], axis=1)
         keep = np.all(x[..., 2] >= 0.0, axis=1)
@@ -257,9 +314,20 @@ class EKFRun:
     clipped: int  #: linearizations evaluated at z = 0 because the prediction was above the surface
 
 
-def batched_ekf(tofs: ArrayLike, depths: ArrayLike | None, anchors: ArrayLike, time_fn: TofFn, grad_fn: TofFn,
-                x0: ArrayLike, P0: ArrayLike, Phi: ArrayLike, Q: ArrayLike, sigma_t: float,
-                sigma_z: float = 1.0, rho: int = 10) -> EKFRun:
+def batched_ekf(
+    tofs: ArrayLike,
+    depths: ArrayLike | None,
+    anchors: ArrayLike,
+    time_fn: TofFn,
+    grad_fn: TofFn,
+    x0: ArrayLike,
+    P0: ArrayLike,
+    Phi: ArrayLike,
+    Q: ArrayLike,
+    sigma_t: float,
+    sigma_z: float = 1.0,
+    rho: int = 10,
+) -> EKFRun:
     """Algorithm 2 on B independent runs at once (Joseph-form update, as
     :func:`aquasim_py.estimation.ekf_update`, batched).
 
@@ -311,9 +379,20 @@ def batched_ekf(tofs: ArrayLike, depths: ArrayLike | None, anchors: ArrayLike, t
     return EKFRun(xs, pp, clipped)
 
 
-def pcrb_along(positions: ArrayLike, anchors: ArrayLike, b: float, a: float, sigma_t: float,
-               P0: ArrayLike, Phi: ArrayLike, Q: ArrayLike, *, sigma_z: float | None = None,
-               depth_steps: ArrayLike | None = None, mask: ArrayLike | None = None) -> Array:
+def pcrb_along(
+    positions: ArrayLike,
+    anchors: ArrayLike,
+    b: float,
+    a: float,
+    sigma_t: float,
+    P0: ArrayLike,
+    Phi: ArrayLike,
+    Q: ArrayLike,
+    *,
+    sigma_z: float | None = None,
+    depth_steps: ArrayLike | None = None,
+    mask: ArrayLike | None = None,
+) -> Array:
     """PCRB_k (m^2, eq 42) along true positions (..., K, 3) of frames 1..K (eq 41, J0 = P0^-1).
 
     The ToF rows use the exact isogradient gradient at the true position (H-bar of eq 41);
@@ -341,7 +420,6 @@ def pcrb_along(positions: ArrayLike, anchors: ArrayLike, b: float, a: float, sig
     return pcrb_position(Jseq)
 
 
-
 @dataclass(frozen=True)
 class TrackingMC:
     """Per-frame Monte Carlo statistics of :func:`tracking_monte_carlo` (arrays (K,), k = 1..K)."""
@@ -361,12 +439,26 @@ class TrackingMC:
         return float(np.sqrt(self.pcrb[k1 - 1 : k2].mean()))
 
 
-def tracking_monte_carlo(n: int, *, seed: int = 0, K: int = 500, x0: ArrayLike = (500.0, 50.0, 50.0),
-                         anchors: ArrayLike = TETRAHEDRON, sigma_t: float = 1e-3, sigma_z: float = 1.0,
-                         rho: int = 10, Ts: float = 10.0, q_xy: float = 1e-2, q_z: float = 1e-3,
-                         b: float = PAPER_B, a: float = PAPER_A, guess_offset: float = 30.0,
-                         p0_vel_std: float = 0.01, models: tuple[str, ...] = ("essp", "assp"),
-                         pcrb_runs: int | None = None) -> TrackingMC:
+def tracking_monte_carlo(
+    n: int,
+    *,
+    seed: int = 0,
+    K: int = 500,
+    x0: ArrayLike = (500.0, 50.0, 50.0),
+    anchors: ArrayLike = TETRAHEDRON,
+    sigma_t: float = 1e-3,
+    sigma_z: float = 1.0,
+    rho: int = 10,
+    Ts: float = 10.0,
+    q_xy: float = 1e-2,
+    q_z: float = 1e-3,
+    b: float = PAPER_B,
+    a: float = PAPER_A,
+    guess_offset: float = 30.0,
+    p0_vel_std: float = 0.01,
+    models: tuple[str, ...] = ("essp", "assp"),
+    pcrb_runs: int | None = None,
+) -> TrackingMC:
     """The paper's tracking study (Sec. V): n random-walk trajectories from rest at ``x0``
     (:func:`simulate_trajectories`), exact isogradient ToFs plus N(0, sigma_t^2), depth
     readings N(z, sigma_z^2) every ``rho`` frames, EKF-ESSP / EKF-ASSP from the initial guess

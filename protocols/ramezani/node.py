@@ -67,8 +67,11 @@ class RamezaniNode(Node):
         model: Literal["essp", "assp"] = Field("essp", description="exact isogradient rays, or straight rays at v_bar")
         surface_speed_mps: float = Field(1480.0, gt=0.0, description="b of the node's c(z) = b + a z (m/s)")
         gradient_per_s: float = Field(0.1, description="a of the node's c(z) = b + a z (1/s)")
-        anchor_positions: list[Vec3] = Field(default_factory=lambda: TETRAHEDRON.tolist(), min_length=1,
-                                             description="surveyed anchor positions (m), one per TDMA slot")
+        anchor_positions: list[Vec3] = Field(
+            default_factory=TETRAHEDRON.tolist,
+            min_length=1,
+            description="surveyed anchor positions (m), one per TDMA slot",
+        )
         anchor_ids: list[int] | None = Field(None, description="node id of the anchor in each slot (default 0..N-1)")
         frame_s: float = Field(10.0, gt=0.0, description="frame period Ts (s)")
         slot_s: float = Field(0.25, gt=0.0, description="TDMA slot length (s)")
@@ -84,7 +87,8 @@ class RamezaniNode(Node):
         p0_pos_std_m: float = Field(30.0, gt=0.0, description="tracking prior position std per axis (m)")
         p0_vel_std_mps: float = Field(0.1, gt=0.0, description="tracking prior velocity std per axis (m/s)")
         continue_above_surface: bool = Field(
-            True, description="essp: evaluate eq 13 also above the surface (an iterate may stray there)")
+            True, description="essp: evaluate eq 13 also above the surface (an iterate may stray there)"
+        )
         max_iter: int = Field(7, ge=1, description="Algorithm 1: K")
         tol_m: float = Field(1e-3, gt=0.0, description="Algorithm 1: eps (m)")
         min_anchors: int = Field(4, ge=1, description="fewest anchors heard in a frame to use it")
@@ -93,8 +97,9 @@ class RamezaniNode(Node):
         @model_validator(mode="after")
         def _ids(self) -> RamezaniNode.Params:
             if self.anchor_ids is not None and len(self.anchor_ids) != len(self.anchor_positions):
-                raise ValueError(f"anchor_ids has {len(self.anchor_ids)} entries for "
-                                 f"{len(self.anchor_positions)} anchor_positions")
+                raise ValueError(
+                    f"anchor_ids has {len(self.anchor_ids)} entries for {len(self.anchor_positions)} anchor_positions"
+                )
             if self.slot_s * len(self.anchor_positions) > self.frame_s:
                 raise ValueError("the anchors' slots do not fit in one frame (slot_s * N > frame_s)")
             return self
@@ -161,34 +166,69 @@ class RamezaniNode(Node):
         tofs = np.array([got[s][0] for s in slots])
         anchors = np.array([got[s][1] for s in slots], dtype=float)
         srcs = " ".join(str(got[s][2]) for s in slots)
-        time_fn, grad_fn = tof_functions(p.model, p.surface_speed_mps, p.gradient_per_s, anchors,
-                                         continued=p.continue_above_surface)
-        common = dict(mode=p.mode, model=p.model, frame=frame, n_anchors=len(slots), anchor_nodes=srcs,
-                      sigma_t=p.sigma_t_s, b=p.surface_speed_mps, a=p.gradient_per_s)
+        time_fn, grad_fn = tof_functions(
+            p.model, p.surface_speed_mps, p.gradient_per_s, anchors, continued=p.continue_above_surface
+        )
+        common = dict(
+            mode=p.mode,
+            model=p.model,
+            frame=frame,
+            n_anchors=len(slots),
+            anchor_nodes=srcs,
+            sigma_t=p.sigma_t_s,
+            b=p.surface_speed_mps,
+            a=p.gradient_per_s,
+        )
         if p.mode == "localization":
             depth = self.depth() if p.use_depth else None
-            fun = tof_model(anchors, tofs, time_fn, grad_fn, sigma=p.sigma_t_s, depth=depth,
-                            sigma_depth=p.sigma_z_m if p.use_depth else None)
+            fun = tof_model(
+                anchors,
+                tofs,
+                time_fn,
+                grad_fn,
+                sigma=p.sigma_t_s,
+                depth=depth,
+                sigma_depth=p.sigma_z_m if p.use_depth else None,
+            )
             try:
                 fix = gauss_newton(fun, anchors.mean(axis=0), p.max_iter, p.tol_m)
             except EstimationError as exc:
                 self.log("ramezani_failures", frame=frame, reason=str(exc))
                 return
             self._last_frame = frame
-            self.log_estimate(*fix.x, confidence=math.sqrt(float(np.trace(fix.cov))), step=frame,
-                              sigma_z=p.sigma_z_m if p.use_depth else math.nan, depth_used=bool(p.use_depth),
-                              iterations=fix.iterations, method=fix.method, **common)
+            self.log_estimate(
+                *fix.x,
+                confidence=math.sqrt(float(np.trace(fix.cov))),
+                step=frame,
+                sigma_z=p.sigma_z_m if p.use_depth else math.nan,
+                depth_used=bool(p.use_depth),
+                iterations=fix.iterations,
+                method=fix.method,
+                **common,
+            )
             return
         res = self._track(frame, anchors, tofs, time_fn, grad_fn)
         if res is not None:
             x, P, step, used_depth = res
-            self.log_estimate(*x[:3], confidence=math.sqrt(float(np.trace(P[:3, :3]))), step=step,
-                              sigma_z=p.sigma_z_m, depth_used=used_depth, rho=p.rho, frame_s=p.frame_s,
-                              q_xy=p.q_xy_mps, q_z=p.q_z_mps, p0_pos_std=p.p0_pos_std_m,
-                              p0_vel_std=p.p0_vel_std_mps, k1=p.rmse_from_step, **common)
+            self.log_estimate(
+                *x[:3],
+                confidence=math.sqrt(float(np.trace(P[:3, :3]))),
+                step=step,
+                sigma_z=p.sigma_z_m,
+                depth_used=used_depth,
+                rho=p.rho,
+                frame_s=p.frame_s,
+                q_xy=p.q_xy_mps,
+                q_z=p.q_z_mps,
+                p0_pos_std=p.p0_pos_std_m,
+                p0_vel_std=p.p0_vel_std_mps,
+                k1=p.rmse_from_step,
+                **common,
+            )
 
-    def _track(self, frame: int, anchors: np.ndarray, tofs: np.ndarray, time_fn: Any, grad_fn: Any
-               ) -> tuple[np.ndarray, np.ndarray, int, bool] | None:
+    def _track(
+        self, frame: int, anchors: np.ndarray, tofs: np.ndarray, time_fn: Any, grad_fn: Any
+    ) -> tuple[np.ndarray, np.ndarray, int, bool] | None:
         """Algorithm 2 for one frame; the first frame sets the prior s_0."""
         p = self.params
         P0 = np.diag([p.p0_pos_std_m**2] * 3 + [p.p0_vel_std_mps**2] * 3)
@@ -318,8 +358,19 @@ def _tracking_terms(g: pd.DataFrame, tables: Mapping[str, pd.DataFrame]) -> tupl
         X[~mask.any(axis=1)] = X[mask.any(axis=1)][0]  # any in-water point; masked out anyway
         Phi, Q = paper_transition(float(r0.frame_s), float(r0.q_xy), float(r0.q_z))
         P0 = np.diag([float(r0.p0_pos_std) ** 2] * 3 + [float(r0.p0_vel_std) ** 2] * 3)
-        pc = pcrb_along(X, A, float(r0.b), float(r0.a), float(r0.sigma_t), P0, Phi, Q,
-                        sigma_z=float(r0.sigma_z), depth_steps=depth, mask=mask)
+        pc = pcrb_along(
+            X,
+            A,
+            float(r0.b),
+            float(r0.a),
+            float(r0.sigma_t),
+            P0,
+            Phi,
+            Q,
+            sigma_z=float(r0.sigma_z),
+            depth_steps=depth,
+            mask=mask,
+        )
         keep = steps >= int(r0.k1)
         e2_all.append(_sq_err(h)[keep])
         b_all.append(pc[steps[keep] - 1])

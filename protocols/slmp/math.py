@@ -26,11 +26,11 @@ from numpy.typing import ArrayLike, NDArray
 from aquasim_py.estimation.lsq import multilaterate
 
 __all__ = [
-    "fit_linear_predictor",
-    "predict_velocities",
-    "is_stable",
     "MobilityPredictor",
+    "fit_linear_predictor",
+    "is_stable",
     "multilaterate_2d",
+    "predict_velocities",
     "slmp_confidence",
 ]
 
@@ -89,8 +89,9 @@ class MobilityPredictor:
     the window's mean velocity.
     """
 
-    def __init__(self, dt: float, window: int = 60, overlap: float = 0.2, order: int = 15,
-                 threshold: float = 4.0) -> None:
+    def __init__(
+        self, dt: float, window: int = 60, overlap: float = 0.2, order: int = 15, threshold: float = 4.0
+    ) -> None:
         self.dt = float(dt)
         self.window = int(window)
         self.order = int(order)
@@ -172,8 +173,7 @@ def multilaterate_2d(refs: ArrayLike, ranges: ArrayLike, iterations: int = 5) ->
     return x
 
 
-def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayLike,
-                    ranges: ArrayLike) -> float:
+def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayLike, ranges: ArrayLike) -> float:
     """Confidence of a multilateration fix: mean reference confidence times
     (1 - sum_i | ||x - a_i|| - r_i | / sum_i r_i), clipped to [0, 1]."""
     rho = np.linalg.norm(np.asarray(position, float) - np.asarray(refs, float), axis=1)
@@ -183,4 +183,3 @@ def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayL
         return 0.0
     eta = float(np.mean(ref_confidence)) * (1.0 - np.abs(rho - r).sum() / denom)
     return float(np.clip(eta, 0.0, 1.0))
-

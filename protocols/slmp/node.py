@@ -26,15 +26,14 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
-
 from ..common.periodic import PeriodicBeaconNode
-from .math import MobilityPredictor, multilaterate_2d, slmp_confidence
 from ..stvf.metrics import localization_metrics
+from .math import MobilityPredictor, multilaterate_2d, slmp_confidence
 
 __all__ = ["SlmpNode"]
 
@@ -76,8 +75,12 @@ class SlmpNode(PeriodicBeaconNode):
         p: SlmpParams = self.params
         self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
         self.predictor = MobilityPredictor(
-            p.period_s, window=int(round(p.window_s / p.period_s)), overlap=p.overlap,
-            order=p.order, threshold=p.error_ratio * p.range_m)
+            p.period_s,
+            window=int(round(p.window_s / p.period_s)),
+            overlap=p.overlap,
+            order=p.order,
+            threshold=p.error_ratio * p.range_m,
+        )
         self.confidence = 1.0 if self.is_beacon else 0.0
         self.is_reference = self.is_beacon
         self.last: tuple[float, np.ndarray] | None = None  # (local time, xy) of the last estimate
@@ -89,13 +92,21 @@ class SlmpNode(PeriodicBeaconNode):
             pos = self.known_position()
             self.predictor.add(now, pos[:2])
             vel = self.predictor.velocity()
-            return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
-                    "vel": (float(vel[0]), float(vel[1]))}
+            return {
+                "xy": (float(pos[0]), float(pos[1])),
+                "depth": float(pos[2]),
+                "eta": 1.0,
+                "vel": (float(vel[0]), float(vel[1])),
+            }
         if self.is_reference and self.last is not None:
             vel = self.predictor.velocity()
             xy = self.last[1] + vel * (now - self.last[0])
-            return {"xy": (float(xy[0]), float(xy[1])), "depth": self.depth(), "eta": self.confidence,
-                    "vel": (float(vel[0]), float(vel[1]))}
+            return {
+                "xy": (float(xy[0]), float(xy[1])),
+                "depth": self.depth(),
+                "eta": self.confidence,
+                "vel": (float(vel[0]), float(vel[1])),
+            }
         return None
 
     def ready(self, elapsed_s: float) -> bool:
@@ -156,8 +167,15 @@ class SlmpNode(PeriodicBeaconNode):
         self.confidence = conf
         self.is_reference = method == "multilateration" and conf >= p.delta
         self.last = (now, np.asarray(xy_est, float))
-        self.log_estimate(xy_est[0], xy_est[1], depth, confidence=conf, is_reference=self.is_reference,
-                          method=method, n_refs=len(refs))
+        self.log_estimate(
+            xy_est[0],
+            xy_est[1],
+            depth,
+            confidence=conf,
+            is_reference=self.is_reference,
+            method=method,
+            n_refs=len(refs),
+        )
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:

@@ -13,8 +13,9 @@ import pandas as pd
 __all__ = ["localization_metrics"]
 
 
-def localization_metrics(tables: Mapping[str, Any], protocol: str, *, converge_within: int = 5,
-                         t_min: float | None = None) -> dict[str, float]:
+def localization_metrics(
+    tables: Mapping[str, Any], protocol: str, *, converge_within: int = 5, t_min: float | None = None
+) -> dict[str, float]:
     """STVF Section 5 metrics from the trace tables of one run.
 
     avg_rmse_m: mean over unknown nodes of each node's RMSE over its estimates (Sec. 5.2.3);

@@ -65,15 +65,22 @@ class StvfParams(BaseModel):
     tol_m: float = Field(0.1, gt=0, description="stop when mu* moves less than this (m)")
     max_iter: int = Field(50, ge=1)
     common_random_numbers: bool = Field(
-        False, description="reuse one set of importance samples for every pass of a localization (Algorithm 1 draws new ones)")
+        False,
+        description="reuse one set of importance samples for every pass of a localization (Algorithm 1 draws new ones)",
+    )
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (measurement model)")
     range_m: float = Field(80.0, gt=0, description="modem range (m): a first fix must lie within it of every reference")
-    first_fix_refs: int = Field(3, ge=1, description="references needed to start the filter (prior from multilateration)")
+    first_fix_refs: int = Field(
+        3, ge=1, description="references needed to start the filter (prior from multilateration)"
+    )
     initial_std_m: float = Field(10.0, gt=0, description="std of q(mu_0) around a first fix (m)")
     keep_prior_across_gaps: bool = Field(
-        False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting")
+        False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting"
+    )
     bits: int = Field(160, ge=1, description="beacon packet size (bits)")
-    send_window_s: float = Field(0.5, ge=0, description="references send at a uniform random offset in [0, this) of each period (s)")
+    send_window_s: float = Field(
+        0.5, ge=0, description="references send at a uniform random offset in [0, this) of each period (s)"
+    )
 
 
 @register
@@ -115,13 +122,21 @@ class StvfNode(PeriodicBeaconNode):
         if self.is_beacon:
             pos = np.asarray(self.known_position(), float)
             vel = np.asarray(self.velocity(), float)[:2]
-            return {"xy": (float(pos[0]), float(pos[1])), "depth": float(pos[2]), "eta": 1.0,
-                    "vel": (float(vel[0]), float(vel[1]))}
+            return {
+                "xy": (float(pos[0]), float(pos[1])),
+                "depth": float(pos[2]),
+                "eta": 1.0,
+                "vel": (float(vel[0]), float(vel[1])),
+            }
         if self.last_fix is not None and self.confidence >= self.params.delta and self.missed == 0:
             # the estimate is from the end of the last period: carry it to the send time
             xy = self.last_fix[1] + self.speed_est * (self.local_time() - self.last_fix[0])
-            return {"xy": (float(xy[0]), float(xy[1])), "depth": self.depth(), "eta": self.confidence,
-                    "vel": (float(self.speed_est[0]), float(self.speed_est[1]))}
+            return {
+                "xy": (float(xy[0]), float(xy[1])),
+                "depth": self.depth(),
+                "eta": self.confidence,
+                "vel": (float(self.speed_est[0]), float(self.speed_est[1])),
+            }
         return None
 
     # -- localization ------------------------------------------------------------------------
@@ -176,12 +191,19 @@ class StvfNode(PeriodicBeaconNode):
         if self.last_fix is not None and not fresh and now > self.last_fix[0]:
             self.speed_est = (xy - self.last_fix[1]) / (now - self.last_fix[0])
         self.last_fix = (now, xy.copy())
-        self.confidence = vf.localization_confidence(
-            eta, xy, refs, z, out.speed, absolute=p.absolute_error)
+        self.confidence = vf.localization_confidence(eta, xy, refs, z, out.speed, absolute=p.absolute_error)
         is_ref = vf.promote(self.confidence, p.delta)
-        self.log_estimate(xy[0], xy[1], depth, confidence=self.confidence, is_reference=is_ref,
-                          iterations=out.iterations, converged=out.converged, n_heard=len(heard),
-                          fresh=fresh)
+        self.log_estimate(
+            xy[0],
+            xy[1],
+            depth,
+            confidence=self.confidence,
+            is_reference=is_ref,
+            iterations=out.iterations,
+            converged=out.converged,
+            n_heard=len(heard),
+            fresh=fresh,
+        )
 
     def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray:
         """Coarse (x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given): multilateration on the

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 from scipy.integrate import quad, solve_ivp
@@ -33,8 +33,7 @@ RTOL = 1e-12
 ATOL = 1e-12
 
 
-def piecewise_linear(depths: Sequence[float], speeds: Sequence[float]
-                     ) -> tuple[SpeedFn, SpeedFn, list[float]]:
+def piecewise_linear(depths: Sequence[float], speeds: Sequence[float]) -> tuple[SpeedFn, SpeedFn, list[float]]:
     """(c, dc/dz, interior interfaces) of a piecewise-linear profile through (depths[i], speeds[i]).
 
     The end layers extend linearly beyond the first/last depth. Pure-Python scalar functions:
@@ -75,7 +74,7 @@ class OdeRay:
 
 def _rhs(c: SpeedFn, dcdz: SpeedFn) -> Callable[[float, np.ndarray], list[float]]:
     def f(s: float, y: np.ndarray) -> list[float]:
-        r, z, th, t = y
+        _r, z, th, _t = y
         cz = c(z)
         ct = math.cos(th)
         return [ct, math.sin(th), -ct * dcdz(z) / cz, 1.0 / cz]
@@ -97,8 +96,12 @@ def _extrema(sol, s0: float, s1: float) -> tuple[float, float]:
         lo, hi = ss[max(i - 1, 0)], ss[min(i + 1, ss.size - 1)]
         best = sign * zz[i]
         if hi > lo:
-            res = minimize_scalar(lambda s: sign * float(sol(s)[1]), bounds=(lo, hi), method="bounded",
-                                  options={"xatol": 1e-9 * max(1.0, hi)})
+            res = minimize_scalar(
+                lambda s: sign * float(sol(s)[1]),
+                bounds=(lo, hi),
+                method="bounded",
+                options={"xatol": 1e-9 * max(1.0, hi)},
+            )
             best = min(best, float(res.fun))
         out.append(sign * best)
     return out[0], out[1]
@@ -150,6 +153,7 @@ def trace(
         floor.direction = -1.0
         events.append(floor)
         if z_limits is not None:
+
             def lo(s_, y_):
                 return y_[1] - z_limits[0]
 
@@ -161,6 +165,7 @@ def trace(
             events += [lo, hi]
         n_fixed = len(events)
         for k, zi in enumerate(ifs):
+
             def cross(s_, y_, zi=zi):
                 return y_[1] - zi
 
@@ -168,8 +173,9 @@ def trace(
             # right after crossing interface k, only a crossing back the other way can follow
             cross.direction = -just_crossed[1] if just_crossed and just_crossed[0] == k else 0.0
             events.append(cross)
-        sol = solve_ivp(f, (s, s_max), y, method="DOP853", rtol=RTOL, atol=ATOL, events=events,
-                        dense_output=True, max_step=max_step)
+        sol = solve_ivp(
+            f, (s, s_max), y, method="DOP853", rtol=RTOL, atol=ATOL, events=events, dense_output=True, max_step=max_step
+        )
         if extrema:
             lo_z, hi_z = _extrema(sol.sol, s, float(sol.t[-1]))
             zmin, zmax = min(zmin, lo_z), max(zmax, hi_z)
@@ -223,14 +229,14 @@ def shoot(
     z1, z2 = float(src[2]), float(dst[2])
     if R == 0.0:
         pts = [zi for zi in interfaces if min(z1, z2) < zi < max(z1, z2)]
-        t, _ = quad(lambda z: 1.0 / c(z), min(z1, z2), max(z1, z2), points=pts or None,
-                    epsabs=1e-14, epsrel=1e-13, limit=200)
+        t, _ = quad(
+            lambda z: 1.0 / c(z), min(z1, z2), max(z1, z2), points=pts or None, epsabs=1e-14, epsrel=1e-13, limit=200
+        )
         ang = math.copysign(math.pi / 2, z2 - z1)
         return OdeRay(t, abs(z2 - z1), ang, ang, 0.0, z2, min(z1, z2), max(z1, z2), True)
 
     def miss(th: float) -> float:
-        return _miss(trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits,
-                           max_step=max_step), z2)
+        return _miss(trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, max_step=max_step), z2)
 
     lim = math.pi / 2 - 1e-9
     if bracket is None:
@@ -256,8 +262,7 @@ def shoot(
         th = bracket[0]
     else:
         th = brentq(miss, bracket[0], bracket[1], xtol=1e-16, rtol=8.9e-16, maxiter=200)
-    ray = trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, extrema=extrema,
-                max_step=max_step)
+    ray = trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, extrema=extrema, max_step=max_step)
     if not ray.reached:
         raise RuntimeError("shoot: converged launch angle does not reach the receiver")
     dt = math.sin(ray.arrival_angle) / c(ray.z_end) * (z2 - ray.z_end)
@@ -283,14 +288,23 @@ def fan(
     R = float(math.hypot(dst[0] - src[0], dst[1] - src[1]))
     z1, z2 = float(src[2]), float(dst[2])
     ths = np.linspace(angle_range[0], angle_range[1], n)
-    rays = [trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, max_step=max_step)
-            for th in ths]
+    rays = [trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits, max_step=max_step) for th in ths]
     out = []
     for k in range(n - 1):
         if not (rays[k].reached and rays[k + 1].reached):
             continue
         fa, fb = rays[k].z_end - z2, rays[k + 1].z_end - z2
         if fa == 0.0 or (fa > 0.0) != (fb > 0.0):
-            out.append(shoot(c, dcdz, src, dst, interfaces=interfaces, z_limits=z_limits,
-                             bracket=(float(ths[k]), float(ths[k + 1])), max_step=max_step))
+            out.append(
+                shoot(
+                    c,
+                    dcdz,
+                    src,
+                    dst,
+                    interfaces=interfaces,
+                    z_limits=z_limits,
+                    bracket=(float(ths[k]), float(ths[k + 1])),
+                    max_step=max_step,
+                )
+            )
     return sorted(out, key=lambda r: r.time)

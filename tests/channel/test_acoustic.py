@@ -8,13 +8,13 @@ from the receiver's closed-form trajectory, and hand-computed timelines in a 150
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from aquasim_py.channel import Constant, Isogradient, travel_time
-from aquasim_py.channel import acoustic
+from aquasim_py.channel import Constant, Isogradient, acoustic, travel_time
 from aquasim_py.channel.acoustic import ChannelConfig
 from aquasim_py.channel.rays import Eigenray, PathKind
 from aquasim_py.clock import Clock
@@ -37,7 +37,7 @@ class Script(Node):
     """Transmits at given local times: params-free, the plan is set on the class by each test."""
 
     name = "script"
-    plan: dict[int, list[tuple[float, int | None, int]]] = {}  # id -> [(local time, dst, bits)]
+    plan: ClassVar[dict[int, list[tuple[float, int | None, int]]]] = {}  # id -> [(local time, dst, bits)]
 
     def run(self):
         for t_local, dst, bits in self.plan.get(self.id, []):
@@ -57,8 +57,7 @@ class Listener(Node):
     def run(self):
         while True:
             rec = yield self.recv()
-            self.log("got", src=rec.packet.src, uid=rec.packet.uid, tx_local=rec.packet.tx_local,
-                     rx_local=rec.rx_local)
+            self.log("got", src=rec.packet.src, uid=rec.packet.uid, tx_local=rec.packet.tx_local, rx_local=rec.rx_local)
 
 
 def _plan(cls_plan: dict[int, list[tuple[float, int | None, int]]]) -> type[Node]:
@@ -90,8 +89,9 @@ def test_moving_receiver_delay_at_arrival_position():
     p_r0, v_r = np.array([1200.0, 400.0, 160.0]), np.array([-1.2, 1.6, 0.0])  # |v| = 2 m/s
     assert math.isclose(np.linalg.norm(v_r), 2.0)
     sim = Simulation(2, ssp=PROFILE, volume=BOX, channel=ChannelConfig(collision="none"))
-    sim.add_group(_plan({0: [(5.0, None, 64), (40.0, None, 64)]}), 1,
-                  mobility=ConstantVelocity([p_s0], BOX, velocity=v_s))
+    sim.add_group(
+        _plan({0: [(5.0, None, 64), (40.0, None, 64)]}), 1, mobility=ConstantVelocity([p_s0], BOX, velocity=v_s)
+    )
     sim.add_group(Listener, 1, mobility=ConstantVelocity([p_r0], BOX, velocity=v_r))
     sim.run(60.0)
     p = _packets(sim)
@@ -122,8 +122,9 @@ def test_mac_timestamps_follow_local_clocks():
             self.env.process(Script.run(self))
             while True:
                 rec = yield self.recv()
-                self.log("got", src=rec.packet.src, tx_local=rec.packet.tx_local, rx_local=rec.rx_local,
-                         uid=rec.packet.uid)
+                self.log(
+                    "got", src=rec.packet.src, tx_local=rec.packet.tx_local, rx_local=rec.rx_local, uid=rec.packet.uid
+                )
 
     sim = Simulation(3, ssp=PROFILE, channel=ChannelConfig(collision="none", jitter_std_s=0.0))
     sim.add_group(Both, 3, positions=positions, clocks=clocks)
@@ -172,7 +173,7 @@ def _at(p, node, event=None):
 def test_destructive_collision_timeline(t_b, collide):
     # A -> R occupies [1.0, 1.2]; B -> R occupies [t_b + 1, t_b + 1.2]; A and B are 3000 m apart
     # (out of range), so only R sees both.
-    sim, p = _run_three({0: [(0.0, None, 200)], 2: [(t_b, None, 200)]}, [A, R, B_FAR], collision="destructive")
+    _sim, p = _run_three({0: [(0.0, None, 200)], 2: [(t_b, None, 200)]}, [A, R, B_FAR], collision="destructive")
     at_r = _at(p, 1)
     if collide:
         assert list(at_r.event) == ["drop", "drop"]
@@ -209,7 +210,7 @@ def test_capture_timeline(threshold, b_survives):
 @pytest.mark.parametrize("t_r, lost", [(1.1, True), (0.9, True), (0.7, False), (1.25, False)])
 def test_half_duplex_timeline(t_r, lost):
     # A -> R occupies [1.0, 1.2] at R; R transmits 200 bits over [t_r, t_r + 0.2].
-    sim, p = _run_three({0: [(0.0, None, 200)], 1: [(t_r, None, 200)]}, [A, R], collision="none")
+    _sim, p = _run_three({0: [(0.0, None, 200)], 1: [(t_r, None, 200)]}, [A, R], collision="none")
     rec = _at(p, 1).query("src == 0").iloc[0]
     if lost:
         assert rec.event == "drop" and rec.reason == "half_duplex"
@@ -273,7 +274,7 @@ def test_unicast_range_and_overhearing():
 def test_unicast_overheard_signal_still_collides():
     # 0 -> 1 unicast arrives at node 2 too (same distance): it destroys a broadcast from 3 at 2.
     pos = [[0.0, 0.0, 10.0], [0.0, 1500.0, 10.0], [1500.0, 0.0, 10.0], [3000.0, 0.0, 10.0]]
-    sim, p = _run_three({0: [(0.0, 1, 200)], 3: [(0.1, None, 200)]}, pos, collision="destructive")
+    _sim, p = _run_three({0: [(0.0, 1, 200)], 3: [(0.1, None, 200)]}, pos, collision="destructive")
     at2 = _at(p, 2)
     assert list(at2.event) == ["drop"] and list(at2.reason) == ["collision"] and list(at2.src) == [3]
 
@@ -349,6 +350,7 @@ def test_default_loss_model_wires_the_config():
     +10 dB; 10x the bandwidth gives -10 dB (flat noise PSD); 4x the range with spreading k = 2
     costs 20 log10 4 dB plus the absorption over the extra path; and a threshold above the
     SNR drops the packet."""
+
     def snr(**cfg):
         sim = Simulation(12, ssp=C, channel=ChannelConfig(collision="none", snr_threshold_db=-1e9, **cfg))
         sim.add_group(_plan({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
@@ -361,6 +363,7 @@ def test_default_loss_model_wires_the_config():
     assert math.isclose(snr(spreading=2.0, source_level_db=180.0)[1] - base[1], 10.0, abs_tol=1e-9)
     assert math.isclose(snr(spreading=2.0, bandwidth_khz=50.0)[1] - base[1], -10.0, abs_tol=1e-9)
     from aquasim_py.channel.loss import thorp_absorption_db_per_km
+
     expected = 20 * math.log10(4.0) + 1.5 * float(thorp_absorption_db_per_km(10.0))  # 1.5 km more
     assert math.isclose(base[1] - base[2], expected, abs_tol=1e-9)
     sim = Simulation(12, ssp=C, channel=ChannelConfig(snr_threshold_db=float(base[2]) + 0.5, spreading=2.0))
@@ -415,6 +418,7 @@ def test_turning_receiver_delay_at_arrival_position():
 
 
 # -- straight-line start of the moving-receiver fixed point (performance path) ------------------------
+
 
 def _brentq_linear(T, p0, v):
     """Independent root of t = T(p0 + v t) for one receiver (scipy bracketing, not the channel)."""
@@ -483,8 +487,9 @@ def test_moving_receiver_delay_constant_profile():
     tx, rx = p[p.event == "tx"].sort_values("uid"), p[p.event == "rx"].sort_values("uid")
     assert len(tx) == 2 and len(rx) == 2
     for t0, r_time, tof in zip(tx.time, rx.time, rx.tof):
-        t_arr = brentq(lambda ta: (ta - t0) * c - np.linalg.norm(p_r0 + v_r * ta - p_s), t0, t0 + 10.0,
-                       xtol=1e-13, rtol=1e-15)
+        t_arr = brentq(
+            lambda ta: (ta - t0) * c - np.linalg.norm(p_r0 + v_r * ta - p_s), t0, t0 + 10.0, xtol=1e-13, rtol=1e-15
+        )
         assert abs(r_time - t_arr) < 1e-9 and abs(tof - (t_arr - t0)) < 1e-9
 
 
@@ -493,12 +498,29 @@ def test_physical_snr_is_loss_snr_db_bit_for_bit():
     from aquasim_py.channel import loss
 
     lengths = np.array([1.0, 2.5, 80.0, 1234.5, 4999.0, np.nan])
-    ray = Eigenray(time=lengths / 1500.0, length=lengths, launch_angle=np.zeros(6), arrival_angle=np.zeros(6),
-                   turning_depth=np.full(6, np.nan), path=np.zeros(6, np.int8))
-    for cfg in (ChannelConfig(), ChannelConfig(frequency_khz=25.0, bandwidth_khz=8.0, spreading=2.0,
-                                               shipping=0.9, wind_mps=7.0, source_level_db=180.0)):
+    ray = Eigenray(
+        time=lengths / 1500.0,
+        length=lengths,
+        launch_angle=np.zeros(6),
+        arrival_angle=np.zeros(6),
+        turning_depth=np.full(6, np.nan),
+        path=np.zeros(6, np.int8),
+    )
+    for cfg in (
+        ChannelConfig(),
+        ChannelConfig(
+            frequency_khz=25.0, bandwidth_khz=8.0, spreading=2.0, shipping=0.9, wind_mps=7.0, source_level_db=180.0
+        ),
+    ):
         got = acoustic.physical_snr(ray, cfg)
-        ref = loss.snr_db(cfg.source_level_db, lengths, cfg.frequency_khz, cfg.bandwidth_khz * 1e3,
-                          k=cfg.spreading, shipping=cfg.shipping, wind_mps=cfg.wind_mps)
+        ref = loss.snr_db(
+            cfg.source_level_db,
+            lengths,
+            cfg.frequency_khz,
+            cfg.bandwidth_khz * 1e3,
+            k=cfg.spreading,
+            shipping=cfg.shipping,
+            wind_mps=cfg.wind_mps,
+        )
         assert np.array_equal(got, ref, equal_nan=True)
         assert np.isfinite(got[:5]).all() and np.all(np.diff(got[:5]) < 0)

@@ -22,7 +22,7 @@ from aquasim_py.channel import isogradient as iso
 from aquasim_py.channel.rays import PathKind
 
 sys.path.insert(0, str(Path(__file__).parent))
-import ray_ode  # noqa: E402
+import ray_ode
 
 
 def _random_pairs(rng: np.random.Generator, n: int, z_max: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
@@ -76,8 +76,9 @@ def _oracle_sweep(n: int, seed: int) -> None:
         assert ode.z_min >= -1e-6, (i, ode)
         worst["time"] = max(worst["time"], abs(ray.time[i] - ode.time))
         worst["length"] = max(worst["length"], abs(ray.length[i] - ode.length))
-        worst["angle"] = max(worst["angle"], abs(ray.launch_angle[i] - ode.launch_angle),
-                             abs(ray.arrival_angle[i] - ode.arrival_angle))
+        worst["angle"] = max(
+            worst["angle"], abs(ray.launch_angle[i] - ode.launch_angle), abs(ray.arrival_angle[i] - ode.arrival_angle)
+        )
         # the gradient is the slowness vector at the receiver of the ODE's ray
         e_h = (dst[i, :2] - src[i, :2]) / np.hypot(*(dst[i, :2] - src[i, :2]))
         c2 = bi + ai * dst[i, 2]
@@ -235,8 +236,9 @@ def test_straight_line_time_eq23_and_quadrature() -> None:
     for i in range(40):
         D = float(np.linalg.norm(dst[i] - src[i]))
         # line integral of 1/c along the chord, parametrized by the fraction u of the way
-        q, _ = quad(lambda u: D / (b[i] + a[i] * (src[i, 2] + u * (dst[i, 2] - src[i, 2]))), 0.0, 1.0,
-                    epsabs=0.0, epsrel=1e-13)
+        q, _ = quad(
+            lambda u: D / (b[i] + a[i] * (src[i, 2] + u * (dst[i, 2] - src[i, 2]))), 0.0, 1.0, epsabs=0.0, epsrel=1e-13
+        )
         assert tsl[i] == pytest.approx(q, rel=1e-12)
     # eq 23 literally (beta_0 the chord angle), away from equal depths
     dz = dst[:, 2] - src[:, 2]
@@ -247,8 +249,9 @@ def test_straight_line_time_eq23_and_quadrature() -> None:
     np.testing.assert_allclose(tsl[ok], np.abs(eq23[ok]), rtol=1e-9)
     # equal depths: distance / c(z)
     flat = src + np.array([1234.0, -55.0, 0.0])
-    np.testing.assert_allclose(iso.straight_line_time(b, a, src, flat),
-                               np.hypot(1234.0, 55.0) / (b + a * src[:, 2]), rtol=1e-15)
+    np.testing.assert_allclose(
+        iso.straight_line_time(b, a, src, flat), np.hypot(1234.0, 55.0) / (b + a * src[:, 2]), rtol=1e-15
+    )
 
 
 def test_no_direct_path_surface_and_bottom() -> None:
@@ -280,8 +283,9 @@ def test_no_direct_path_surface_and_bottom() -> None:
 def test_broadcasting_and_array_parameters() -> None:
     rng = np.random.default_rng(2)
     src = np.array([0.0, 0.0, 100.0])
-    dst = np.stack([rng.uniform(-2000, 2000, (4, 5)), rng.uniform(-2000, 2000, (4, 5)),
-                    rng.uniform(0, 900, (4, 5))], axis=-1)
+    dst = np.stack(
+        [rng.uniform(-2000, 2000, (4, 5)), rng.uniform(-2000, 2000, (4, 5)), rng.uniform(0, 900, (4, 5))], axis=-1
+    )
     a = rng.uniform(0.01, 0.1, (4, 5))
     ray = iso.eigenray(1500.0, a, src, dst)
     assert ray.time.shape == (4, 5) and ray.path.shape == (4, 5) and ray.turning_depth.shape == (4, 5)
@@ -293,6 +297,7 @@ def test_broadcasting_and_array_parameters() -> None:
 
 
 # ---------------------------------------------------------------- Hypothesis properties
+
 
 def _no_underflow(v: float) -> float:
     # offsets below ~1e-150 m square to 0 in D^2 = dx^2 + dy^2 + dz^2: not a physical case

@@ -25,15 +25,21 @@ from scipy.integrate import solve_ivp
 from aquasim_py.channel import Constant, Isogradient, Layered, PathKind, isogradient, layered
 
 sys.path.insert(0, str(Path(__file__).parent))
-import ray_ode  # noqa: E402
+import ray_ode
 
 BOTTOM = 1200.0
 # monotone: speed grows with depth, the gradient changing from layer to layer
-MONO = Layered([0, 40, 100, 180, 260, 380, 500, 650, 800, 1000, 1200],
-               [1480, 1483, 1486, 1487.5, 1490, 1493, 1494, 1497, 1501, 1504, 1508], bottom=BOTTOM)
+MONO = Layered(
+    [0, 40, 100, 180, 260, 380, 500, 650, 800, 1000, 1200],
+    [1480, 1483, 1486, 1487.5, 1490, 1493, 1494, 1497, 1501, 1504, 1508],
+    bottom=BOTTOM,
+)
 # sound channel: minimum (axis) at 300 m
-CHANNEL = Layered([0, 50, 120, 200, 300, 420, 550, 700, 850, 1000, 1200],
-                  1500.0 + np.array([0, -5, -12, -20, -24, -20, -14, -8, -2, 4, 8.0]), bottom=BOTTOM)
+CHANNEL = Layered(
+    [0, 50, 120, 200, 300, 420, 550, 700, 850, 1000, 1200],
+    1500.0 + np.array([0, -5, -12, -20, -24, -20, -14, -8, -2, 4, 8.0]),
+    bottom=BOTTOM,
+)
 
 
 class Oracle:
@@ -83,6 +89,7 @@ def trace(orc: Oracle, z0: float, theta0: float, R: float, z_lim, max_step: floa
     function at the step ends, and ray_ode.trace then bends it with the wrong gradient
     (seen: MONO, 368.93 m -> 295.43 m over 4485.20 m, turning 4 cm below 380 m, misses by 8.6 m).
     """
+
     def rhs(s_, y):
         c = orc.speed(y[1])
         ct = math.cos(y[2])
@@ -104,14 +111,24 @@ def trace(orc: Oracle, z0: float, theta0: float, R: float, z_lim, max_step: floa
     while True:
         cross = []
         for k, zk in enumerate(orc.interfaces):
+
             def ev(s_, y_, zk=zk):
                 return y_[1] - zk
+
             ev.terminal = True
             # just restarted on interface k: only the crossing back can come next
             ev.direction = 0.0 if last is None or last[0] != k else -last[1]
             cross.append(ev)
-        sol = solve_ivp(rhs, (s, s + 10.0 * R + 1e4), y, method="DOP853", rtol=1e-12, atol=1e-12,
-                        max_step=max_step, events=[hit_r, leave_top, leave_bottom] + cross)
+        sol = solve_ivp(
+            rhs,
+            (s, s + 10.0 * R + 1e4),
+            y,
+            method="DOP853",
+            rtol=1e-12,
+            atol=1e-12,
+            max_step=max_step,
+            events=[hit_r, leave_top, leave_bottom] + cross,
+        )
         fired = [i for i, te in enumerate(sol.t_events) if te.size]
         assert sol.status == 1 and fired, "ray did not reach the receiver range"
         i = min(fired, key=lambda j: sol.t_events[j][0])
@@ -172,8 +189,16 @@ def test_first_arrival_against_launch_fan(prof: Layered) -> None:
     orc = Oracle(prof)
     R = np.hypot(*(dst - src)[:, :2].T)
     for i in range(len(src)):
-        rays = ray_ode.fan(orc.speed, orc.dspeed, src[i], dst[i], n=121, interfaces=orc.interfaces,
-                           z_limits=(0.0, BOTTOM), max_step=25.0)
+        rays = ray_ode.fan(
+            orc.speed,
+            orc.dspeed,
+            src[i],
+            dst[i],
+            n=121,
+            interfaces=orc.interfaces,
+            z_limits=(0.0, BOTTOM),
+            max_step=25.0,
+        )
         if ray.path[i] == PathKind.NONE:
             assert not rays
             continue
@@ -198,6 +223,7 @@ def test_special_cases() -> None:
     t = layered.travel_time(MONO, [0, 0, 10.0], [0, 0, 900.0])
     z = MONO.depths
     from scipy.integrate import quad
+
     ref = quad(lambda zz: 1.0 / MONO.speed(zz), 10.0, 900.0, points=z[1:-1], epsabs=1e-15, epsrel=1e-13, limit=200)[0]
     assert abs(t - ref) < 1e-13
     # coincident points
@@ -220,9 +246,17 @@ def test_turning_rays_and_angles_against_oracle() -> None:
     assert np.all(ray.path == PathKind.DIRECT)
     assert np.isfinite(ray.turning_depth).sum() >= 3
     for i in range(len(src)):
-        r = ray_ode.shoot(orc.speed, orc.dspeed, src[i], dst[i], interfaces=orc.interfaces,
-                          z_limits=(0.0, BOTTOM), bracket=(ray.launch_angle[i] - 1e-6, ray.launch_angle[i] + 1e-6),
-                          extrema=bool(np.isfinite(ray.turning_depth[i])), max_step=25.0)
+        r = ray_ode.shoot(
+            orc.speed,
+            orc.dspeed,
+            src[i],
+            dst[i],
+            interfaces=orc.interfaces,
+            z_limits=(0.0, BOTTOM),
+            bracket=(ray.launch_angle[i] - 1e-6, ray.launch_angle[i] + 1e-6),
+            extrema=bool(np.isfinite(ray.turning_depth[i])),
+            max_step=25.0,
+        )
         assert abs(r.time - ray.time[i]) < 1e-9
         assert abs(r.arrival_angle - ray.arrival_angle[i]) < 1e-7
         assert abs(r.length - ray.length[i]) < 1e-5
@@ -270,8 +304,10 @@ def test_gradient_matches_finite_differences() -> None:
             for k in range(3):
                 e = np.zeros(3)
                 e[k] = h
-                fd[:, k] = (layered.travel_time(prof, src, dst + e, reflections=mode)
-                            - layered.travel_time(prof, src, dst - e, reflections=mode)) / (2 * h)
+                fd[:, k] = (
+                    layered.travel_time(prof, src, dst + e, reflections=mode)
+                    - layered.travel_time(prof, src, dst - e, reflections=mode)
+                ) / (2 * h)
             ok = np.isfinite(g).all(axis=1) & np.isfinite(fd).all(axis=1)
             assert ok.sum() >= 50
             err = np.linalg.norm(g[ok] - fd[ok], axis=1) / np.linalg.norm(g[ok], axis=1)

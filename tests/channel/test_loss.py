@@ -46,8 +46,12 @@ def test_noise_monotone_in_activity_and_wind_and_above_components() -> None:
     assert np.all(np.diff([loss.noise_psd_db(f, s) for s in np.linspace(0, 1, 6)], axis=0) > 0.0)
     assert np.all(np.diff([loss.noise_psd_db(f, 0.5, w) for w in (0.0, 1.0, 5.0, 15.0)], axis=0) > 0.0)
     total = loss.noise_psd_db(f, 0.3, 2.0)
-    for part in (loss.noise_turbulence_db(f), loss.noise_shipping_db(f, 0.3), loss.noise_wind_db(f, 2.0),
-                 loss.noise_thermal_db(f)):
+    for part in (
+        loss.noise_turbulence_db(f),
+        loss.noise_shipping_db(f, 0.3),
+        loss.noise_wind_db(f, 2.0),
+        loss.noise_thermal_db(f),
+    ):
         assert np.all(total >= part)
     # the thermal floor dominates far above 100 kHz, turbulence far below 10 Hz
     assert loss.noise_psd_db(1e4, 0.5, 0.0) == pytest.approx(loss.noise_thermal_db(1e4), abs=0.01)
@@ -62,7 +66,8 @@ def test_path_loss_eq35_and_spreading() -> None:
     # reference length: no loss; given absorption overrides Thorp
     assert loss.path_loss_db(1000.0, 10.0, k=2.0, l0_m=1000.0) == 0.0
     assert loss.path_loss_db(3000.0, 10.0, k=2.0, l0_m=1000.0, absorption_db_per_km=1.0) == pytest.approx(
-        20.0 * np.log10(3.0) + 2.0, rel=1e-14)
+        20.0 * np.log10(3.0) + 2.0, rel=1e-14
+    )
     # monotone in distance, frequency and k
     l = np.geomspace(1.0, 1e5, 400)
     assert np.all(np.diff(loss.path_loss_db(l, 20.0)) > 0.0)
@@ -108,11 +113,12 @@ def test_tof_noise_eq34_paper_setting() -> None:
     """Paper's Fig. 5 setting: K_E = -10 dB, beta = 2, L(f) = 1 dB/km, l_r = 1000 m."""
     var = loss.tof_noise_variance_s2(2000.0, 0.1, k=2.0, l0_m=1000.0, absorption_db_per_km=1.0)
     # 0.1 * (2000/1000)^2 * 10^(1 dB/km * 1 km / 10)
-    assert var == pytest.approx(0.1 * 4.0 * 10.0 ** 0.1, rel=1e-14)
+    assert var == pytest.approx(0.1 * 4.0 * 10.0**0.1, rel=1e-14)
     assert loss.tof_noise_variance_s2(1000.0, 0.1, k=2.0, l0_m=1000.0, absorption_db_per_km=1.0) == pytest.approx(0.1)
     # same number as the dB path loss
     assert 10 * np.log10(var / 0.1) == pytest.approx(
-        loss.path_loss_db(2000.0, None, k=2.0, l0_m=1000.0, absorption_db_per_km=1.0), rel=1e-13)
+        loss.path_loss_db(2000.0, None, k=2.0, l0_m=1000.0, absorption_db_per_km=1.0), rel=1e-13
+    )
 
 
 def test_tof_noise_derivative_eq36_and_finite_differences() -> None:

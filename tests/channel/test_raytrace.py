@@ -16,15 +16,19 @@ from aquasim_py.channel import (
     from_ctd,
     isogradient,
     layered,
+    raytrace,
     straight_line_time,
     travel_time,
     travel_time_gradient,
     why_no_path,
 )
-from aquasim_py.channel import raytrace
 
-CTD = from_ctd([2, 50, 100, 200, 400, 700, 1000], [22, 20, 15, 11, 8, 5, 4], [35.2, 35.1, 35.0, 34.9, 34.8, 34.7, 34.7],
-               bottom=1100.0)
+CTD = from_ctd(
+    [2, 50, 100, 200, 400, 700, 1000],
+    [22, 20, 15, 11, 8, 5, 4],
+    [35.2, 35.1, 35.0, 34.9, 34.8, 34.7, 34.7],
+    bottom=1100.0,
+)
 PROFILES = {
     "constant": Constant(1500.0, bottom=1100.0),
     "isogradient": Isogradient(1480.0, 0.1),
@@ -54,7 +58,7 @@ def test_every_profile_gives_arrivals(name: str) -> None:
         assert np.array_equal(has, np.isfinite(ray.time))
         assert has.mean() > 0.8
         dist = np.linalg.norm(dst - src, axis=1)
-        lo, hi = ssp.speed_bounds()
+        _lo, hi = ssp.speed_bounds()
         assert np.all(ray.time[has] >= dist[has] / hi * (1 - 1e-12))
         assert np.all(ray.length[has] >= dist[has] * (1 - 1e-12))
     reasons = why_no_path(ssp, src, dst)
@@ -65,16 +69,19 @@ def test_every_profile_gives_arrivals(name: str) -> None:
 def test_dispatch_targets() -> None:
     src, dst = pairs(500, seed=2)
     iso = PROFILES["isogradient"]
-    np.testing.assert_array_equal(travel_time(iso, src, dst, reflections="none"),
-                                  isogradient.travel_time(1480.0, 0.1, src, dst))
+    np.testing.assert_array_equal(
+        travel_time(iso, src, dst, reflections="none"), isogradient.travel_time(1480.0, 0.1, src, dst)
+    )
     munk = PROFILES["munk"]
-    np.testing.assert_array_equal(travel_time(munk, src, dst),
-                                  layered.travel_time(munk.to_layered(), src, dst))
+    np.testing.assert_array_equal(travel_time(munk, src, dst), layered.travel_time(munk.to_layered(), src, dst))
     c = PROFILES["constant"]
     np.testing.assert_allclose(travel_time(c, src, dst), np.linalg.norm(dst - src, axis=1) / 1500.0, rtol=1e-15)
     # isogradient through the layered solver (one layer) agrees with the closed form
-    np.testing.assert_allclose(layered.travel_time(iso.to_layered(), src, dst, reflections="none"),
-                               isogradient.travel_time(1480.0, 0.1, src, dst), rtol=1e-12)
+    np.testing.assert_allclose(
+        layered.travel_time(iso.to_layered(), src, dst, reflections="none"),
+        isogradient.travel_time(1480.0, 0.1, src, dst),
+        rtol=1e-12,
+    )
 
 
 @pytest.mark.parametrize("name", ["constant", "isogradient-neg", "layered", "ctd"])
@@ -118,14 +125,26 @@ def test_straight_line_time_is_the_line_integral(name: str) -> None:
         d = dst[i] - src[i]
         # integral of ds / c(z(s)) along the chord, by adaptive quadrature over s in [0, 1]
         kinks = [(zk - src[i, 2]) / d[2] for zk in lay.depths if d[2] != 0 and 0 < (zk - src[i, 2]) / d[2] < 1]
-        ref = np.linalg.norm(d) * quad(lambda u: 1.0 / float(lay.speed(src[i, 2] + u * d[2])), 0.0, 1.0,
-                                       points=kinks or None, epsabs=0, epsrel=1e-13, limit=200)[0]
+        ref = (
+            np.linalg.norm(d)
+            * quad(
+                lambda u: 1.0 / float(lay.speed(src[i, 2] + u * d[2])),
+                0.0,
+                1.0,
+                points=kinks or None,
+                epsabs=0,
+                epsrel=1e-13,
+                limit=200,
+            )[0]
+        )
         assert abs(t[i] - ref) < 1e-12 * ref
     # equal depths: distance over the local speed; isogradient: eqs 23-24
     a, b = np.array([0, 0, 321.0]), np.array([1500, 0, 321.0])
     assert straight_line_time(ssp, a, b) == pytest.approx(1500.0 / float(lay.speed(321.0)), rel=1e-14)
     iso = PROFILES["isogradient"]
-    np.testing.assert_array_equal(straight_line_time(iso, src, dst), isogradient.straight_line_time(1480.0, 0.1, src, dst))
+    np.testing.assert_array_equal(
+        straight_line_time(iso, src, dst), isogradient.straight_line_time(1480.0, 0.1, src, dst)
+    )
 
 
 @pytest.mark.parametrize("name", list(PROFILES))

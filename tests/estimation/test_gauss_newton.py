@@ -111,7 +111,9 @@ def test_too_few_measurements_raise() -> None:
 
 def test_lm_fallback_when_gauss_newton_diverges() -> None:
     # r(x) = atan(x): the GN step x - atan(x)(1 + x^2) overshoots without bound for |x0| > 1.39
-    fun = lambda x: (np.arctan(x), (1.0 / (1.0 + x**2)).reshape(1, 1))
+    def fun(x):
+        return (np.arctan(x), (1.0 / (1.0 + x**2)).reshape(1, 1))
+
     res = gauss_newton(fun, [3.0], max_iter=7, tol=1e-10)
     assert res.method == "levenberg-marquardt"
     assert abs(res.x[0]) < 1e-8
@@ -120,7 +122,9 @@ def test_lm_fallback_when_gauss_newton_diverges() -> None:
 
 def test_step_leaving_the_domain_is_shortened() -> None:
     # r = log(x): the first full GN step from x = 5 lands at x < 0, where the model is undefined
-    fun = lambda x: (np.log(x), (1.0 / x).reshape(1, 1))
+    def fun(x):
+        return (np.log(x), (1.0 / x).reshape(1, 1))
+
     with np.errstate(invalid="ignore"):
         res = gauss_newton(fun, [5.0], max_iter=20, tol=1e-12)
     assert res.method == "gauss-newton" and res.converged
@@ -141,7 +145,9 @@ def test_lm_fallback_on_singular_start() -> None:
 def test_batch_flags_singular_rows_without_nan() -> None:
     A = np.array([[0.0, 0.0, 10.0], [100.0, 0.0, 10.0], [0.0, 100.0, 10.0], [100.0, 100.0, 10.0]])
     x = np.array([[30.0, 60.0, 40.0], [30.0, 60.0, 10.0]])
-    X, _, ok = gauss_newton_batch(tof_model(A, tt(A, x[:, None, :]), tt, tg), [[50.0, 50.0, 30.0], [50.0, 50.0, 10.0]], tol=1e-9, max_iter=20)
+    X, _, ok = gauss_newton_batch(
+        tof_model(A, tt(A, x[:, None, :]), tt, tg), [[50.0, 50.0, 30.0], [50.0, 50.0, 10.0]], tol=1e-9, max_iter=20
+    )
     assert ok.tolist() == [True, False]
     assert np.all(np.isfinite(X))
     np.testing.assert_allclose(X[0], x[0], atol=1e-8)

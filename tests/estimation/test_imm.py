@@ -138,8 +138,11 @@ def test_imm_nonlinear_measurement_path_matches_direct_ekf() -> None:
     z = np.array([52.0, 70.0, 76.0])
     R = 0.5 * np.eye(3)
     imm.update(z, R, h=h, H_jac=H_jac)
+
     # CV: the joint state with omega = 0; CT: the joint state itself
-    pad = lambda s: np.append(s, 0.0)
+    def pad(s):
+        return np.append(s, 0.0)
+
     u_cv = ekf_update(xs_pred[0], Ps_pred[0], z, lambda s: h(pad(s)), lambda s: H_jac(pad(s))[:, :4], R)
     u_ct = ekf_update(xs_pred[1], Ps_pred[1], z, h, H_jac, R)
     np.testing.assert_allclose(imm.xs[0], u_cv.x, rtol=1e-13)

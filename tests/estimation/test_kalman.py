@@ -89,8 +89,13 @@ def test_ekf_range_update_matches_linearization_by_finite_differences() -> None:
     """A nonlinear (range) update uses the Jacobian at the prior mean: compare with a linear
     update built from a numerically differentiated h."""
     anchor = np.array([10.0, -5.0])
-    h = lambda s: np.array([np.hypot(*(s[:2] - anchor))])
-    Hj = lambda s: np.concatenate([(s[:2] - anchor) / np.hypot(*(s[:2] - anchor)), [0.0, 0.0]])[None, :]
+
+    def h(s):
+        return np.array([np.hypot(*(s[:2] - anchor))])
+
+    def Hj(s):
+        return np.concatenate([(s[:2] - anchor) / np.hypot(*(s[:2] - anchor)), [0.0, 0.0]])[None, :]
+
     x, P = np.array([1.0, 2.0, 0.5, 0.0]), np.diag([4.0, 4.0, 1.0, 1.0])
     z = np.array([14.0])
     u = ekf_update(x, P, z, h, Hj, [[0.25]])

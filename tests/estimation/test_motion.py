@@ -77,9 +77,12 @@ def test_cwna_noise_is_the_integral_of_white_acceleration(dim: int) -> None:
     A = np.zeros((n, n))
     A[:dim, dim:] = np.eye(dim)
     G = np.vstack([np.zeros((dim, dim)), np.eye(dim)])
+
     # Q = int_0^dt e^{A s} G q G^T e^{A^T s} ds; the integrand is a degree-2 polynomial in s,
     # so 5-point Gauss-Legendre quadrature is exact
-    integrand = lambda ss: np.stack([expm(A * s) @ G @ G.T @ expm(A * s).T * q for s in ss], axis=-1)
+    def integrand(ss):
+        return np.stack([expm(A * s) @ G @ G.T @ expm(A * s).T * q for s in ss], axis=-1)
+
     Q_num, _ = fixed_quad(integrand, 0.0, dt, n=5)
     np.testing.assert_allclose(cwna_noise(dim, dt, q), Q_num, rtol=1e-10, atol=1e-13)
 

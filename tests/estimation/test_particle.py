@@ -3,7 +3,7 @@ linear-Gaussian model (with a check that broken weighting fails the same toleran
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -146,9 +146,11 @@ def test_log_likelihood_and_underflow() -> None:
     Rm = A @ A.T + np.eye(3)
     Zp = rng.normal(size=(40, 3))
     z = rng.normal(size=3)
-    np.testing.assert_allclose(gaussian_log_likelihood(z, Zp, Rm), multivariate_normal(cov=Rm).logpdf(z - Zp), rtol=1e-12)
+    np.testing.assert_allclose(
+        gaussian_log_likelihood(z, Zp, Rm), multivariate_normal(cov=Rm).logpdf(z - Zp), rtol=1e-12
+    )
     # likelihoods far below the smallest double still give proper weights
-    w, lw = normalize_log_weights(np.array([-2000.0, -2001.0, -5000.0]))
+    w, _lw = normalize_log_weights(np.array([-2000.0, -2001.0, -5000.0]))
     np.testing.assert_allclose(w, [1 / (1 + np.exp(-1)), np.exp(-1) / (1 + np.exp(-1)), 0.0], atol=1e-300)
     with pytest.raises(ValueError):
         normalize_log_weights(np.full(3, -np.inf))

@@ -11,6 +11,7 @@ ASSP: t = |x - a_n| / v_bar, v_bar = (C(max z_A) + C(min z_A)) / 2 (footnote 1).
 
 from __future__ import annotations
 
+import itertools
 from functools import partial
 
 import numpy as np
@@ -48,14 +49,16 @@ def fig4_table(n_draws: int, sigmas_ms=SIGMAS_MS, seed: int = 4, reference=CENTR
         Xe, _, ok_e = gauss_newton_batch(tof_model(ANCHORS, t, essp_time, essp_grad, sigma=sig), X0, 7, 1e-3)
         Xa, _, ok_a = gauss_newton_batch(tof_model(ANCHORS, t, assp_time, assp_grad, sigma=sig), X0, 7, 1e-3)
         bound = crb_trace(essp_grad(ANCHORS, X[:, None, :]), np.full((n_draws, len(ANCHORS)), sig**2))
-        rows.append({
-            "sigma_ms": s_ms,
-            "rmse_essp": float(np.sqrt(np.mean(np.sum((Xe - X) ** 2, axis=1)))),
-            "rmse_assp": float(np.sqrt(np.mean(np.sum((Xa - X) ** 2, axis=1)))),
-            "sqrt_mean_crb": float(np.sqrt(np.mean(bound))),
-            "converged_essp": float(ok_e.mean()),
-            "converged_assp": float(ok_a.mean()),
-        })
+        rows.append(
+            {
+                "sigma_ms": s_ms,
+                "rmse_essp": float(np.sqrt(np.mean(np.sum((Xe - X) ** 2, axis=1)))),
+                "rmse_assp": float(np.sqrt(np.mean(np.sum((Xa - X) ** 2, axis=1)))),
+                "sqrt_mean_crb": float(np.sqrt(np.mean(bound))),
+                "converged_essp": float(ok_e.mean()),
+                "converged_assp": float(ok_a.mean()),
+            }
+        )
     return rows
 
 
@@ -67,7 +70,7 @@ def _check(rows: list[dict], tol: float) -> None:
     # excess over the bound grows monotonically as the noise falls
     assert ratio[-1] < 1.5, ratio
     assert ratio[0] > 5.0, ratio
-    assert all(a >= b for a, b in zip(ratio, ratio[1:])), ratio
+    assert all(a >= b for a, b in itertools.pairwise(ratio)), ratio
 
 
 @pytest.mark.slow
@@ -83,11 +86,15 @@ if __name__ == "__main__":  # prints the table for docs/estimation.md
     import sys
 
     n = int(sys.argv[1]) if len(sys.argv) > 1 else 10_000
-    print("| sigma_t (ms) | GNA-ESSP RMSE (m) | sqrt(mean CRB) (m) | ESSP / CRB | GNA-ASSP RMSE (m) "
-          "| ASSP / CRB | stopped on eps within K (ESSP / ASSP) |")
+    print(
+        "| sigma_t (ms) | GNA-ESSP RMSE (m) | sqrt(mean CRB) (m) | ESSP / CRB | GNA-ASSP RMSE (m) "
+        "| ASSP / CRB | stopped on eps within K (ESSP / ASSP) |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in fig4_table(n):
-        print(f"| {r['sigma_ms']:g} | {r['rmse_essp']:.4g} | {r['sqrt_mean_crb']:.4g} | "
-              f"{r['rmse_essp'] / r['sqrt_mean_crb']:.3f} | {r['rmse_assp']:.4g} | "
-              f"{r['rmse_assp'] / r['sqrt_mean_crb']:.2f} | "
-              f"{100 * r['converged_essp']:.1f} % / {100 * r['converged_assp']:.1f} % |")
+        print(
+            f"| {r['sigma_ms']:g} | {r['rmse_essp']:.4g} | {r['sqrt_mean_crb']:.4g} | "
+            f"{r['rmse_essp'] / r['sqrt_mean_crb']:.3f} | {r['rmse_assp']:.4g} | "
+            f"{r['rmse_assp'] / r['sqrt_mean_crb']:.2f} | "
+            f"{100 * r['converged_essp']:.1f} % / {100 * r['converged_assp']:.1f} % |"
+        )

@@ -59,8 +59,15 @@ def test_pcrb_matches_kalman_covariance_on_linear_rows() -> None:
     # The PCRB recursion we compare against must equal the EKF's own covariance recursion when
     # the filter linearizes at the truth: run the batched EKF with h linear in x (straight rays
     # frozen at the true position's gradient) and compare P with the PCRB step by step.
-    from aquasim_py.protocols.ramezani.math import (PAPER_A, PAPER_B, TETRAHEDRON, batched_ekf, essp_model,
-                                         paper_transition, pcrb_along)
+    from aquasim_py.protocols.ramezani.math import (
+        PAPER_A,
+        PAPER_B,
+        TETRAHEDRON,
+        batched_ekf,
+        essp_model,
+        paper_transition,
+        pcrb_along,
+    )
 
     K, Ts, sig = 40, 10.0, 1e-3
     x_true = np.array([300.0, 60.0, 40.0])
@@ -75,8 +82,19 @@ def test_pcrb_matches_kalman_covariance_on_linear_rows() -> None:
 
     Phi, Q = paper_transition(Ts)
     P0 = np.diag([30.0**2] * 3 + [0.01**2] * 3)
-    run = batched_ekf(np.zeros((1, K, 4)), np.zeros((1, K)), TETRAHEDRON, time_fn, grad_fn,
-                      np.zeros(6), P0, Phi, Q, sig, 1.0, 10)
-    pc = pcrb_along(np.tile(x_true, (K, 1)), TETRAHEDRON, PAPER_B, PAPER_A, sig, P0, Phi, Q,
-                    sigma_z=1.0, depth_steps=np.arange(1, K + 1) % 10 == 0)
+    run = batched_ekf(
+        np.zeros((1, K, 4)), np.zeros((1, K)), TETRAHEDRON, time_fn, grad_fn, np.zeros(6), P0, Phi, Q, sig, 1.0, 10
+    )
+    pc = pcrb_along(
+        np.tile(x_true, (K, 1)),
+        TETRAHEDRON,
+        PAPER_B,
+        PAPER_A,
+        sig,
+        P0,
+        Phi,
+        Q,
+        sigma_z=1.0,
+        depth_steps=np.arange(1, K + 1) % 10 == 0,
+    )
     np.testing.assert_allclose(run.P_pos[0, 1:], pc, rtol=1e-6)

@@ -60,8 +60,15 @@ def test_regression_recovers_skew_offset_from_exact_delays():
     """Static node and references: the round-trip split is exact, so is the regression."""
     alpha, beta = 1.0 + 40e-6, 1.25
     refs = [[0, 0, 10], [800, 0, 20], [0, 700, 5], [650, 600, 30]]
-    rows, _ = _exchanges(refs, np.array([300.0, 250.0, 120.0]), np.zeros(3), alpha=alpha, beta=beta,
-                         times=np.arange(5.0, 300.0, 30.0), hold=0.4)
+    rows, _ = _exchanges(
+        refs,
+        np.array([300.0, 250.0, 120.0]),
+        np.zeros(3),
+        alpha=alpha,
+        beta=beta,
+        times=np.arange(5.0, 300.0, 30.0),
+        hold=0.4,
+    )
     fit = itmtl_sync(Exchanges.build(*rows.T))
     assert fit.converged
     assert abs(fit.alpha - alpha) < 1e-9
@@ -132,8 +139,15 @@ def test_note_numeric_check_motion_split_vs_half_round_trip():
 def test_mu_sync_equals_half_round_trip_on_static_exchanges():
     alpha, beta = 1.0 + 15e-6, -2.0
     refs = [[0, 0, 10], [900, 0, 20], [0, 800, 5]]
-    rows, _ = _exchanges(refs, np.array([200.0, 100.0, 80.0]), np.zeros(3), alpha=alpha, beta=beta,
-                         times=np.arange(0.0, 200.0, 20.0), hold=0.2)
+    rows, _ = _exchanges(
+        refs,
+        np.array([200.0, 100.0, 80.0]),
+        np.zeros(3),
+        alpha=alpha,
+        beta=beta,
+        times=np.arange(0.0, 200.0, 20.0),
+        hold=0.2,
+    )
     fit = mu_sync(Exchanges.build(*rows.T))
     # two regressions: the first uses alpha = 1 in S, so the second is off by O(skew^2)
     assert abs(fit.alpha - alpha) < 1e-9 and abs(fit.beta - beta) < 1e-7
@@ -148,8 +162,9 @@ def test_tshl_skew_constant_delay_and_offset():
     Tr = alpha * (ts + tau[g]) + beta
     assert tshl_skew(ts, Tr, g) == pytest.approx(alpha, abs=1e-12)
     # static two-way exchange for the offset
-    rows, _ = _exchanges([[0, 0, 0]], np.array([300.0, 0.0, 0.0]), np.zeros(3), alpha=alpha, beta=beta,
-                         times=[120.0], hold=0.5)
+    rows, _ = _exchanges(
+        [[0, 0, 0]], np.array([300.0, 0.0, 0.0]), np.zeros(3), alpha=alpha, beta=beta, times=[120.0], hold=0.5
+    )
     fit = tshl_sync(ts, Tr, g, *rows.T)
     assert fit.alpha == pytest.approx(alpha, abs=1e-12)
     assert fit.beta == pytest.approx(beta, abs=1e-9)

@@ -123,9 +123,7 @@ def test_gamma_update_is_the_conjugate_posterior():
     assert a == pytest.approx(3.0 + 2.0)
 
     def post(zeta):
-        return stats.gamma.pdf(zeta, 3.0, scale=1 / 200.0) * np.prod(
-            stats.norm.pdf(res, scale=1 / np.sqrt(zeta))
-        )
+        return stats.gamma.pdf(zeta, 3.0, scale=1 / 200.0) * np.prod(stats.norm.pdf(res, scale=1 / np.sqrt(zeta)))
 
     num = integrate.quad(lambda q: q * post(q), 0, 1.0, limit=200)[0]
     den = integrate.quad(post, 0, 1.0, limit=200)[0]
@@ -161,9 +159,17 @@ def _known_prior(lam0, n_samples=40_000):
     make v and zeta known: the model is then linear-Gaussian (with far references)."""
     n = 1e9
     return vf.STVFPrior(
-        wishart_scale=lam0 / n, wishart_dof=n, speed=1500.0, speed_precision=1e10,
-        noise_shape=1e10 * 1.0, noise_rate=1e10, n_state_samples=n_samples,
-        n_speed_samples=2000, tol=1e-6, max_iter=300, common_random_numbers=True,
+        wishart_scale=lam0 / n,
+        wishart_dof=n,
+        speed=1500.0,
+        speed_precision=1e10,
+        noise_shape=1e10 * 1.0,
+        noise_rate=1e10,
+        n_state_samples=n_samples,
+        n_speed_samples=2000,
+        tol=1e-6,
+        max_iter=300,
+        common_random_numbers=True,
     )
 
 
@@ -243,9 +249,7 @@ def test_localization_confidence_hand_computed():
     v = 1500.0
     z = Z * meas / v
     eta_refs = np.array([1.0, 0.9, 0.95])  # mean 0.95
-    assert vf.localization_confidence(eta_refs, pos, refs, z, v) == pytest.approx(
-        0.95 * (1 - 36 / 2075)
-    )
+    assert vf.localization_confidence(eta_refs, pos, refs, z, v) == pytest.approx(0.95 * (1 - 36 / 2075))
     assert vf.localization_confidence(eta_refs, pos, refs, z, v, absolute=False) == pytest.approx(
         0.95 * (1 - 14 / 2075)
     )

@@ -20,7 +20,9 @@ def toml_vec(a: np.ndarray) -> str:
     return "[" + ", ".join("[" + ", ".join(repr(float(v)) for v in row) + "]" for row in a) + "]"
 
 
-def make(tmp_path: Path, *, speed=C, sensor_clock="", channel="", mobility="", duration=60.0, interval=1.0) -> scenario.Scenario:
+def make(
+    tmp_path: Path, *, speed=C, sensor_clock="", channel="", mobility="", duration=60.0, interval=1.0
+) -> scenario.Scenario:
     text = f"""
 [simulation]
 duration_s = {duration}
@@ -114,8 +116,11 @@ def test_sound_speed_mismatch_scales_ranges(tmp_path):
 
 
 def test_metrics_are_the_statistics_of_the_errors(tmp_path):
-    fr = run(make(tmp_path, sensor_clock="clock = { skew_std_ppm = 40.0, offset_std_s = 1e-3 }",
-                  channel="jitter_std_s = 1e-4"))
+    fr = run(
+        make(
+            tmp_path, sensor_clock="clock = { skew_std_ppm = 40.0, offset_std_s = 1e-3 }", channel="jitter_std_s = 1e-4"
+        )
+    )
     e = fr["ranges"]["range_m"].to_numpy() - geometric(fr["ranges"])
     m = BeaconNode.metrics(fr)
     assert m["ranges"] == len(e)
@@ -128,8 +133,9 @@ def test_metrics_are_the_statistics_of_the_errors(tmp_path):
 def test_moving_listeners_truth_from_trace(tmp_path):
     # straight lines that stay inside the box for the whole run: the positions table is then
     # linear between samples and the interpolated truth is exact
-    fr = run(make(tmp_path, mobility='mobility = { model = "constant_velocity", velocity = [1.5, -0.5, 0.2] }',
-                  interval=2.0))
+    fr = run(
+        make(tmp_path, mobility='mobility = { model = "constant_velocity", velocity = [1.5, -0.5, 0.2] }', interval=2.0)
+    )
     r = range_errors(fr)
     assert len(r) > 40
     np.testing.assert_allclose(r["error_m"], 0.0, atol=1e-6)

@@ -26,18 +26,38 @@ def test_coverage_upper_bound_iterated_promotion():
 def test_metrics_sync_over_covered_nodes_and_nmse():
     nodes = _nodes()
     # node 3 localized in rounds 1-2, node 4 never: its clock rows count only in the *_all stats
-    clocks = pd.DataFrame({
-        "time": [10.0, 40.0, 12.0, 42.0], "node": [3, 3, 4, 4], "protocol": "itmtl",
-        "round": [1, 2, 1, 2], "error": [-4e-5, 1e-5, 3e-4, -5e-4],
-    })
-    est = pd.DataFrame({
-        "time": [10.0, 40.0], "node": [3, 3], "protocol": "itmtl", "round": [1, 2],
-        "x": [103.0, 100.0], "y": [200.0, 204.0], "z": [50.0, 50.0],
-        "true_x": [100.0, 100.0], "true_y": [200.0, 200.0], "true_z": [50.0, 50.0],
-        "error": [3.0, 4.0], "is_reference": [False, True], "fixed": [True, False],
-    })
-    tables = {"nodes": nodes, "clocks": clocks, "estimates": est,
-              "packets": pd.DataFrame({"event": [], "src": [], "node": []})}
+    clocks = pd.DataFrame(
+        {
+            "time": [10.0, 40.0, 12.0, 42.0],
+            "node": [3, 3, 4, 4],
+            "protocol": "itmtl",
+            "round": [1, 2, 1, 2],
+            "error": [-4e-5, 1e-5, 3e-4, -5e-4],
+        }
+    )
+    est = pd.DataFrame(
+        {
+            "time": [10.0, 40.0],
+            "node": [3, 3],
+            "protocol": "itmtl",
+            "round": [1, 2],
+            "x": [103.0, 100.0],
+            "y": [200.0, 204.0],
+            "z": [50.0, 50.0],
+            "true_x": [100.0, 100.0],
+            "true_y": [200.0, 200.0],
+            "true_z": [50.0, 50.0],
+            "error": [3.0, 4.0],
+            "is_reference": [False, True],
+            "fixed": [True, False],
+        }
+    )
+    tables = {
+        "nodes": nodes,
+        "clocks": clocks,
+        "estimates": est,
+        "packets": pd.DataFrame({"event": [], "src": [], "node": []}),
+    }
     m = protocol_metrics(tables, "itmtl")
     assert m["sync_final_mean_s"] == pytest.approx(1e-5)
     assert m["sync_final_mean_all_s"] == pytest.approx((1e-5 + 5e-4) / 2)

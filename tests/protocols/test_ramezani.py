@@ -67,17 +67,23 @@ def test_localization_large_noise_both_on_crb() -> None:
 
 def test_localization_uses_its_own_profile_not_the_environment() -> None:
     # the node believes a = 0.05 while the water has a = 0.1: ESSP loses its advantage
-    frames = run("ramezani_localization.toml", *sigma(1e-5), "simulation.duration_s=100.0",
-                 "nodes.1.params.gradient_per_s=0.05")
+    frames = run(
+        "ramezani_localization.toml", *sigma(1e-5), "simulation.duration_s=100.0", "nodes.1.params.gradient_per_s=0.05"
+    )
     m = RamezaniNode.metrics(frames)
     assert m["localization_essp.rmse_over_bound"] > 3.0
 
 
 def test_localization_with_depth_gauge() -> None:
     # eq 37: the depth row tightens z; the CRB with the row is what the fixes reach
-    frames = run("ramezani_localization.toml", *sigma(1e-3), "simulation.duration_s=300.0",
-                 "nodes.1.params.use_depth=true", "nodes.1.params.sigma_z_m=0.5",
-                 "nodes.1.sensors.depth_noise_std_m=0.5")
+    frames = run(
+        "ramezani_localization.toml",
+        *sigma(1e-3),
+        "simulation.duration_s=300.0",
+        "nodes.1.params.use_depth=true",
+        "nodes.1.params.sigma_z_m=0.5",
+        "nodes.1.sensors.depth_noise_std_m=0.5",
+    )
     m = RamezaniNode.metrics(frames)
     target = frames["estimates"][["true_x", "true_y", "true_z"]].to_numpy(float)[0]
     with_z = float(fix_crb(TETRAHEDRON, target, PAPER_B, PAPER_A, 1e-3, 0.5))
@@ -88,8 +94,11 @@ def test_localization_with_depth_gauge() -> None:
 
 
 def test_tracking_short_run() -> None:
-    frames = run("ramezani_tracking.toml", "simulation.duration_s=995.0",
-                 *[f"nodes.{i}.params.rmse_from_step=50" for i in (1, 2)])
+    frames = run(
+        "ramezani_tracking.toml",
+        "simulation.duration_s=995.0",
+        *[f"nodes.{i}.params.rmse_from_step=50" for i in (1, 2)],
+    )
     e = frames["estimates"]
     for model in ("essp", "assp"):
         g = e[e["model"] == model].sort_values("step")
@@ -109,8 +118,15 @@ def test_tracking_from_first_fix_without_depth(tmp_path: Path) -> None:
     assert "initial_guess" not in text
     p = tmp_path / "t.toml"
     p.write_text(text)
-    sc = scenario.load(p, overrides=["simulation.duration_s=505.0", "nodes.1.params.rho=0",
-                                     "nodes.1.params.rmse_from_step=20", "nodes.2.params.rmse_from_step=20"])
+    sc = scenario.load(
+        p,
+        overrides=[
+            "simulation.duration_s=505.0",
+            "nodes.1.params.rho=0",
+            "nodes.1.params.rmse_from_step=20",
+            "nodes.2.params.rmse_from_step=20",
+        ],
+    )
     sim = scenario.build(sc)
     sim.run(sc.simulation.duration_s)
     frames = sim.trace.frames()
@@ -144,8 +160,10 @@ def test_continued_gradient_above_surface_finite_differences() -> None:
     tc, gc = essp_model(PAPER_B, PAPER_A, continued=True)
     X = np.array([[800.0, 40.0, -20.0], [300.0, -200.0, -5.0], [60.0, 50.0, -60.0]])
     h = 1e-3
-    fd = np.stack([(tc(TETRAHEDRON, (X + h * e)[:, None]) - tc(TETRAHEDRON, (X - h * e)[:, None])) / (2 * h)
-                   for e in np.eye(3)], axis=-1)
+    fd = np.stack(
+        [(tc(TETRAHEDRON, (X + h * e)[:, None]) - tc(TETRAHEDRON, (X - h * e)[:, None])) / (2 * h) for e in np.eye(3)],
+        axis=-1,
+    )
     np.testing.assert_allclose(gc(TETRAHEDRON, X[:, None]), fd, rtol=1e-6, atol=1e-12)
 
 

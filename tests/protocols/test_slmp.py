@@ -8,8 +8,8 @@ import pytest
 from scipy.optimize import least_squares
 
 from aquasim_py import scenario
-from aquasim_py.registry import get
 from aquasim_py.protocols.slmp import math as sm
+from aquasim_py.registry import get
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "scenarios" / "stvf_quick.toml"
@@ -85,8 +85,14 @@ def _run(overrides):
 
 
 def test_slmp_quick_run():
-    frames = _run(["nodes[0].protocol=slmp", "nodes[1].protocol=slmp",
-                   "nodes[1].params.training_s=5.0", "simulation.duration_s=20.0"])
+    frames = _run(
+        [
+            "nodes[0].protocol=slmp",
+            "nodes[1].protocol=slmp",
+            "nodes[1].params.training_s=5.0",
+            "simulation.duration_s=20.0",
+        ]
+    )
     e = frames["estimates"]
     assert len(e) and (e["time"] >= 5.0).all()  # nothing during the training
     assert set(e["method"]) <= {"multilateration", "self"}

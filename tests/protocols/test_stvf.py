@@ -50,8 +50,14 @@ def test_only_unknown_nodes_estimate(quick):
 
 
 def test_static_noise_free_network_converges_near_truth():
-    frames = _run(["nodes[0].mobility.model=static", "nodes[1].mobility.model=static",
-                   "nodes[1].params.noise_ratio=0.0", "simulation.duration_s=20.0"])
+    frames = _run(
+        [
+            "nodes[0].mobility.model=static",
+            "nodes[1].mobility.model=static",
+            "nodes[1].params.noise_ratio=0.0",
+            "simulation.duration_s=20.0",
+        ]
+    )
     e = frames["estimates"]
     late = e[e.time > 12]
     err = np.hypot(late.x - late.true_x, late.y - late.true_y)
@@ -68,15 +74,25 @@ def test_same_seed_same_estimates():
 def test_localization_metrics_hand_computed():
     from aquasim_py.protocols.stvf.metrics import localization_metrics
 
-    nodes = pd.DataFrame({"node": [0, 1, 2, 3], "role": ["anchor", "ordinary", "ordinary", "ordinary"],
-                          "protocol": ["stvf"] * 4})
+    nodes = pd.DataFrame(
+        {"node": [0, 1, 2, 3], "role": ["anchor", "ordinary", "ordinary", "ordinary"], "protocol": ["stvf"] * 4}
+    )
     # node 1: errors 3, 4 -> RMSE sqrt(12.5); node 2: error 1, 1 -> RMSE 1; node 3 never.
-    est = pd.DataFrame({
-        "time": [0.9, 1.9, 0.9, 1.9], "node": [1, 1, 2, 2], "protocol": ["stvf"] * 4,
-        "x": [3.0, 0.0, 1.0, 0.0], "y": [0.0, 4.0, 0.0, 1.0], "z": [0.0] * 4,
-        "true_x": [0.0] * 4, "true_y": [0.0] * 4, "true_z": [0.0] * 4,
-        "iterations": [3, 6, 5, 7], "is_reference": [True, False, False, False],
-    })
+    est = pd.DataFrame(
+        {
+            "time": [0.9, 1.9, 0.9, 1.9],
+            "node": [1, 1, 2, 2],
+            "protocol": ["stvf"] * 4,
+            "x": [3.0, 0.0, 1.0, 0.0],
+            "y": [0.0, 4.0, 0.0, 1.0],
+            "z": [0.0] * 4,
+            "true_x": [0.0] * 4,
+            "true_y": [0.0] * 4,
+            "true_z": [0.0] * 4,
+            "iterations": [3, 6, 5, 7],
+            "is_reference": [True, False, False, False],
+        }
+    )
     m = localization_metrics({"nodes": nodes, "estimates": est}, "stvf")
     avg = (np.sqrt(12.5) + 1.0) / 2
     assert m["avg_rmse_m"] == pytest.approx(avg)
