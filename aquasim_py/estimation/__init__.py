@@ -21,7 +21,7 @@ from .gauss_newton import GNResult, constant_speed_tof, gauss_newton, gauss_newt
 from .imm import IMM, IMMModel
 from .kalman import UpdateResult, ekf_predict, ekf_update, kf_predict, kf_update
 from .lsq import TDOAResult, multilaterate, tdoa_ls
-from .motion import ConstantVelocity, CoordinatedTurn, MotionModel, cv_matrices, cwna_noise
+from .motion import ConstantVelocityModel, CoordinatedTurnModel, MotionModel, cv_matrices, cwna_noise
 from .particle import (
     effective_sample_size,
     gaussian_log_likelihood,
@@ -37,8 +37,8 @@ from .particle import (
 
 __all__ = [
     "IMM",
-    "ConstantVelocity",
-    "CoordinatedTurn",
+    "ConstantVelocityModel",
+    "CoordinatedTurnModel",
     "DegenerateGeometryError",
     "EstimationError",
     "GNResult",

@@ -53,6 +53,7 @@ def multilaterate(
     *,
     depth: float | None = None,
     pivot: int = 0,
+    refine: int = 0,
 ) -> Array:
     """Position from ranges (m) to N anchors (N, d), d = 2 or 3.
 
@@ -60,6 +61,11 @@ def multilaterate(
     anchors not all on one line (2-D) / plane (3-D). With ``depth`` (3-D only, m) the depth is
     known and the problem is solved in (x, y) on the horizontal ranges; then 3 anchors not on
     one vertical plane suffice.
+
+    ``refine`` > 0 (without ``depth``) follows the linear solution with up to that many
+    Gauss-Newton steps on the range residuals |x - a_i| - r_i (stopping once a step is below
+    1 um): the maximum-likelihood fix for equal Gaussian range noise, which the linear
+    solution is not once the ranges are noisy.
     """
     A = _anchors(anchors)
     r = np.asarray(ranges, dtype=float).reshape(-1)
@@ -74,7 +80,15 @@ def multilaterate(
         r2 = r**2 - (depth - A[:, 2]) ** 2
         xy = _multi(A[:, :2], r2, pivot)
         return np.array([xy[0], xy[1], float(depth)])
-    return _multi(A, r**2, pivot)
+    x = _multi(A, r**2, pivot)
+    for _ in range(refine):
+        d = x - A
+        rho = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+        step = np.linalg.lstsq(d / rho[:, None], r - rho, rcond=None)[0]
+        x = x + step
+        if np.linalg.norm(step) < 1e-6:
+            break
+    return x
 
 
 def _multi(A: Array, r2: Array, pivot: int) -> Array:
@@ -89,6 +103,9 @@ def _multi(A: Array, r2: Array, pivot: int) -> Array:
 class TDOAResult:
     x: Array  #: position (d,) (3,) when depth was given
     range_pivot: float  #: range to the pivot anchor (m), solved as an extra unknown
+    #: every admissible (position, range_pivot) when the geometry leaves two (Chan's quadratic,
+    #: one equation short); empty when the linear solve was determined
+    candidates: tuple[tuple[Array, float], ...] = ()
 
 
 def tdoa_ls(
@@ -98,6 +115,7 @@ def tdoa_ls(
     *,
     pivot: int = 0,
     depth: float | None = None,
+    hint: ArrayLike | None = None,
 ) -> TDOAResult:
     """Hyperbolic TDOA: arrival times (s) of one emission at N synchronized anchors, constant
     sound ``speed`` (m/s). With d_i = d_p + c (t_i - t_p), linear in (x, d_p):
@@ -106,6 +124,11 @@ def tdoa_ls(
 
     Needs N >= d + 2 anchors (5 in 3-D); with ``depth`` (m) known, 4 in 3-D. The linear
     solution ignores d_p = |x - a_p| (spherical interpolation): exact for exact data.
+
+    One equation short (N = d + 1, or 3 anchors at known depth) the position is affine in d_p
+    and d_p = |x - a_p| closes the system as a quadratic (Chan's approach): of two admissible
+    roots the one nearer ``hint`` (default: the anchors' centroid) is returned, both are in
+    ``candidates``. Fewer anchors raise :class:`InsufficientMeasurementsError`.
     """
     A = _anchors(anchors)
     t = np.asarray(arrival_times, dtype=float).reshape(-1)
@@ -113,20 +136,43 @@ def tdoa_ls(
         raise ValueError(f"{A.shape[0]} anchors but {t.size} arrival times")
     if not (np.isfinite(speed) and speed > 0):
         raise ValueError("speed must be positive")
+    if depth is not None and A.shape[1] != 3:
+        raise ValueError("depth is only meaningful in 3-D")
     p = A[pivot]
     B = np.delete(A - p, pivot, axis=0)
     dd = speed * (np.delete(t, pivot) - t[pivot])
     rhs = np.sum(B**2, axis=1) - dd**2
-    if depth is not None:
-        if A.shape[1] != 3:
-            raise ValueError("depth is only meaningful in 3-D")
-        yz = float(depth) - p[2]
+    yz = None if depth is None else float(depth) - p[2]
+    if yz is not None:
         rhs = rhs - 2.0 * B[:, 2] * yz
         M = np.column_stack([2.0 * B[:, :2], 2.0 * dd])
-        sol = _solve(M, rhs, "TDOA")
-        x = p + np.array([sol[0], sol[1], yz])
     else:
         M = np.column_stack([2.0 * B, 2.0 * dd])
+    npos = M.shape[1] - 1
+
+    def full(y: Array) -> Array:
+        return p + (np.array([y[0], y[1], yz]) if yz is not None else y)
+
+    try:
         sol = _solve(M, rhs, "TDOA")
-        x = p + sol[:-1]
-    return TDOAResult(x, float(sol[-1]))
+        return TDOAResult(full(sol[:npos]), float(sol[npos]))
+    except DegenerateGeometryError:
+        if M.shape[0] < npos:
+            raise
+    # Chan: y = y0 + y1 d_p from the first npos rows (square in the position unknowns)
+    Mp, md = M[:npos, :npos], M[:npos, npos]
+    y0 = _solve(Mp, rhs[:npos], "TDOA")
+    y1 = _solve(Mp, -md, "TDOA")
+    q0 = full(y0) - p
+    q1 = np.append(y1, 0.0) if yz is not None else y1
+    # |q0 + q1 d|^2 = d^2
+    a2, a1, a0 = q1 @ q1 - 1.0, 2.0 * q0 @ q1, q0 @ q0
+    roots = np.roots([a2, a1, a0]) if abs(a2) > 1e-12 else np.array([-a0 / a1])
+    roots = np.real(roots[np.abs(np.imag(roots)) < 1e-9 * np.maximum(1.0, np.abs(roots))])
+    roots = roots[roots >= 0.0]
+    if roots.size == 0:
+        raise DegenerateGeometryError("TDOA: no real solution for this geometry")
+    cands = tuple((full(y0 + y1 * d), float(d)) for d in roots)
+    hint_p = A.mean(axis=0) if hint is None else np.asarray(hint, dtype=float)
+    k = int(np.argmin([np.linalg.norm(c - hint_p) for c, _ in cands]))
+    return TDOAResult(cands[k][0], cands[k][1], cands)

@@ -15,6 +15,10 @@ Process noise: continuous white-noise acceleration of spectral density ``q`` (m^
 axis, discretized exactly for the CV model; the CT model uses the same position/velocity block
 (the usual approximation, exact for omega = 0) plus a turn-rate random walk of density
 ``q_turn`` (rad^2/s^3).
+
+These are a filter's *transition models* (F, Q, Jacobians). The trajectories that nodes really
+follow (ground truth) are :mod:`aquasim_py.mobility`'s ``ConstantVelocity`` / ``CoordinatedTurn``:
+hence the ``...Model`` names here.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["ConstantVelocity", "CoordinatedTurn", "MotionModel", "cv_matrices", "cwna_noise"]
+__all__ = ["ConstantVelocityModel", "CoordinatedTurnModel", "MotionModel", "cv_matrices", "cwna_noise"]
 
 Array = NDArray[np.float64]
 
@@ -81,7 +85,7 @@ class MotionModel:
 
 
 @dataclass(frozen=True)
-class ConstantVelocity(MotionModel):
+class ConstantVelocityModel(MotionModel):
     """Nearly constant velocity, state [p, v]; ``q`` in m^2/s^3."""
 
     q: float = 1e-3
@@ -148,7 +152,7 @@ def _turn_coefficients(w: Array, T: float) -> tuple[Array, Array, Array, Array]:
 
 
 @dataclass(frozen=True)
-class CoordinatedTurn(MotionModel):
+class CoordinatedTurnModel(MotionModel):
     """Coordinated turn with unknown turn rate, state [p, v, omega] (EKF model).
 
     ``q`` (m^2/s^3): acceleration noise density on each axis; ``q_turn`` (rad^2/s^3):

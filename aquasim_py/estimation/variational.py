@@ -33,7 +33,6 @@ __all__ = [
     "measurement_confidence",
     "predict",
     "project_delay",
-    "promote",
     "select_references",
     "speed_moment",
     "state_moments",
@@ -368,11 +367,6 @@ def select_references(gamma: ArrayLike, n_r: int) -> NDArray[np.intp]:
     """Indices of the ``n_r`` largest gamma, best first (ties keep arrival order)."""
     g = np.asarray(gamma, float)
     return np.argsort(-g, kind="stable")[:n_r]
-
-
-def promote(confidence: float, threshold: float) -> bool:
-    """A localized node becomes a reference when eta >= delta (Algorithm 1)."""
-    return bool(confidence >= threshold)
 
 
 def project_delay(z: ArrayLike, depth_difference: ArrayLike, speed: float, z_scale: float = 1e3) -> NDArray[np.float64]:

@@ -14,9 +14,11 @@ from typing import ClassVar
 import numpy as np
 
 from aquasim_py.channel.ssp import Constant
+from aquasim_py.estimation.errors import EstimationError
+from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.sync import ClockFit, Exchanges, split_delays
 
-from .math import DelayModel, multilaterate, position_fix
+from .math import DelayModel, position_fix
 from .reqres import ReqResNode, Round
 
 
@@ -54,8 +56,8 @@ class BaselineNode(ReqResNode):
         ref_pos = np.array([a.pos for a in ans])
         if len(ans) >= self.params.min_refs:
             S = np.array([(a.T4 - a.T1) / self.alpha - (a.t3 - a.t2) for a in ans])
-            with contextlib.suppress(np.linalg.LinAlgError):
-                self.p_est = multilaterate(ref_pos, 0.5 * S * self.params.mean_speed_mps, depth)
+            with contextlib.suppress(EstimationError):  # degenerate geometry: keep the last fix
+                self.p_est = multilaterate(ref_pos, 0.5 * S * self.params.mean_speed_mps, depth=depth)
         fit = self.fit()
         self.alpha, self.beta = fit.alpha, fit.beta
         self.synced = True

@@ -5,7 +5,7 @@ iterative tracing for underwater wireless sensor networks" (seed 004). The paper
 were lost in extraction; this module follows the reconstruction in ``notes/papers.md``:
 
 - phase 1 (eqs 1-6): hyperbolic TDOA with reference 1 as the pivot, linearized least squares
-  in ``(x, y[, z], d_1)``; initial clock ``alpha = 1``, ``beta = T1 - (t2_1 - d_1 / c)``;
+  in ``(x, y[, z], d_1)`` (:func:`aquasim_py.estimation.lsq.tdoa_ls`); initial clock ``alpha = 1``, ``beta = T1 - (t2_1 - d_1 / c)``;
 - phase 2a (eqs 7-18): the one-way delay of the rough position is the eigenray time of the
   channel's ray tracer (stratification compensation) or, for ITMTL-wsc, distance / c;
 - phase 2a' (eqs 19-23): the delay's rate of change with the node's and the reference's motion,
@@ -31,98 +31,19 @@ from scipy.optimize import least_squares
 
 from aquasim_py.channel import straight_line_time, travel_time, travel_time_gradient
 from aquasim_py.channel.ssp import SoundSpeedProfile
+from aquasim_py.estimation.errors import EstimationError
+from aquasim_py.estimation.lsq import multilaterate
 
 __all__ = [
     "DelayModel",
     "Fix",
-    "TdoaResult",
     "fix_confidence",
     "initial_clock",
-    "multilaterate",
     "position_fix",
-    "promote",
     "reference_variance",
-    "tdoa_pivot",
 ]
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class TdoaResult:
-    """Rough position (m, (3,)) and range to the pivot reference (m); ``candidates`` holds
-    every admissible (position, d1) when the geometry leaves two (3 references at known depth)."""
-
-    position: FloatArray
-    d1: float
-    candidates: tuple[tuple[FloatArray, float], ...] = ()
-
-
-def _pivot_system(ref: FloatArray, rng_diff: FloatArray, depth: float | None) -> tuple[FloatArray, FloatArray]:
-    """Rows ``2 (p_j - p_1) . p + 2 r_j d_1 = |p_j|^2 - |p_1|^2 - r_j^2`` for j >= 2."""
-    dp = ref[1:] - ref[0]
-    rhs = (ref[1:] ** 2).sum(axis=1) - (ref[0] ** 2).sum() - rng_diff[1:] ** 2
-    if depth is not None:
-        rhs = rhs - 2.0 * dp[:, 2] * depth
-        A = np.column_stack([2.0 * dp[:, :2], 2.0 * rng_diff[1:]])
-    else:
-        A = np.column_stack([2.0 * dp, 2.0 * rng_diff[1:]])
-    return A, rhs
-
-
-def tdoa_pivot(
-    ref_pos: ArrayLike,
-    t_rx: ArrayLike,
-    speed: float,
-    depth: float | None = None,
-    hint: ArrayLike | None = None,
-) -> TdoaResult:
-    """Phase 1: position from the arrival times of one broadcast at synchronized references.
-
-    ``t_rx[j] - t_rx[0] = (d_j - d_1) / c``. Squaring ``d_j = d_1 + r_j`` and subtracting the
-    pivot's equation gives equations linear in ``(x, y[, z], d_1)``, solved by least squares.
-    With a known ``depth`` the unknowns are ``(x, y, d_1)``. When there is exactly one
-    equation too few for the linear solve (3 references at known depth, 4 in 3-D), the
-    position is affine in ``d_1`` and ``|p - p_1| = d_1`` gives a quadratic (Chan's
-    approach); of two admissible roots the one nearer ``hint`` (default: the references'
-    centroid) is kept.
-    """
-    ref = np.asarray(ref_pos, dtype=float).reshape(-1, 3)
-    t = np.asarray(t_rx, dtype=float).reshape(-1)
-    if ref.shape[0] != t.shape[0]:
-        raise ValueError("ref_pos and t_rx must describe the same references")
-    r = speed * (t - t[0])
-    A, b = _pivot_system(ref, r, depth)
-    m = A.shape[1]
-    npos = m - 1
-    hint_p = ref.mean(axis=0) if hint is None else np.asarray(hint, dtype=float)
-
-    def full(pxy: FloatArray) -> FloatArray:
-        return np.array([pxy[0], pxy[1], depth]) if depth is not None else pxy
-
-    if A.shape[0] >= m and np.linalg.matrix_rank(A) == m:
-        sol = np.linalg.lstsq(A, b, rcond=None)[0]
-        return TdoaResult(full(sol[:npos]), float(sol[npos]))
-    if A.shape[0] < npos:
-        raise ValueError(f"TDOA needs at least {npos + 1} references, got {ref.shape[0]}")
-    # p = p0 + p1 d1 from the first npos rows (square in the position unknowns)
-    Ap, ad = A[:npos, :npos], A[:npos, npos]
-    p0 = np.linalg.lstsq(Ap, b[:npos], rcond=None)[0]
-    p1 = np.linalg.lstsq(Ap, -ad, rcond=None)[0]
-    q0 = full(p0) - ref[0]
-    q1 = np.append(p1, 0.0) if depth is not None else p1
-    # |q0 + q1 d1|^2 = d1^2
-    a2 = q1 @ q1 - 1.0
-    a1 = 2.0 * q0 @ q1
-    a0 = q0 @ q0
-    roots = np.roots([a2, a1, a0]) if abs(a2) > 1e-12 else np.array([-a0 / a1])
-    roots = np.real(roots[np.abs(np.imag(roots)) < 1e-9 * np.maximum(1.0, np.abs(roots))])
-    roots = roots[roots >= 0.0]
-    if roots.size == 0:
-        raise ValueError("TDOA: no real solution for this geometry")
-    cands = [full(p0 + p1 * d) for d in roots]
-    k = int(np.argmin([np.linalg.norm(c - hint_p) for c in cands]))
-    return TdoaResult(cands[k], float(roots[k]), tuple((c, float(d)) for c, d in zip(cands, roots)))
 
 
 def initial_clock(T1: float, t2_pivot: float, d1: float, speed: float) -> tuple[float, float]:
@@ -200,23 +121,6 @@ class DelayModel:
         raise ValueError(f"unknown motion mode {mode!r} (relative | separate)")
 
 
-def multilaterate(ref_pos: ArrayLike, ranges: ArrayLike, depth: float | None = None) -> FloatArray:
-    """Linear multilateration (m): subtract the first sphere from the others, least squares.
-
-    With a known ``depth`` the unknowns are ``(x, y)`` (needs 3 references), else
-    ``(x, y, z)`` (needs 4).
-    """
-    ref = np.asarray(ref_pos, dtype=float).reshape(-1, 3)
-    d = np.asarray(ranges, dtype=float).reshape(-1)
-    dp = ref[1:] - ref[0]
-    rhs = (ref[1:] ** 2).sum(axis=1) - (ref[0] ** 2).sum() - d[1:] ** 2 + d[0] ** 2
-    if depth is not None:
-        rhs = rhs - 2.0 * dp[:, 2] * depth
-        sol = np.linalg.lstsq(2.0 * dp[:, :2], rhs, rcond=None)[0]
-        return np.array([sol[0], sol[1], depth])
-    return np.linalg.lstsq(2.0 * dp, rhs, rcond=None)[0]
-
-
 @dataclass(frozen=True)
 class Fix:
     """A phase-3 position fix."""
@@ -251,8 +155,8 @@ def position_fix(
         p0[2] = depth
     axes = [0, 1] if depth is not None else [0, 1, 2]
     if not model.compensate:
-        with contextlib.suppress(np.linalg.LinAlgError):
-            p0 = multilaterate(ref, model.mean_speed * tau, depth)
+        with contextlib.suppress(EstimationError):  # degenerate geometry: keep p0
+            p0 = multilaterate(ref, model.mean_speed * tau, depth=depth)
 
     def full(u: FloatArray) -> FloatArray:
         p = p0.copy()
@@ -295,9 +199,3 @@ def fix_confidence(ref_confidence: ArrayLike, rms_residual_m: float, residual_sc
     """
     rc = float(np.mean(np.asarray(ref_confidence, dtype=float)))
     return rc * float(np.clip(1.0 - rms_residual_m / residual_scale_m, 0.0, 1.0))
-
-
-def promote(confidences: ArrayLike, threshold: float, min_rounds: int) -> bool:
-    """Promotion rule: the last ``min_rounds`` confidences all reach ``threshold``."""
-    c = np.asarray(confidences, dtype=float)
-    return c.size >= min_rounds and bool(np.all(c[-min_rounds:] >= threshold))

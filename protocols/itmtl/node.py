@@ -29,26 +29,22 @@ extrapolated to the logging instant, confidence, is_reference), with a ``round``
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
 
+from aquasim_py.estimation.errors import EstimationError
 from aquasim_py.estimation.imm import IMM
-from aquasim_py.estimation.motion import ConstantVelocity, CoordinatedTurn
+from aquasim_py.estimation.lsq import multilaterate, tdoa_ls
+from aquasim_py.estimation.motion import ConstantVelocityModel, CoordinatedTurnModel
+from aquasim_py.estimation.promotion import promote
 from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
 from aquasim_py.registry import register
 
-from .math import (
-    DelayModel,
-    fix_confidence,
-    initial_clock,
-    multilaterate,
-    position_fix,
-    promote,
-    tdoa_pivot,
-)
+from .math import DelayModel, fix_confidence, initial_clock, position_fix
 from .reqres import ReqResNode, ReqResParams, Round
 
 __all__ = ["ItmtlNode"]
@@ -291,7 +287,10 @@ class ItmtlNode(ReqResNode):
             P0[:2, :2] = R
             Pi = np.array([[1 - p.imm_switch, p.imm_switch], [p.imm_switch, 1 - p.imm_switch]])
             self.imm_filter = IMM(
-                [ConstantVelocity(2, 1.0, p.imm_q_cv), CoordinatedTurn(2, 1.0, p.imm_q_ct, p.imm_q_turn)], Pi, x0, P0
+                [ConstantVelocityModel(2, 1.0, p.imm_q_cv), CoordinatedTurnModel(2, 1.0, p.imm_q_ct, p.imm_q_turn)],
+                Pi,
+                x0,
+                P0,
             )
             self._imm_t = t1
             return
@@ -331,20 +330,18 @@ class ItmtlNode(ReqResNode):
                 return
             t2 = np.array([a.t2 for a in ans])
             try:
-                td = tdoa_pivot(ref_pos, t2, p.mean_speed_mps, depth=depth)
-                rough, d1 = td.position, td.d1
+                td = tdoa_ls(ref_pos, t2, p.mean_speed_mps, depth=depth)
+                rough, d1 = td.x, td.range_pivot
                 # Two hyperbola intersections (3 references), or a linearized solution thrown
                 # far off by a reference outside the node's hull: keep the candidate whose
                 # ranges agree best with the round trips (half of each at the mean speed;
                 # alpha ~ 1 is enough), the round-trip multilateration being one candidate.
                 S = np.array([(a.T4 - a.T1) - (a.t3 - a.t2) for a in ans])
                 rr = 0.5 * S * p.mean_speed_mps
-                cands = list(td.candidates) or [(td.position, td.d1)]
-                try:
-                    q = multilaterate(ref_pos, rr, depth)
+                cands = list(td.candidates) or [(td.x, td.range_pivot)]
+                with contextlib.suppress(EstimationError):  # degenerate: TDOA candidates only
+                    q = multilaterate(ref_pos, rr, depth=depth)
                     cands.append((q, float(np.linalg.norm(ref_pos[0] - q))))
-                except np.linalg.LinAlgError:
-                    pass
                 mis = [np.sum((np.linalg.norm(ref_pos - c, axis=1) - rr) ** 2) for c, _ in cands]
                 rough, d1 = cands[int(np.argmin(mis))]
                 if not self.synced:

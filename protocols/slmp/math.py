@@ -23,13 +23,10 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import ArrayLike, NDArray
 
-from aquasim_py.estimation.lsq import multilaterate
-
 __all__ = [
     "MobilityPredictor",
     "fit_linear_predictor",
     "is_stable",
-    "multilaterate_2d",
     "predict_velocities",
     "slmp_confidence",
 ]
@@ -153,24 +150,6 @@ class MobilityPredictor:
         if not self.times:
             return None
         return self.positions[-1] + self.velocity() * (t - self.times[-1])
-
-
-def multilaterate_2d(refs: ArrayLike, ranges: ArrayLike, iterations: int = 5) -> Array:
-    """(x, y) from ranges (m) to >= 3 references (n, 2): linear least squares, then
-    Gauss-Newton on the range residuals. Raises DegenerateGeometryError for collinear ones."""
-    a = np.asarray(refs, float)
-    r = np.asarray(ranges, float)
-    x = multilaterate(a, r)
-    for _ in range(iterations):
-        d = x - a
-        rho = np.linalg.norm(d, axis=1)
-        rho = np.maximum(rho, 1e-9)
-        jac = d / rho[:, None]
-        step = np.linalg.lstsq(jac, r - rho, rcond=None)[0]
-        x = x + step
-        if np.linalg.norm(step) < 1e-6:
-            break
-    return x
 
 
 def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayLike, ranges: ArrayLike) -> float:

@@ -27,13 +27,14 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
+from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
 from ..stvf.metrics import localization_metrics
-from .math import MobilityPredictor, multilaterate_2d, slmp_confidence
+from .math import MobilityPredictor, slmp_confidence
 
 __all__ = ["SlmpNode"]
 
@@ -144,7 +145,7 @@ class SlmpNode(PeriodicBeaconNode):
         conf = 0.0
         if len(refs) >= p.min_refs:
             try:
-                xy_est = multilaterate_2d(np.array(refs), np.array(ranges))
+                xy_est = multilaterate(np.array(refs), np.array(ranges), refine=5)
                 # A node hears only nodes within range: a fix farther than that from a
                 # reference is a failed one (ill-conditioned geometry), not an estimate.
                 if np.all(np.linalg.norm(np.array(refs) - xy_est, axis=1) <= p.range_m):

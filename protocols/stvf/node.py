@@ -29,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aquasim_py.estimation import variational as vf
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
+from aquasim_py.estimation.promotion import promote
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
@@ -192,7 +193,7 @@ class StvfNode(PeriodicBeaconNode):
             self.speed_est = (xy - self.last_fix[1]) / (now - self.last_fix[0])
         self.last_fix = (now, xy.copy())
         self.confidence = vf.localization_confidence(eta, xy, refs, z, out.speed, absolute=p.absolute_error)
-        is_ref = vf.promote(self.confidence, p.delta)
+        is_ref = promote(self.confidence, p.delta)
         self.log_estimate(
             xy[0],
             xy[1],

@@ -7,8 +7,8 @@ import pytest
 
 from aquasim_py.estimation import (
     IMM,
-    ConstantVelocity,
-    CoordinatedTurn,
+    ConstantVelocityModel,
+    CoordinatedTurnModel,
     ekf_predict,
     kf_predict,
     kf_update,
@@ -26,8 +26,8 @@ def _run(seed: int, dim: int):
     rng = np.random.default_rng(seed)
     z = truth + SIG * rng.standard_normal(truth.shape)
     R = SIG**2 * np.eye(dim)
-    cv = ConstantVelocity(dim, DT, q=0.01)
-    ct = CoordinatedTurn(dim, DT, q=0.01, q_turn=1e-4)
+    cv = ConstantVelocityModel(dim, DT, q=0.01)
+    ct = CoordinatedTurnModel(dim, DT, q=0.01, q_turn=1e-4)
     n = ct.n
     x0 = np.zeros(n)
     x0[:dim] = z[0]
@@ -76,8 +76,8 @@ def test_imm_beats_single_models_and_follows_the_turn(dim: int, seeds) -> None:
 
 
 def test_imm_predict_only_keeps_probabilities_on_markov_chain() -> None:
-    cv = ConstantVelocity(2, 1.0, q=0.1)
-    ct = CoordinatedTurn(2, 1.0, q=0.1, q_turn=1e-3)
+    cv = ConstantVelocityModel(2, 1.0, q=0.1)
+    ct = CoordinatedTurnModel(2, 1.0, q=0.1, q_turn=1e-3)
     Pi = np.array([[0.9, 0.1], [0.2, 0.8]])
     imm = IMM([cv, ct], Pi, np.zeros(5), np.eye(5), [1.0, 0.0])
     for _ in range(200):
@@ -89,7 +89,7 @@ def test_imm_predict_only_keeps_probabilities_on_markov_chain() -> None:
 def test_imm_single_model_equals_kalman_filter() -> None:
     """One CV model with a trivial chain is the plain Kalman filter."""
     rng = np.random.default_rng(1)
-    cv = ConstantVelocity(2, 0.5, q=0.2)
+    cv = ConstantVelocityModel(2, 0.5, q=0.2)
     H = np.hstack([np.eye(2), np.zeros((2, 2))])
     R = 4.0 * np.eye(2)
     x, P = np.zeros(4), 10 * np.eye(4)
@@ -106,7 +106,7 @@ def test_imm_single_model_equals_kalman_filter() -> None:
 
 
 def test_imm_rejects_bad_transition() -> None:
-    cv = ConstantVelocity(2, 1.0)
+    cv = ConstantVelocityModel(2, 1.0)
     with pytest.raises(ValueError):
         IMM([cv, cv], [[0.5, 0.6], [0.5, 0.5]], np.zeros(4), np.eye(4))
 
@@ -126,8 +126,8 @@ def test_imm_nonlinear_measurement_path_matches_direct_ekf() -> None:
         J[:, :2] = (s[:2] - anchors) / h(s)[:, None]
         return J
 
-    cv = ConstantVelocity(2, 1.0, q=0.1)
-    ct = CoordinatedTurn(2, 1.0, q=0.1, q_turn=1e-3)
+    cv = ConstantVelocityModel(2, 1.0, q=0.1)
+    ct = CoordinatedTurnModel(2, 1.0, q=0.1, q_turn=1e-3)
     x0 = np.array([40.0, 30.0, 1.0, -0.5, 0.02])
     P0 = np.diag([25.0, 25.0, 1.0, 1.0, 1e-3])
     Pi = np.array([[0.9, 0.1], [0.1, 0.9]])
@@ -159,7 +159,7 @@ def test_imm_mixing_matches_textbook_formulas() -> None:
     x0j = sum_i w_ij x_i, P0j = sum_i w_ij (P_i + (x_i - x0j)(x_i - x0j)^T),
     w_ij = mu_i Pi_ij / c_j (Bar-Shalom et al. 11.6.6)."""
     rng = np.random.default_rng(9)
-    m1, m2 = ConstantVelocity(2, 1.0, q=0.01), ConstantVelocity(2, 1.0, q=1.0)
+    m1, m2 = ConstantVelocityModel(2, 1.0, q=0.01), ConstantVelocityModel(2, 1.0, q=1.0)
     Pi = np.array([[0.8, 0.2], [0.3, 0.7]])
     imm = IMM([m1, m2], Pi, np.zeros(4), np.eye(4), [0.35, 0.65])
     xs = [rng.normal(size=4), rng.normal(size=4)]

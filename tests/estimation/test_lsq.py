@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import least_squares
 
 from aquasim_py.estimation import (
     DegenerateGeometryError,
@@ -46,13 +47,32 @@ def test_tdoa_exact(dim: int, n: int) -> None:
         assert res.range_pivot == pytest.approx(_dist(A, x)[pivot], abs=1e-6)
 
 
-def test_tdoa_with_known_depth_needs_four_anchors() -> None:
+def test_tdoa_one_equation_short_closes_with_chans_quadratic() -> None:
     A = np.array([[0.0, 0.0, 5.0], [400.0, 0.0, 20.0], [0.0, 400.0, 10.0], [400.0, 400.0, 0.0]])
     x = np.array([150.0, 260.0, 70.0])
     res = tdoa_ls(A, _dist(A, x) / 1500.0, 1500.0, depth=70.0)
     np.testing.assert_allclose(res.x, x, atol=1e-8)
+    assert res.candidates == ()  # determined: no quadratic needed
+    # 3-D, 4 anchors: 3 linear equations for (x, y, z, d_p); the true point is a root
+    res = tdoa_ls(A, _dist(A, x) / 1500.0, 1500.0, hint=x + 5.0)
+    assert any(np.allclose(c, x, atol=1e-6) for c, _ in res.candidates)
+    np.testing.assert_allclose(res.x, x, atol=1e-6)
+    assert res.range_pivot == pytest.approx(np.linalg.norm(A[0] - x), abs=1e-6)
     with pytest.raises(InsufficientMeasurementsError):
-        tdoa_ls(A, _dist(A, x) / 1500.0, 1500.0)  # 3 equations, 4 unknowns
+        tdoa_ls(A[:3], _dist(A[:3], x) / 1500.0, 1500.0)  # 2 equations for 4 unknowns
+
+
+@pytest.mark.parametrize("n_refs", [3, 4, 5])
+def test_tdoa_known_depth_recovers_position(n_refs: int) -> None:
+    refs = np.array(
+        [[0.0, 0.0, 5.0], [1000.0, 0.0, 15.0], [0.0, 900.0, 30.0], [950.0, 1000.0, 2.0], [500.0, -200.0, 60.0]]
+    )
+    p = np.array([420.0, 310.0, 140.0])
+    ref = refs[:n_refs]
+    t_rx = 12.345 + _dist(ref, p) / 1500.0
+    res = tdoa_ls(ref, t_rx, 1500.0, depth=p[2], hint=[500.0, 500.0, 140.0])
+    np.testing.assert_allclose(res.x, p, atol=1e-6)
+    assert res.range_pivot == pytest.approx(np.linalg.norm(ref[0] - p), abs=1e-6)
 
 
 def test_degenerate_geometries_raise() -> None:
@@ -65,3 +85,15 @@ def test_degenerate_geometries_raise() -> None:
         tdoa_ls(plane, _dist(plane, x) / 1500, 1500.0)
     with pytest.raises(InsufficientMeasurementsError):
         multilaterate(line[:2], [1.0, 1.0])
+
+
+def test_refined_multilateration_matches_scipy_least_squares() -> None:
+    rng = np.random.default_rng(2)
+    refs = np.array([[0.0, 0.0], [70.0, 10.0], [20.0, 60.0], [-30.0, 40.0]])
+    truth = np.array([15.0, 20.0])
+    r = _dist(refs, truth) + rng.normal(0, 1.0, 4)
+    got = multilaterate(refs, r, refine=5)
+    ref = least_squares(lambda x: np.linalg.norm(refs - x, axis=1) - r, x0=np.zeros(2)).x
+    assert not np.allclose(multilaterate(refs, r), ref, atol=1e-3)  # the linear fix is not the ML fix
+    assert np.allclose(got, ref, atol=1e-5)
+    assert np.allclose(multilaterate(refs, _dist(refs, truth), refine=5), truth, atol=1e-9)

@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import fixed_quad, solve_ivp
 from scipy.linalg import expm
 
-from aquasim_py.estimation import ConstantVelocity, CoordinatedTurn, cwna_noise
+from aquasim_py.estimation import ConstantVelocityModel, CoordinatedTurnModel, cwna_noise
 from aquasim_py.estimation.motion import _SERIES_BELOW
 
 
@@ -27,12 +27,12 @@ def test_ct_transition_matches_ode_integration(dim: int, omega: float) -> None:
     dt = 2.5
     x = np.array([1.0, -2.0, 3.0, 4.0, -1.5, 0.7, omega]) if dim == 3 else np.array([1.0, -2.0, 4.0, -1.5, omega])
     sol = solve_ivp(_ct_ode, (0, dt), x, args=(dim,), rtol=1e-12, atol=1e-12, method="DOP853")
-    got = CoordinatedTurn(dim, dt).transition(x)
+    got = CoordinatedTurnModel(dim, dt).transition(x)
     np.testing.assert_allclose(got, sol.y[:, -1], rtol=1e-9, atol=1e-9)
 
 
 def test_ct_transition_vectorized() -> None:
-    ct = CoordinatedTurn(3, 1.0)
+    ct = CoordinatedTurnModel(3, 1.0)
     X = np.random.default_rng(0).normal(size=(50, 7))
     np.testing.assert_allclose(ct.transition(X), np.stack([ct.transition(x) for x in X]), rtol=0, atol=0)
 
@@ -43,7 +43,7 @@ def test_ct_transition_vectorized() -> None:
     [0.0, 1e-9, 3e-4, 0.999 * _SERIES_BELOW / 2.0, 1.001 * _SERIES_BELOW / 2.0, 0.4, -1.3],
 )
 def test_ct_jacobian_matches_finite_differences(dim: int, omega: float) -> None:
-    ct = CoordinatedTurn(dim, 2.0)
+    ct = CoordinatedTurnModel(dim, 2.0)
     x = np.array([5.0, 1.0, -3.0, 2.0, -1.0, 0.3, omega]) if dim == 3 else np.array([5.0, 1.0, 2.0, -1.0, omega])
     J = ct.jacobian(x)
     h = 1e-6
@@ -52,7 +52,7 @@ def test_ct_jacobian_matches_finite_differences(dim: int, omega: float) -> None:
 
 
 def test_ct_coefficients_continuous_at_series_switch() -> None:
-    ct = CoordinatedTurn(2, 1.0)
+    ct = CoordinatedTurnModel(2, 1.0)
     x = np.array([0.0, 0.0, 3.0, -2.0, 0.0])
     w = _SERIES_BELOW
     lo, hi = x.copy(), x.copy()
@@ -63,7 +63,7 @@ def test_ct_coefficients_continuous_at_series_switch() -> None:
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_ct_at_zero_turn_rate_is_cv(dim: int) -> None:
-    cv, ct = ConstantVelocity(dim, 1.5, q=0.2), CoordinatedTurn(dim, 1.5, q=0.2)
+    cv, ct = ConstantVelocityModel(dim, 1.5, q=0.2), CoordinatedTurnModel(dim, 1.5, q=0.2)
     x = np.arange(1.0, 2 * dim + 1)
     np.testing.assert_allclose(ct.transition(np.append(x, 0.0))[:-1], cv.transition(x), rtol=1e-15)
     np.testing.assert_allclose(ct.jacobian(np.append(x, 0.0))[:-1, :-1], cv.F, rtol=1e-15)
@@ -89,4 +89,4 @@ def test_cwna_noise_is_the_integral_of_white_acceleration(dim: int) -> None:
 
 def test_bad_dimension_rejected() -> None:
     with pytest.raises(ValueError):
-        ConstantVelocity(4, 1.0)
+        ConstantVelocityModel(4, 1.0)

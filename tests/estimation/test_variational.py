@@ -274,11 +274,6 @@ def test_measurement_confidence_hand_computed():
     assert np.allclose(flat, 0.7 * eta + 0.3)
 
 
-@pytest.mark.parametrize("eta,expected", [(0.8999, False), (0.9, True), (0.9001, True), (0.2, False)])
-def test_promotion_only_at_or_above_threshold(eta, expected):
-    assert vf.promote(eta, 0.9) is expected
-
-
 def test_project_delay_is_horizontal_component():
     src = np.array([0.0, 0.0, 10.0])
     dst = np.array([30.0, 40.0, 60.0])

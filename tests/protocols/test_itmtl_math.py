@@ -8,43 +8,20 @@ from aquasim_py.protocols.itmtl.math import (
     DelayModel,
     fix_confidence,
     initial_clock,
-    multilaterate,
     position_fix,
-    promote,
-    tdoa_pivot,
 )
 
 C = 1500.0
 REFS = np.array([[0.0, 0.0, 5.0], [1000.0, 0.0, 15.0], [0.0, 900.0, 30.0], [950.0, 1000.0, 2.0], [500.0, -200.0, 60.0]])
 
 
-@pytest.mark.parametrize("n_refs", [3, 4, 5])
-def test_tdoa_known_depth_recovers_position(n_refs):
+def test_initial_clock_offset_is_exact_without_skew():
+    # eq 6: beta = T1 - (t2_1 - d_1 / c) is exact when the clock has no skew
     p = np.array([420.0, 310.0, 140.0])
-    ref = REFS[:n_refs]
-    t_send = 12.345
-    t_rx = t_send + np.linalg.norm(ref - p, axis=1) / C
-    res = tdoa_pivot(ref, t_rx, C, depth=p[2], hint=[500.0, 500.0, 140.0])
-    np.testing.assert_allclose(res.position, p, atol=1e-6)
-    assert res.d1 == pytest.approx(np.linalg.norm(ref[0] - p), abs=1e-6)
-    # eq 6: the offset guess is exact when the clock has no skew
-    beta = 0.731
-    _, b = initial_clock(t_send + beta, t_rx[0], res.d1, C)
+    d1 = float(np.linalg.norm(REFS[0] - p))
+    t_send, beta = 12.345, 0.731
+    _, b = initial_clock(t_send + beta, t_send + d1 / C, d1, C)
     assert b == pytest.approx(beta, abs=1e-9)
-
-
-def test_tdoa_3d_recovers_position():
-    p = np.array([380.0, 520.0, 90.0])
-    t_rx = 3.0 + np.linalg.norm(REFS - p, axis=1) / C
-    res = tdoa_pivot(REFS, t_rx, C)
-    np.testing.assert_allclose(res.position, p, atol=1e-5)
-
-
-def test_multilaterate_exact_ranges():
-    p = np.array([250.0, 640.0, 75.0])
-    d = np.linalg.norm(REFS - p, axis=1)
-    np.testing.assert_allclose(multilaterate(REFS[:3], d[:3], depth=75.0), p, atol=1e-8)
-    np.testing.assert_allclose(multilaterate(REFS, d), p, atol=1e-6)
 
 
 def test_position_fix_constant_speed():
@@ -109,10 +86,7 @@ def test_motion_rates_relative_form():
     assert kn[0] == pytest.approx(1.0 / C) and kr[0] == pytest.approx(-0.5 / C)
 
 
-def test_confidence_and_promotion():
+def test_fix_confidence():
     assert fix_confidence([1.0, 1.0, 1.0], 0.0, 5.0) == 1.0
     assert fix_confidence([1.0, 0.5], 2.5, 5.0) == pytest.approx(0.75 * 0.5)
     assert fix_confidence([1.0], 9.0, 5.0) == 0.0
-    assert not promote([0.9], 0.8, 2)
-    assert promote([0.1, 0.85, 0.9], 0.8, 2)
-    assert not promote([0.9, 0.7], 0.8, 2)

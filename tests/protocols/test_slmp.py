@@ -5,7 +5,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.optimize import least_squares
 
 from aquasim_py import scenario
 from aquasim_py.protocols.slmp import math as sm
@@ -55,18 +54,6 @@ def test_mobility_predictor_constant_velocity_and_refit_on_error():
 def test_refit_schedule_is_window_times_one_minus_overlap():
     mp = sm.MobilityPredictor(1.0, window=60, overlap=0.2, order=15, threshold=1e9)
     assert mp.refit_every == 48
-
-
-def test_multilateration_matches_scipy_least_squares():
-    rng = np.random.default_rng(2)
-    refs = np.array([[0.0, 0.0], [70.0, 10.0], [20.0, 60.0], [-30.0, 40.0]])
-    truth = np.array([15.0, 20.0])
-    r = np.linalg.norm(refs - truth, axis=1) + rng.normal(0, 1.0, 4)
-    got = sm.multilaterate_2d(refs, r)
-    ref = least_squares(lambda x: np.linalg.norm(refs - x, axis=1) - r, x0=np.zeros(2)).x
-    assert np.allclose(got, ref, atol=1e-5)
-    exact = sm.multilaterate_2d(refs, np.linalg.norm(refs - truth, axis=1))
-    assert np.allclose(exact, truth, atol=1e-9)
 
 
 def test_slmp_confidence_hand_computed():
