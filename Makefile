@@ -1,23 +1,62 @@
-# Two entry points, each doing its own set-up in a local virtual environment.
+# Two entry points, each doing its own set-up in a local virtual environment from the locked
+# dependency sets in requirements/ (plain pip and venv: nothing else needed on a fresh machine).
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
+LOCKS  := requirements
+UV     ?= uv
+# one universal lock for Python 3.11 and newer (markers where a newest release dropped 3.11)
+COMPILE = $(UV) pip compile pyproject.toml --universal --python-version 3.11 --quiet --no-header
 
-.PHONY: run test install clean
+.PHONY: run test lint install install-test install-lint lock lock-check clean
 
-$(BIN)/aquasim-py: pyproject.toml
+$(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+
+# each stamp records that its locked set is installed; editing a lock reinstalls
+$(VENV)/.installed-run: $(LOCKS)/run.txt pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r $(LOCKS)/run.txt
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps -e .
 	touch $@
 
-install: $(BIN)/aquasim-py
+$(VENV)/.installed-test: $(LOCKS)/test.txt $(VENV)/.installed-run
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r $(LOCKS)/test.txt
+	touch $@
+
+$(VENV)/.installed-lint: $(LOCKS)/lint.txt $(VENV)/.installed-test
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r $(LOCKS)/lint.txt
+	touch $@
+
+install: $(VENV)/.installed-run
+install-test: $(VENV)/.installed-test
+install-lint: $(VENV)/.installed-lint
 
 run: install
 	$(BIN)/aquasim-py scenarios/itmtl.toml
 
-test: install
+test: install-test
 	$(BIN)/python -m pytest -q
+
+lint: install-lint
+	$(BIN)/ruff check aquasim_py protocols tools tests
+	$(BIN)/ruff format --check aquasim_py protocols tools tests
+	$(BIN)/mypy
+
+lock:
+	$(COMPILE) -o $(LOCKS)/run.txt
+	$(COMPILE) --extra test -o $(LOCKS)/test.txt
+	$(COMPILE) --extra test --extra lint -o $(LOCKS)/lint.txt
+
+# the committed locks must be what `make lock` writes from pyproject.toml's ranges; uv keeps the
+# pins already in an output file, so a recompile of a copy changes nothing unless a range moved
+lock-check:
+	@tmp=$$(mktemp -d) && cp $(LOCKS)/*.txt $$tmp/ && \
+	$(COMPILE) -o $$tmp/run.txt && \
+	$(COMPILE) --extra test -o $$tmp/test.txt && \
+	$(COMPILE) --extra test --extra lint -o $$tmp/lint.txt && \
+	for f in run test lint; do \
+	  diff -u $(LOCKS)/$$f.txt $$tmp/$$f.txt || { echo "$(LOCKS)/$$f.txt is out of step with pyproject.toml: run make lock"; exit 1; }; \
+	done && echo "locks match pyproject.toml"
 
 clean:
 	rm -rf $(VENV) out
