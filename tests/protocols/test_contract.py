@@ -1,0 +1,166 @@
+"""The contract every registered protocol keeps, checked over the whole registry.
+
+Each built-in protocol runs a tiny scenario (a shipped scenario, shortened) and must:
+
+- give byte-identical trace files when run twice with the same seed;
+- write the documented columns of the tables it fills (``estimates``, ``clocks``);
+- never reach ground truth while it runs: no function of the kernel's truth (true positions
+  and velocities in :mod:`aquasim_py.mobility`, true clocks in :mod:`aquasim_py.clock`, the
+  simulation and channel internals, the trace tables, SimPy's true ``now``) is called directly
+  from protocol code. A profile hook watches every call made from a frame of a file under
+  ``protocols/`` during ``run``; calls through the node API (``depth()``, ``local_time()``,
+  ...) are fine: the kernel answers them with noisy, local views.
+
+A protocol added to the registry without a tiny scenario here fails ``test_every_protocol_has_a_case``.
+"""
+
+from __future__ import annotations
+
+import filecmp
+import sys
+from pathlib import Path
+from types import FrameType
+from typing import Any, ClassVar
+
+import pytest
+
+from aquasim_py import registry, scenario
+from aquasim_py.channel import Constant
+from aquasim_py.kernel import Simulation
+from aquasim_py.mobility import Box, ConstantVelocity
+from aquasim_py.node import Node
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIOS = ROOT / "scenarios"
+PROTOCOLS_DIR = str(ROOT / "protocols")
+
+# protocol -> (shipped scenario, --set overrides that make it tiny or switch to the protocol)
+_ITMTL = ["simulation.duration_s=70.0"]
+
+
+def _swap(name: str) -> list[str]:
+    return [*_ITMTL, f'nodes.0.protocol="{name}"', f'nodes.1.protocol="{name}"', "nodes.1.params={}"]
+
+
+CASES: dict[str, tuple[str, list[str]]] = {
+    "beacon": ("beacon.toml", ["simulation.duration_s=40.0"]),
+    "itmtl": ("itmtl.toml", _ITMTL),
+    "tshl": ("itmtl.toml", _swap("tshl")),
+    "mu_sync": ("itmtl.toml", _swap("mu_sync")),
+    "mobi_sync": ("itmtl.toml", _swap("mobi_sync")),
+    "ramezani": ("ramezani_localization.toml", ["simulation.duration_s=30.0"]),
+    "stvf": ("stvf_quick.toml", ["simulation.duration_s=4.0"]),
+    "slmp": (
+        "stvf_quick.toml",
+        [
+            "simulation.duration_s=4.0",
+            'nodes.0.protocol="slmp"',
+            'nodes.1.protocol="slmp"',
+            "nodes.0.params={training_s=1.0}",
+            "nodes.1.params={training_s=1.0}",
+        ],
+    ),
+}
+
+# documented columns (DESIGN.md, README "Trace tables"); protocols may add their own
+DOCUMENTED = {
+    "estimates": {"time", "node", "protocol", "x", "y", "z", "true_x", "true_y", "true_z", "error"},
+    "clocks": {"time", "node", "protocol", "skew", "offset", "true_skew", "true_offset", "error"},
+    "packets": {"time", "event", "reason", "node", "src", "dst", "uid", "kind", "bits", "tof", "snr_db"},
+}
+
+# files whose functions hold or compute ground truth; protocol code must not call into them
+_TRUTH_FILES = tuple(
+    str(ROOT / "aquasim_py" / f) for f in ("kernel.py", "mobility.py", "clock.py", "trace.py", "channel/acoustic.py")
+)
+
+
+def _builtin_protocols() -> list[str]:
+    return [n for n in registry.available() if registry.get(n).__module__.startswith("aquasim_py.protocols.")]
+
+
+def test_every_protocol_has_a_case() -> None:
+    missing = sorted(set(_builtin_protocols()) - set(CASES))
+    assert not missing, f"add a tiny scenario for {missing} to CASES"
+
+
+def _watch(run: Any, code_files: tuple[str, ...]) -> list[str]:
+    """Call ``run()`` while watching calls made from frames of ``code_files`` (path prefixes)
+    into the truth files; returns one line per offending call site."""
+    leaks: list[str] = []
+
+    def hook(frame: FrameType, event: str, arg: Any) -> None:
+        if event != "call":
+            return
+        caller = frame.f_back
+        if caller is None or not caller.f_code.co_filename.startswith(code_files):
+            return
+        callee = frame.f_code.co_filename
+        is_now = callee.endswith("simpy/core.py") and frame.f_code.co_name == "now"
+        if callee.startswith(_TRUTH_FILES) or is_now:
+            leaks.append(
+                f"{Path(caller.f_code.co_filename).name}:{caller.f_lineno} calls {Path(callee).name}:{frame.f_code.co_name}"
+            )
+
+    sys.setprofile(hook)
+    try:
+        run()
+    finally:
+        sys.setprofile(None)
+    return leaks
+
+
+def _run(name: str, out: Path, watch: bool = False) -> list[str]:
+    """Build and run the case, write its traces to ``out``; returns the truth calls seen."""
+    file, overrides = CASES[name]
+    sc = scenario.load(SCENARIOS / file, overrides=overrides)
+    sim = scenario.build(sc)
+    until = sc.simulation.duration_s
+    leaks = _watch(lambda: sim.run(until=until), (PROTOCOLS_DIR,)) if watch else (sim.run(until=until) or [])
+    sim.trace.write(out)
+    return leaks
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_protocol_contract(name: str, tmp_path: Path) -> None:
+    assert name in registry.available()
+    leaks = _run(name, tmp_path / "a", watch=True)
+    assert not leaks, "protocol code reached ground truth:\n" + "\n".join(sorted(set(leaks)))
+    _run(name, tmp_path / "b")
+    files = sorted(p.name for p in (tmp_path / "a").iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "b").iterdir())
+    _same, mismatch, errors = filecmp.cmpfiles(tmp_path / "a", tmp_path / "b", files, shallow=False)
+    assert not mismatch and not errors, f"rerun with the same seed differs in {mismatch + errors}"
+
+    import pandas as pd
+
+    own_rows = 0  # rows the protocol logged, in the documented tables or its own
+    for path in sorted((tmp_path / "a").glob("*.csv")):
+        df = pd.read_csv(path)
+        cols = DOCUMENTED.get(path.stem)
+        if cols is not None:
+            assert cols <= set(df.columns), f"{path.name} lacks {sorted(cols - set(df.columns))}"
+        if "protocol" in df.columns and path.stem != "nodes":
+            own_rows += int((df["protocol"] == name).sum())
+    assert own_rows, f"{name} logged nothing in its tiny run"
+
+
+class _LeakyNode(Node):
+    """Reads its true position the way only a bug could: through a mobility object it holds."""
+
+    name = "leaky_probe"
+    mobility: ClassVar[Any] = None  # handed over by the test, as a leaky plug-in might grab it
+
+    def run(self) -> Any:
+        yield self.sleep(1.0)
+        self.log("leak", x=float(self.mobility.position(1.0)[0, 0]))
+
+
+def test_truth_watch_catches_a_leaky_protocol() -> None:
+    """The watch is not vacuous: a node whose code reads a true position is reported."""
+    box = Box([0, 0, 0], [100, 100, 100])
+    sim = Simulation(1, ssp=Constant(1500.0), volume=box)
+    _LeakyNode.mobility = ConstantVelocity([[1.0, 2.0, 3.0]], box, velocity=[0.1, 0.0, 0.0])
+    sim.add_group(_LeakyNode, 1, mobility=_LeakyNode.mobility)
+    leaks = _watch(lambda: sim.run(until=2.0), (__file__,))
+    assert any("mobility.py" in leak for leak in leaks), leaks
