@@ -25,6 +25,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from ramezani_mc import simulate_trajectories, tracking_monte_carlo  # tools/, beside this script
 
 from aquasim_py.protocols.ramezani.math import (
     CUBE_VERTICES,
@@ -38,9 +39,7 @@ from aquasim_py.protocols.ramezani.math import (
     fix_crb_ddn,
     localize_batch,
     paper_transition,
-    simulate_trajectories,
     tof_functions,
-    tracking_monte_carlo,
 )
 
 
