@@ -275,10 +275,12 @@ def shoot(
     z1, z2 = float(src[2]), float(dst[2])
     if R == 0.0:
         pts = [zi for zi in interfaces if min(z1, z2) < zi < max(z1, z2)]
-        t, _ = quad(lambda z: 1.0 / c(z), min(z1, z2), max(z1, z2), points=pts or None,
-                    epsabs=1e-14, epsrel=1e-13, limit=200)
+        t, err = quad(lambda z: 1.0 / c(z), min(z1, z2), max(z1, z2), points=pts or None,
+                      epsabs=1e-14, epsrel=1e-13, limit=200)
         ang = math.copysign(math.pi / 2, z2 - z1)
-        return OdeRay(t, abs(z2 - z1), ang, ang, 0.0, z2, min(z1, z2), max(z1, z2), True)
+        # exact straight ray: only the quadrature's error (its estimate, or what it was asked for)
+        return OdeRay(t, abs(z2 - z1), ang, ang, 0.0, z2, min(z1, z2), max(z1, z2), True,
+                      time_bound=max(err, 1e-14 + 1e-13 * t))
 
     def miss(th: float) -> float:
         return _miss(trace(c, dcdz, z1, th, R, interfaces=interfaces, z_limits=z_limits,
@@ -315,6 +317,17 @@ def shoot(
     dt = math.sin(ray.arrival_angle) / c(ray.z_end) * (z2 - ray.z_end)
     return OdeRay(ray.time + dt, ray.length, th, ray.arrival_angle, ray.r_end, z2, ray.z_min, ray.z_max, True,
                   ray.normal_bound, ray.along_bound, ray.angle_bound, ray.time_bound)
+
+
+def tolerances(ray: OdeRay) -> dict[str, float]:
+    """How far an exact eigenray's quantities may be from this shot ray's (see the module
+    docstring): shooting re-aims the launch to cancel the end point's error across the ray, at
+    most ``normal_bound``, which turns the ray by ~normal_bound / L (launch and arrival) and
+    changes its length and any depth along it by < normal_bound; the time is stationary under
+    re-aiming (Fermat), so only ``time_bound`` enters it."""
+    tilt = ray.normal_bound / ray.length if ray.length > 0.0 else 0.0
+    return {"time": ray.time_bound, "launch": tilt, "arrival": ray.angle_bound + tilt,
+            "length": ray.along_bound + ray.normal_bound, "position": ray.along_bound + ray.normal_bound}
 
 
 def fan(
