@@ -170,9 +170,13 @@ def trace(
 
     The ray stops early (``reached=False``) when it leaves ``z_limits`` or c drops below
     ``c_floor`` (m/s). ``extrema=True`` also computes the brute-force min/max depth.
-    ``max_step`` (m of arc) must be finite for layered profiles: a ray that dips across an
+    ``max_step`` (m of arc) should be finite for layered profiles: a ray that dips across an
     interface and back within one step fires no crossing event and is bent with the wrong
     gradient (seen: a 4 cm dip below an interface over 4.5 km missed the target by 8.6 m).
+    Such a dip has a turning point inside the step, so every turning point (sin theta = 0) is
+    located too (a non-terminal event): where one lies past an interface not crossed, the
+    segment is integrated again with shorter steps until the crossing is seen (seen: a 0.1 mm dip below 800 m, 25 m
+    steps, a 4.7 cm miss).
     """
     f = _rhs(c, dcdz)
     ifs = np.asarray(sorted(interfaces), dtype=float)
@@ -183,6 +187,7 @@ def trace(
     s_max = 20.0 * (r_target + 1.0) + 1e4
     just_crossed: tuple[int, float] | None = None
     err = _ErrorSums()
+    step = max_step
     while True:
         events = []
 
@@ -218,16 +223,36 @@ def trace(
             # right after crossing interface k, only a crossing back the other way can follow
             cross.direction = -just_crossed[1] if just_crossed and just_crossed[0] == k else 0.0
             events.append(cross)
+
+        n_stop = len(events)
+        if ifs.size:
+            def turn(s_, y_):
+                return math.sin(y_[2])
+
+            turn.terminal = False  # only located: checked below, no restart
+            events.append(turn)
         sol = solve_ivp(f, (s, s_max), y, method="DOP853", rtol=RTOL, atol=ATOL, events=events,
-                        dense_output=extrema, max_step=max_step)  # 3 extra stages per step: only when needed
+                        dense_output=extrema, max_step=step)  # 3 extra stages per step: only when needed
+        fired = [i for i, te in enumerate(sol.t_events[:n_stop]) if te.size]
+        i = min(fired, key=lambda j: sol.t_events[j][0]) if sol.status == 1 and fired else -1
+        if ifs.size and sol.t_events[-1].size:
+            # every turning point of the segment must lie on the start's side of every interface
+            side = np.sign(y[1] - ifs)
+            if just_crossed is not None:
+                side[just_crossed[0]] = just_crossed[1]
+            z_t = sol.y_events[-1][:, 1]
+            if np.any(np.sign(z_t[:, None] - ifs[None, :]) * side < 0.0):
+                step = min(step, float(sol.t[-1]) - s) / 4.0
+                if step < 1e-6:
+                    raise RuntimeError("trace: cannot resolve an interface crossing at a turning point")
+                continue
+        step = max_step
         if extrema:
             lo_z, hi_z = _extrema(sol.sol, s, float(sol.t[-1]))
             zmin, zmax = min(zmin, lo_z), max(zmax, hi_z)
-        fired = [i for i, te in enumerate(sol.t_events) if te.size]
-        if sol.status != 1 or not fired:
+        if i < 0:
             y = sol.y[:, -1]
             return OdeRay(y[3], sol.t[-1], theta0, y[2], y[0], y[1], zmin, zmax, False)
-        i = min(fired, key=lambda j: sol.t_events[j][0])
         s = float(sol.t_events[i][0])
         y = sol.y_events[i][0].copy()
         # the steps up to the event; the event point (dense output) counts as one more step

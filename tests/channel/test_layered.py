@@ -178,6 +178,8 @@ def test_one_layer_equals_isogradient() -> None:
         t_lay = layered.travel_time(lay, src, dst, reflections="none")
         t_iso = isogradient.travel_time(b, a, src, dst, bottom=bottom)
         assert np.array_equal(np.isnan(t_lay), np.isnan(t_iso))
+        # two closed forms, each rounding to <= 1e-13 relative (layered: range refined to 1e-13,
+        # time corrected to first order so its error is second order): 1e-12 is 5x their sum
         np.testing.assert_allclose(t_lay, t_iso, rtol=1e-12, atol=0)
 
 
@@ -187,6 +189,8 @@ def test_special_cases() -> None:
     z = MONO.depths
     from scipy.integrate import quad
     ref = quad(lambda zz: 1.0 / MONO.speed(zz), 10.0, 900.0, points=z[1:-1], epsabs=1e-15, epsrel=1e-13, limit=200)[0]
+    # quad was asked for 1e-13 relative of t = 0.6 s (6e-14 s); the closed form sums ~10
+    # log terms (~1e-15 s)
     assert abs(t - ref) < 1e-13
     # coincident points
     assert layered.travel_time(CHANNEL, [5, 5, 300.0], [5, 5, 300.0]) == 0.0
@@ -243,9 +247,12 @@ def test_properties(z1: float, z2: float, r: float, bearing: float) -> None:
         assert np.isnan(t_ab) == np.isnan(t_ba)
         if np.isnan(t_ab):
             continue
+        # both directions: closed forms to <= 1e-13 relative each (see above), 5x margin
         assert abs(t_ab - t_ba) <= 1e-12 * t_ab
         dist = float(np.linalg.norm(b - a))
         cmax = float(prof.speeds.max())
+        # a strict bound on the true time; the computed one is below it by its rounding at most,
+        # and it cannot be near it unless the ray is straight (then it is ~10 eps)
         assert t_ab >= dist / cmax * (1 - 1e-14)
         # Fermat: no slower than the straight chord, itself no slower than the slowest speed on it
         zs = np.concatenate([[z1, z2], prof.depths[(prof.depths > min(z1, z2)) & (prof.depths < max(z1, z2))]])
@@ -270,6 +277,9 @@ def test_gradient_matches_finite_differences() -> None:
             ok = np.isfinite(g).all(axis=1) & np.isfinite(fd).all(axis=1)
             assert ok.sum() >= 50
             err = np.linalg.norm(g[ok] - fd[ok], axis=1) / np.linalg.norm(g[ok], axis=1)
+            # tolerance: central-difference truncation ~ h^2 / (6 D^2) relative (< 1.7e-7 at
+            # D >= 10 m) plus the two times' error (1e-13 t each, ~4 s) over 2h, relative to
+            # |g| >= 1/1510 s/m (< 3e-8): 1e-6 keeps a 5x margin
             assert err.max() < 1e-6
 
 
@@ -281,6 +291,8 @@ def test_constant_reflections_are_image_distances() -> None:
     prof = Constant(1500.0, bottom=1100.0).to_layered()
     R = np.hypot(*(dst - src)[:, :2].T)
     surf = layered.reflected_eigenray(prof, src, dst, "surface")
+    # exact image distances: the solver's range tolerance 1e-13 relative moves the time only to
+    # second order, and its arc length (not stationary) by up to that
     np.testing.assert_allclose(surf.time, np.hypot(R, src[:, 2] + dst[:, 2]) / 1500.0, rtol=1e-13)
     assert np.all(surf.path == PathKind.SURFACE)
     assert np.all(surf.launch_angle <= 0) and np.all(surf.arrival_angle >= 0)
