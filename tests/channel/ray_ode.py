@@ -175,8 +175,9 @@ def trace(
     gradient (seen: a 4 cm dip below an interface over 4.5 km missed the target by 8.6 m).
     Such a dip has a turning point inside the step, so every turning point (sin theta = 0) is
     located too (a non-terminal event): where one lies past an interface not crossed, the
-    segment is integrated again with shorter steps until the crossing is seen (seen: a 0.1 mm dip below 800 m, 25 m
-    steps, a 4.7 cm miss).
+    segment is integrated again with shorter steps until the crossing is seen (seen: a 0.1 mm
+    dip below 800 m inside a 25 m step, a 4.7 cm miss; even a 1e-9 m dip would move the
+    range by mm, as the turning-layer range grows as the square root of the dip).
     """
     f = _rhs(c, dcdz)
     ifs = np.asarray(sorted(interfaces), dtype=float)
@@ -238,10 +239,14 @@ def trace(
         if ifs.size and sol.t_events[-1].size:
             # every turning point of the segment must lie on the start's side of every interface
             side = np.sign(y[1] - ifs)
+            slack = np.zeros(ifs.size)
             if just_crossed is not None:
+                # the segment starts on this interface: a turn right after crossing it may
+                # round to a few ulps on the other side
                 side[just_crossed[0]] = just_crossed[1]
-            z_t = sol.y_events[-1][:, 1]
-            if np.any(np.sign(z_t[:, None] - ifs[None, :]) * side < 0.0):
+                slack[just_crossed[0]] = 1e-12 * max(1.0, abs(ifs[just_crossed[0]]))
+            d = sol.y_events[-1][:, 1][:, None] - ifs[None, :]
+            if np.any((np.sign(d) * side < 0.0) & (np.abs(d) > slack)):
                 step = min(step, float(sol.t[-1]) - s) / 4.0
                 if step < 1e-6:
                     raise RuntimeError("trace: cannot resolve an interface crossing at a turning point")
