@@ -370,21 +370,59 @@ def write_frames(frames: Mapping[str, pd.DataFrame], directory: str | os.PathLik
     return paths
 
 
-# pandas < 3 parses floats with a fast, not always exact, parser unless asked; 3.x is exact by
-# default and deprecates the option.
-_READ_CSV_KW: dict[str, Any] = {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+def _pandas_version() -> tuple[int, int]:
+    major, minor = pd.__version__.split(".")[:2]
+    return int(major), int("".join(ch for ch in minor if ch.isdigit()) or 0)
+
+
+# pandas' default C float parser is not correctly rounded through 3.0.x (measured: 3.0.6 reads
+# 6.40422650443282e-273 one ulp off, ~30% of random doubles); "round_trip" hands every field to
+# Python's correctly rounded parser. 3.1 made that the default and deprecates the option.
+_READ_CSV_KW: dict[str, Any] = {"float_precision": "round_trip"} if _pandas_version() < (3, 1) else {}
+
+
+def _read_csv(path: Path, name: str) -> pd.DataFrame:
+    """One CSV table with exact floats and its schema's dtypes.
+
+    Only an empty field is missing (the writer's ``na_rep``): pandas' default NA strings would
+    turn a category such as "NA" or "null" into NaN. Schema columns get their dtypes back even
+    where the text cannot show them (an empty table, a category that looks like a number, a
+    category column that is all missing): "c" object strings with None for missing, as
+    :meth:`Table.frame` makes; "f" float64 and "i" int64 in an empty table (with rows they read
+    as written: an int column with missing values was written as floats)."""
+    kinds = dict(SCHEMAS.get(name, ()))
+    try:
+        header = pd.read_csv(path, nrows=0).columns
+    except pd.errors.EmptyDataError:  # a table without columns is written as an empty line
+        return pd.DataFrame()
+    # categories as text: "007" or "1.50" must not become numbers
+    dtype = {c: str for c in header if kinds.get(c) == "c"}
+    df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, **_READ_CSV_KW)
+    for c in header:
+        kind = kinds.get(c)
+        if kind in ("f", "i") and len(df) == 0:  # no rows: the header alone reads as object
+            df[c] = df[c].astype(np.float64 if kind == "f" else np.int64)
+        elif kind == "c":
+            col = df[c]
+            df[c] = pd.Series(
+                np.where(col.isna(), None, col.to_numpy(dtype=object)), index=df.index, dtype=object, name=c
+            )
+    return df
 
 
 def load(directory: str | os.PathLike[str]) -> dict[str, pd.DataFrame]:
     """Read every ``*.csv`` / ``*.parquet`` table of a trace directory (``summary.json`` as a dict
-    under the key ``"summary"`` is left to the caller: only tables are returned)."""
+    under the key ``"summary"`` is left to the caller: only tables are returned).
+
+    CSV floats are read back bit for bit, and writing the loaded frames again gives the same
+    bytes (pandas 2.1 to 3.x)."""
     d = Path(directory)
     if not d.is_dir():
         raise FileNotFoundError(f"trace directory {d} does not exist")
     frames: dict[str, pd.DataFrame] = {}
     for p in sorted(d.iterdir()):
         if p.suffix == ".csv":
-            frames[p.stem] = pd.read_csv(p, **_READ_CSV_KW)
+            frames[p.stem] = _read_csv(p, p.stem)
         elif p.suffix == ".parquet":
             frames[p.stem] = pd.read_parquet(p)
     return frames
