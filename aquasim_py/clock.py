@@ -72,6 +72,10 @@ class Clock:
         "skew",
     )
 
+    # None only without drift and jitter (checked in __init__), when they are never drawn from
+    _drift_rng: np.random.Generator | None
+    _jitter_rng: np.random.Generator | None
+
     def __init__(
         self,
         skew: float = 0.0,
@@ -127,8 +131,11 @@ class Clock:
 
     def _extend(self, segments: int) -> None:
         """Make at least ``segments`` drift segments available (whole blocks at a time)."""
+        rng = self._drift_rng
+        if rng is None:  # unreachable: __init__ requires an rng when drift_std > 0
+            raise RuntimeError("a drifting clock needs an rng")
         while self._count < segments:
-            steps = self._drift_rng.normal(0.0, self.drift_std, _BLOCK)
+            steps = rng.normal(0.0, self.drift_std, _BLOCK)
             new_skews = self._skews[self._count - 1] + np.cumsum(steps)
             if np.any(new_skews <= -1.0):
                 raise ValueError(
@@ -159,10 +166,10 @@ class Clock:
                 raise ValueError("true times must be finite")
             if not self.drifts:
                 return (1.0 + self.skew) * tf + self.offset
-            k = max(math.floor(tf / self.drift_interval), 0)
-            if k >= self._count:
-                self._extend(k + 1)
-            return float(self._knots[k] + (1.0 + self._skews[k]) * (tf - k * self.drift_interval))
+            i = max(math.floor(tf / self.drift_interval), 0)
+            if i >= self._count:
+                self._extend(i + 1)
+            return float(self._knots[i] + (1.0 + self._skews[i]) * (tf - i * self.drift_interval))
         ta = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(ta)):
             raise ValueError("true times must be finite")
@@ -223,8 +230,11 @@ class Clock:
         local = self.to_local(t)
         if self.jitter_std == 0.0:
             return local
+        rng = self._jitter_rng
+        if rng is None:  # unreachable: __init__ requires an rng when jitter_std > 0
+            raise RuntimeError("a jittering clock needs an rng")
         if isinstance(local, float):
-            return local + float(self._jitter_rng.normal(0.0, self.jitter_std))
-        noise = self._jitter_rng.normal(0.0, self.jitter_std, np.shape(local))
+            return local + float(rng.normal(0.0, self.jitter_std))
+        noise = rng.normal(0.0, self.jitter_std, np.shape(local))
         out = local + noise
         return float(out) if np.ndim(out) == 0 else out
