@@ -16,6 +16,7 @@ Negative times use the first segment (the drift starts at t = 0).
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -157,6 +158,10 @@ class Clock:
 
     # -- public maps -----------------------------------------------------------------------------
 
+    @overload
+    def to_local(self, t: float) -> float: ...
+    @overload
+    def to_local(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def to_local(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Local time (s) at true time(s) ``t`` (s); exact, vectorized."""
         if isinstance(t, _SCALARS):
@@ -180,6 +185,10 @@ class Clock:
             out = self._knots[k] + (1.0 + self._skews[k]) * (ta - k * self.drift_interval)
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def to_true(self, local: float) -> float: ...
+    @overload
+    def to_true(self, local: ArrayLike) -> NDArray[np.float64] | float: ...
     def to_true(self, local: ArrayLike) -> NDArray[np.float64] | float:
         """True time (s) at which the clock reads ``local`` (s): exact inverse of ``to_local``."""
         if isinstance(local, _SCALARS) and not self.drifts:
@@ -205,6 +214,10 @@ class Clock:
             out = k * self.drift_interval + (la - knots[k]) / (1.0 + self._skews[k])
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def skew_at(self, t: float) -> float: ...
+    @overload
+    def skew_at(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def skew_at(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Instantaneous skew (dimensionless) at true time(s) ``t``."""
         ta = np.asarray(t, dtype=float)
@@ -215,6 +228,10 @@ class Clock:
             out = self._skews[k]
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def offset_at(self, t: float) -> float: ...
+    @overload
+    def offset_at(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def offset_at(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Offset (s) of the affine clock in force at ``t``: local = (1 + skew_at) t + offset_at."""
         ta = np.asarray(t, dtype=float)
@@ -225,6 +242,10 @@ class Clock:
             out = self._knots[k] - (1.0 + self._skews[k]) * (k * self.drift_interval)
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def stamp(self, t: float) -> float: ...
+    @overload
+    def stamp(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def stamp(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """A timestamp taken at true time(s) ``t``: ``to_local(t)`` plus N(0, jitter_std) jitter."""
         local = self.to_local(t)
