@@ -16,6 +16,7 @@ Negative times use the first segment (the drift starts at t = 0).
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -72,6 +73,10 @@ class Clock:
         "skew",
     )
 
+    # None only without drift and jitter (checked in __init__), when they are never drawn from
+    _drift_rng: np.random.Generator | None
+    _jitter_rng: np.random.Generator | None
+
     def __init__(
         self,
         skew: float = 0.0,
@@ -127,8 +132,11 @@ class Clock:
 
     def _extend(self, segments: int) -> None:
         """Make at least ``segments`` drift segments available (whole blocks at a time)."""
+        rng = self._drift_rng
+        if rng is None:  # unreachable: __init__ requires an rng when drift_std > 0
+            raise RuntimeError("a drifting clock needs an rng")
         while self._count < segments:
-            steps = self._drift_rng.normal(0.0, self.drift_std, _BLOCK)
+            steps = rng.normal(0.0, self.drift_std, _BLOCK)
             new_skews = self._skews[self._count - 1] + np.cumsum(steps)
             if np.any(new_skews <= -1.0):
                 raise ValueError(
@@ -150,6 +158,10 @@ class Clock:
 
     # -- public maps -----------------------------------------------------------------------------
 
+    @overload
+    def to_local(self, t: float) -> float: ...
+    @overload
+    def to_local(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def to_local(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Local time (s) at true time(s) ``t`` (s); exact, vectorized."""
         if isinstance(t, _SCALARS):
@@ -159,10 +171,10 @@ class Clock:
                 raise ValueError("true times must be finite")
             if not self.drifts:
                 return (1.0 + self.skew) * tf + self.offset
-            k = max(math.floor(tf / self.drift_interval), 0)
-            if k >= self._count:
-                self._extend(k + 1)
-            return float(self._knots[k] + (1.0 + self._skews[k]) * (tf - k * self.drift_interval))
+            i = max(math.floor(tf / self.drift_interval), 0)
+            if i >= self._count:
+                self._extend(i + 1)
+            return float(self._knots[i] + (1.0 + self._skews[i]) * (tf - i * self.drift_interval))
         ta = np.asarray(t, dtype=float)
         if not np.all(np.isfinite(ta)):
             raise ValueError("true times must be finite")
@@ -173,6 +185,10 @@ class Clock:
             out = self._knots[k] + (1.0 + self._skews[k]) * (ta - k * self.drift_interval)
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def to_true(self, local: float) -> float: ...
+    @overload
+    def to_true(self, local: ArrayLike) -> NDArray[np.float64] | float: ...
     def to_true(self, local: ArrayLike) -> NDArray[np.float64] | float:
         """True time (s) at which the clock reads ``local`` (s): exact inverse of ``to_local``."""
         if isinstance(local, _SCALARS) and not self.drifts:
@@ -198,6 +214,10 @@ class Clock:
             out = k * self.drift_interval + (la - knots[k]) / (1.0 + self._skews[k])
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def skew_at(self, t: float) -> float: ...
+    @overload
+    def skew_at(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def skew_at(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Instantaneous skew (dimensionless) at true time(s) ``t``."""
         ta = np.asarray(t, dtype=float)
@@ -208,6 +228,10 @@ class Clock:
             out = self._skews[k]
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def offset_at(self, t: float) -> float: ...
+    @overload
+    def offset_at(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def offset_at(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """Offset (s) of the affine clock in force at ``t``: local = (1 + skew_at) t + offset_at."""
         ta = np.asarray(t, dtype=float)
@@ -218,13 +242,20 @@ class Clock:
             out = self._knots[k] - (1.0 + self._skews[k]) * (k * self.drift_interval)
         return float(out) if out.ndim == 0 else out
 
+    @overload
+    def stamp(self, t: float) -> float: ...
+    @overload
+    def stamp(self, t: ArrayLike) -> NDArray[np.float64] | float: ...
     def stamp(self, t: ArrayLike) -> NDArray[np.float64] | float:
         """A timestamp taken at true time(s) ``t``: ``to_local(t)`` plus N(0, jitter_std) jitter."""
         local = self.to_local(t)
         if self.jitter_std == 0.0:
             return local
+        rng = self._jitter_rng
+        if rng is None:  # unreachable: __init__ requires an rng when jitter_std > 0
+            raise RuntimeError("a jittering clock needs an rng")
         if isinstance(local, float):
-            return local + float(self._jitter_rng.normal(0.0, self.jitter_std))
-        noise = self._jitter_rng.normal(0.0, self.jitter_std, np.shape(local))
+            return local + float(rng.normal(0.0, self.jitter_std))
+        noise = rng.normal(0.0, self.jitter_std, np.shape(local))
         out = local + noise
         return float(out) if np.ndim(out) == 0 else out

@@ -225,8 +225,8 @@ def summarize(
     its name as prefix. ``None``: the protocols named in the ``nodes`` table, through the registry.
     """
     out: dict[str, float] = {}
-    for k, v in packet_counts(tables.get("packets")).items():
-        out[f"packets.{k}"] = v
+    for k, n in packet_counts(tables.get("packets")).items():
+        out[f"packets.{k}"] = n
     t0 = warmup_s if warmup_s > 0 else None
     est = tables.get("estimates")
     nodes = tables.get("nodes")

@@ -24,7 +24,7 @@ import importlib.metadata
 import pkgutil
 import sys
 import threading
-from typing import Any
+from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
@@ -37,6 +37,8 @@ _registry: dict[str, type] = {}
 _load_errors: dict[str, str] = {}  # module or entry-point name -> why it did not load
 _loaded = False
 _lock = threading.RLock()
+
+_C = TypeVar("_C", bound=type)
 
 
 class UnknownProtocolError(KeyError):
@@ -65,7 +67,7 @@ def _check(cls: type) -> str:
     return name
 
 
-def register(cls: type) -> type:
+def register(cls: _C) -> _C:
     """Class decorator: register a Node subclass under its ``name``.
 
     Registering the same class twice is harmless (module reloads); two different classes
@@ -83,7 +85,9 @@ def register(cls: type) -> type:
                 f"protocol name {name!r} is already taken by {old.__module__}.{old.__qualname__}"
             )
         _registry[name] = cls
-    cls._aquasim_registered = True  # lets a reloaded registry find it again without re-import
+    # lets a reloaded registry find it again without re-import; a marker set on an arbitrary
+    # class, which declares no such attribute (hence setattr)
+    setattr(cls, "_aquasim_registered", True)  # noqa: B010
     return cls
 
 
@@ -108,7 +112,7 @@ def _load_builtins() -> None:
         for m in family:
             for obj in list(vars(m).values()):
                 if isinstance(obj, type) and obj.__dict__.get("_aquasim_registered") and obj.__module__ == m.__name__:
-                    _registry.setdefault(obj.name, obj)
+                    _registry.setdefault(_check(obj), obj)  # validated when it registered
 
 
 def _load_entry_points() -> None:

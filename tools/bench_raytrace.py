@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, float | str]]:
     ap.add_argument("--quick", action="store_true", help="10x fewer pairs, fewer repeats")
     args = ap.parse_args(argv)
     scale, repeats = (10, 3) if args.quick else (1, 5)
-    rows = []
+    rows: list[dict[str, float | str]] = []
     base = case_baseline(max(CASES[0][1] // scale, 1))
     base_rate = base.pairs / best_seconds(base.run, repeats)
     rows.append({"case": base.label, "pairs": base.pairs, "pairs_per_s": base_rate, "vs_baseline": 1.0})

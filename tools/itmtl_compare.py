@@ -71,8 +71,9 @@ def run(
             params.update(extra)
             if proto == "itmtl":
                 params["promotion"] = promotion
-            if MOBILITY[mobility] is not None:
-                g["mobility"] = dict(MOBILITY[mobility])
+            mob = MOBILITY[mobility]
+            if mob is not None:
+                g["mobility"] = dict(mob)
         if proto != "itmtl":
             for k in ITMTL_ONLY:
                 params.pop(k, None)

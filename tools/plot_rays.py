@@ -56,9 +56,11 @@ def trace_ray(prof: Layered, z0: float, theta0: float, x_end: float, bottom: flo
     def done(s, y):
         return y[0] - x_end
 
+    # solve_ivp reads these attributes off the event functions (scipy's API; a function type
+    # declares no such attributes)
     for ev in (surface, floor, done):
-        ev.terminal = True
-    surface.direction, floor.direction, done.direction = -1, 1, 1
+        ev.terminal = True  # type: ignore[attr-defined]
+    surface.direction, floor.direction, done.direction = -1, 1, 1  # type: ignore[attr-defined]
     y = np.array([0.0, z0, theta0])
     out = [y[:2].copy()]
     s = 0.0
@@ -77,6 +79,8 @@ def trace_ray(prof: Layered, z0: float, theta0: float, x_end: float, bottom: flo
 
 def ray_fan(out: Path) -> Path:
     prof = CHANNEL
+    if prof.bottom is None:
+        raise ValueError("the ray fan needs a profile with a bottom")
     z_src, x_end, bottom = 250.0, 10_000.0, float(prof.bottom)
     fig, (ax_c, ax_r) = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1, 4]}, sharey=True)
     z = np.linspace(0, bottom, 400)

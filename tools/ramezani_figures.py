@@ -32,6 +32,7 @@ from aquasim_py.protocols.ramezani.math import (
     PAPER_A,
     PAPER_B,
     TETRAHEDRON,
+    TrackingMC,
     batched_ekf,
     ddn_variance,
     essp_model,
@@ -164,7 +165,7 @@ def fig14(runs: int, seed: int) -> list[dict]:
     return rows
 
 
-def tracking_curve(runs: int, seed: int) -> object:
+def tracking_curve(runs: int, seed: int) -> TrackingMC:
     """RMSE per frame at the paper's set-up (for the RMSE-vs-time panel)."""
     return tracking_monte_carlo(runs, seed=seed, pcrb_runs=200)
 
@@ -196,7 +197,7 @@ def write_outputs(
     f10: dict,
     f11: list[dict],
     f14: list[dict],
-    curve: object,
+    curve: TrackingMC,
     draws: int,
     runs: int,
 ) -> str:

@@ -20,7 +20,7 @@ import math
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
@@ -59,6 +59,7 @@ def overrides_for(
 def run_one(job: dict[str, Any]) -> dict[str, Any]:
     """One simulation; returns the job's keys plus the protocol's metrics and CPU time."""
     from aquasim_py import scenario
+    from aquasim_py.node import Node
     from aquasim_py.registry import get
 
     sc = scenario.load(SCENARIO, overrides=job["overrides"])
@@ -73,7 +74,8 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
         # compare protocols over the same window (SLMP only localizes after its training)
         m = localization_metrics(frames, job["protocol"], t_min=job["t_min"])
     else:
-        m = get(job["protocol"]).metrics(frames)
+        # the registry holds any class with a name and Params; the built-in ones are Nodes
+        m = cast(type[Node], get(job["protocol"])).metrics(frames)
     row = {k: v for k, v in job.items() if k not in ("overrides", "keep", "t_min")}
     row.update(m)
     row["cpu_s"] = cpu
@@ -136,7 +138,7 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     elif name == "ablation":
         # What separates STVF from SLMP at Table 1's density: one change per row (docs/stvf.md).
         matched = round(3 * (0.02 * 50.0 / 1.5) ** 2, 3)  # Gam(3, beta) with mean 1/sigma^2, 2 % of 50 m
-        variants = {
+        variants: dict[str, dict[str, Any]] = {
             "Nr=2": {"nodes[1].params.n_ref": 2},
             "Nr=3 (Table 1)": {},
             "Nr=3, one sample set": {"p.common_random_numbers": "true"},
@@ -144,8 +146,8 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
             "Nr=2, noise prior matched": {"nodes[1].params.n_ref": 2, "p.noise_rate_ms2": matched},
             "Nr=5": {"nodes[1].params.n_ref": 5},
         }
-        for variant, extra in variants.items():
-            add("stvf", 0.20, extra, t_min=args.training, variant=variant)
+        for variant, changes in variants.items():
+            add("stvf", 0.20, changes, t_min=args.training, variant=variant)
         add("slmp", 0.20, {"nodes[1].params.training_s": args.training}, t_min=args.training, variant="SLMP")
     else:
         raise SystemExit(f"unknown experiment {name!r}")

@@ -98,7 +98,7 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
         ranges = z_ms * SPEED / 1e3
         out["ls6"][k - 1] = fix(refs, ranges) - truth[k]
         out["ls3"][k - 1] = fix(refs[sel3], ranges[sel3]) - truth[k]
-        if mu is None:
+        if mu is None or lp is None:
             mu, lp = vf.initial_prior(out["ls6"][k - 1] + truth[k], 10.0)
         mu_p, lp_p = vf.predict(mu, lp, prior.transition)
         res = vf.variational_update(z_ms[sel] * scale / 1e3, refs[sel], mu_p, lp_p, prior, filt_rng)
@@ -111,7 +111,7 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
     return {**out, "its": its, "prop": prop, "unit": unit}
 
 
-def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[str, float]:
+def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[str, float | str]:
     def stats(key: str) -> tuple[float, float]:
         err = np.concatenate([r[key][burn:] for r in runs])
         unit = np.concatenate([r["unit"][burn:] for r in runs])

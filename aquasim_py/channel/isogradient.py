@@ -59,6 +59,11 @@ def _split(src: ArrayLike, dst: ArrayLike) -> tuple[FloatArray, FloatArray, Floa
     return dx, dy, z1, z2, dx * dx + dy * dy
 
 
+def _profile(b: ArrayLike, a: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Surface speed b (m/s) and gradient a (1/s) as float arrays (0-d for scalars)."""
+    return np.asarray(b, dtype=float), np.asarray(a, dtype=float)
+
+
 def _ratio(num: FloatArray, den: FloatArray, at_zero: float = 1.0) -> FloatArray:
     """num / den, with ``at_zero`` where den == 0 (the removable singularities below)."""
     out = np.full(np.broadcast(num, den).shape, at_zero, dtype=float)
@@ -71,7 +76,7 @@ def _ratio(num: FloatArray, den: FloatArray, at_zero: float = 1.0) -> FloatArray
 _A_TINY = 1e-200
 
 
-def _time(a: ArrayLike, D: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatArray:
+def _time(a: FloatArray, D: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatArray:
     """Arc travel time (s): (2/|a|) asinh(y), y = |a| D / (2 sqrt(c1 c2)) (equivalent to eq 13).
 
     No cancellation: asinh keeps full relative precision for tiny y, so for |a| -> 0 this is
@@ -80,17 +85,17 @@ def _time(a: ArrayLike, D: FloatArray, c1: FloatArray, c2: FloatArray) -> FloatA
     with np.errstate(invalid="ignore", divide="ignore"):
         g = np.sqrt(c1 * c2)
         if np.ndim(a) == 0:
-            aa = abs(float(a))
-            if aa < _A_TINY:
+            a0 = abs(float(a))
+            if a0 < _A_TINY:
                 return D / g
-            return np.arcsinh(D * (0.5 * aa) / g) * (2.0 / aa)
-        aa = np.abs(np.asarray(a, dtype=float))
+            return np.arcsinh(D * (0.5 * a0) / g) * (2.0 / a0)
+        aa = np.abs(a)
         aa = np.where(aa < _A_TINY, 0.0, aa)
         return np.where(aa > 0.0, 2.0 * np.arcsinh(aa * D / (2.0 * g)) / aa, D / g)
 
 
 def _turning(
-    a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, S: FloatArray
+    a: FloatArray, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, S: FloatArray
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Depth of the arc's vertex (eqs 21-22) and whether it lies strictly between the end points.
 
@@ -98,7 +103,6 @@ def _turning(
     Its depth z1 + (c1/a)(1/cos(theta_1) - 1) is written as z1 + c1 T^2 / (a (1 + sqrt(1 + T^2)))
     with T = tan(theta_1) to avoid the difference of nearly equal numbers.
     """
-    a = np.asarray(a, dtype=float)
     has = np.abs(dz) * S < np.abs(a) * R2
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         N1 = a * R2 + dz * S
@@ -108,8 +112,8 @@ def _turning(
 
 
 def _blocked(
-    a: ArrayLike,
-    b: ArrayLike,
+    a: FloatArray,
+    b: FloatArray,
     z1: FloatArray,
     z2: FloatArray,
     zv: FloatArray | float,
@@ -124,16 +128,16 @@ def _blocked(
     with np.errstate(invalid="ignore"):
         if np.ndim(a) == 0 and np.ndim(b) == 0 and float(b) > 0.0:
             # scalar profile: c > 0 <=> z above the depth -b/a where c vanishes (a < 0 only)
-            a, b = float(a), float(b)
+            af, bf = float(a), float(b)
             bad = np.minimum(z1, z2) < 0.0
-            if a < 0.0 or bottom is not None:
+            if af < 0.0 or bottom is not None:
                 z_hi = np.maximum(z1, z2)
-                if a < 0.0:
-                    bad |= z_hi >= -b / a
+                if af < 0.0:
+                    bad |= z_hi >= -bf / af
                     bad |= zv < 0.0  # with a < 0 the vertex is the shallowest point
                 if bottom is not None:
                     bad |= z_hi > bottom
-                    if a > 0.0:
+                    if af > 0.0:
                         bad |= zv > bottom  # with a > 0 it is the deepest
             return bad
         bad = (z1 < 0.0) | (z2 < 0.0) | ~(c1 > 0.0) | ~(c2 > 0.0)
@@ -144,11 +148,11 @@ def _blocked(
 
 
 def _vertex_if_needed(
-    a: ArrayLike, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, c2: FloatArray, bottom: float | None
+    a: FloatArray, R2: FloatArray, dz: FloatArray, z1: FloatArray, c1: FloatArray, c2: FloatArray, bottom: float | None
 ) -> FloatArray | float:
     """Turning depth for the water-column check, skipped (NaN) when it cannot matter: with
     a > 0 the vertex is the deepest point of the arc, so without a bottom it never leaves."""
-    if bottom is None and not bool(np.any(np.asarray(a) < 0.0)):
+    if bottom is None and not bool(np.any(a < 0.0)):
         return np.nan
     return _turning(a, R2, dz, z1, c1, c1 + c2)[0]
 
@@ -161,9 +165,10 @@ def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bott
     a -> 0 and coincident points (t = 0).
     """
     _dx, _dy, z1, z2, R2 = _split(src, dst)
+    b, a = _profile(b, a)
     dz = z2 - z1
-    c1 = b + np.multiply(a, z1)
-    c2 = b + np.multiply(a, z2)
+    c1 = b + a * z1
+    c2 = b + a * z2
     D = np.sqrt(R2 + dz * dz)
     t = _time(a, D, c1, c2)
     bad = _blocked(a, b, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
@@ -176,16 +181,16 @@ def turning_depth(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) ->
     With a > 0 it is the deepest point of the arc, with a < 0 the shallowest.
     """
     _dx, _dy, z1, z2, R2 = _split(src, dst)
-    c1 = b + np.multiply(a, z1)
-    c2 = b + np.multiply(a, z2)
+    b, a = _profile(b, a)
+    c1 = b + a * z1
+    c2 = b + a * z2
     return _turning(a, R2, z2 - z1, z1, c1, c1 + c2)[0]
 
 
 def _angles_length(
-    a: ArrayLike, R2: FloatArray, dz: FloatArray, c1: FloatArray, c2: FloatArray
+    a: FloatArray, R2: FloatArray, dz: FloatArray, c1: FloatArray, c2: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Launch angle, arrival angle (rad, from horizontal, positive down) and arc length (m, eq 19)."""
-    a = np.asarray(a, dtype=float)
     S = c1 + c2
     R = np.sqrt(R2)
     D2 = R2 + dz * dz
@@ -211,8 +216,9 @@ def _angles_length(
 def arc_length(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> FloatArray:
     """Arc length (m) of the direct eigenray (eq 19), without the water-column check."""
     _dx, _dy, z1, z2, R2 = _split(src, dst)
-    c1 = b + np.multiply(a, z1)
-    c2 = b + np.multiply(a, z2)
+    b, a = _profile(b, a)
+    c1 = b + a * z1
+    c2 = b + a * z2
     return _angles_length(a, R2, z2 - z1, c1, c2)[2]
 
 
@@ -227,9 +233,10 @@ def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom:
     direct path).
     """
     _dx, _dy, z1, z2, R2 = _split(src, dst)
+    b, a = _profile(b, a)
     dz = z2 - z1
-    c1 = b + np.multiply(a, z1)
-    c2 = b + np.multiply(a, z2)
+    c1 = b + a * z1
+    c2 = b + a * z2
     D = np.sqrt(R2 + dz * dz)
     t = _time(a, D, c1, c2)
     th1, th2, length = _angles_length(a, R2, dz, c1, c2)
@@ -258,9 +265,10 @@ def travel_time_gradient(
     NaN where there is no direct path; 0 at coincident points (t is not differentiable there).
     """
     dx, dy, z1, z2, R2 = _split(src, dst)
+    b, a = _profile(b, a)
     dz = z2 - z1
-    c1 = b + np.multiply(a, z1)
-    c2 = b + np.multiply(a, z2)
+    c1 = b + a * z1
+    c2 = b + a * z2
     D = np.sqrt(R2 + dz * dz)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         g = np.sqrt(c1 * c2)
@@ -282,8 +290,9 @@ def straight_line_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLik
     and a = 0 gives D / b exactly.
     """
     _dx, _dy, z1, z2, R2 = _split(src, dst)
+    b, a = _profile(b, a)
     dz = z2 - z1
-    c1 = b + np.multiply(a, z1)
+    c1 = b + a * z1
     D = np.sqrt(R2 + dz * dz)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         d = np.multiply(a, dz) / c1

@@ -52,7 +52,8 @@ def _check_mode(reflections: str) -> None:
 
 def _outside(ssp: SoundSpeedProfile, s: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.bool_]:
     z = np.stack([s[..., 2], d[..., 2]])
-    bad = ~(z >= 0.0).all(axis=0)
+    # asarray: for a single pair the reductions give a numpy bool scalar; keep it a 0-d array
+    bad = np.asarray(~(z >= 0.0).all(axis=0))
     if ssp.bottom is not None:
         bad |= (z > ssp.bottom).any(axis=0)
     return bad | ~(np.isfinite(s).all(axis=-1) & np.isfinite(d).all(axis=-1))
@@ -104,9 +105,13 @@ def eigenray(
     # Constant: the straight line is never later than a reflected path, and always exists
     if isinstance(ssp, Constant) or not need.any():
         return direct
-    parts = [(PathKind.DIRECT, direct)]
+    parts: list[tuple[int, Eigenray]] = [(PathKind.DIRECT, direct)]
     lay = ssp.to_layered()
-    for kind, name in ((PathKind.SURFACE, "surface"), (PathKind.BOTTOM, "bottom")):
+    boundaries: tuple[tuple[PathKind, Literal["surface", "bottom"]], ...] = (
+        (PathKind.SURFACE, "surface"),
+        (PathKind.BOTTOM, "bottom"),
+    )
+    for kind, name in boundaries:
         if name == "bottom" and ssp.bottom is None:
             continue
         r = layered.reflected_eigenray(lay, s[need], d[need], name)

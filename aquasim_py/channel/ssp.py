@@ -15,7 +15,7 @@ resolve at network ranges.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -125,7 +125,7 @@ class Isogradient(SoundSpeedProfile):
         return Layered([0.0, zmax], [self.surface_speed, self.surface_speed + self.gradient * zmax], bottom=self.bottom)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Layered(SoundSpeedProfile):
     """Piecewise-linear c(z) through (depths[i], speeds[i]): a stack of isogradient layers.
 
@@ -134,13 +134,20 @@ class Layered(SoundSpeedProfile):
     every z >= 0; set ``bottom`` to close the water column.
     """
 
-    depths: NDArray[np.float64] = field(default_factory=lambda: np.array([0.0, 1.0]))
-    speeds: NDArray[np.float64] = field(default_factory=lambda: np.array([1500.0, 1500.0]))
+    depths: NDArray[np.float64]
+    speeds: NDArray[np.float64]
     bottom: float | None = None
 
-    def __post_init__(self) -> None:
-        d = np.asarray(self.depths, dtype=float).ravel().copy()
-        c = np.asarray(self.speeds, dtype=float).ravel().copy()
+    # Written out rather than generated: the arguments are any array-likes (lists, tuples,
+    # arrays), the fields the validated read-only float64 copies.
+    def __init__(
+        self,
+        depths: ArrayLike = (0.0, 1.0),
+        speeds: ArrayLike = (1500.0, 1500.0),
+        bottom: float | None = None,
+    ) -> None:
+        d = np.asarray(depths, dtype=float).ravel().copy()
+        c = np.asarray(speeds, dtype=float).ravel().copy()
         if d.size != c.size:
             raise ValueError(f"Layered: {d.size} depths but {c.size} speeds")
         if d.size < 2:
@@ -153,7 +160,7 @@ class Layered(SoundSpeedProfile):
             raise ValueError("Layered: depths must increase strictly")
         if np.any(c <= 0.0):
             raise ValueError("Layered: speeds must be positive")
-        bottom = _check_bottom(self.bottom)
+        bottom = _check_bottom(bottom)
         if bottom is not None and d[-1] < bottom:
             g = (c[-1] - c[-2]) / (d[-1] - d[-2])
             if c[-1] + g * (bottom - d[-1]) <= 0.0:

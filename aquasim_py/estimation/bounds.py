@@ -93,16 +93,16 @@ def pcrb_information(
     sequence (K, n, n). Otherwise each trajectory has its own sequence (the paper averages the
     resulting PCRBs: "mean PCRB").
     """
-    info = np.asarray(info, dtype=float)
+    Im = np.asarray(info, dtype=float)
     if expectation:
-        info = info.mean(axis=0)
-    F = np.asarray(F, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    Jk = np.broadcast_to(np.asarray(J0, dtype=float), info.shape[:-3] + info.shape[-2:])
-    out = np.empty_like(info)
-    for k in range(info.shape[-3]):
+        Im = Im.mean(axis=0)
+    Fm = np.asarray(F, dtype=float)
+    Qm = np.asarray(Q, dtype=float)
+    Jk = np.broadcast_to(np.asarray(J0, dtype=float), Im.shape[:-3] + Im.shape[-2:])
+    out = np.empty_like(Im)
+    for k in range(Im.shape[-3]):
         Jinv = spd_inverse(Jk, "posterior information J_k")
-        Jk = spd_inverse(Q + F @ Jinv @ F.T, "predicted covariance Q + F J^-1 F^T") + info[..., k, :, :]
+        Jk = spd_inverse(Qm + Fm @ Jinv @ Fm.T, "predicted covariance Q + F J^-1 F^T") + Im[..., k, :, :]
         out[..., k, :, :] = Jk
     return out
 

@@ -138,9 +138,9 @@ def gauss_newton(
             return rr
 
         def jac(z: Array) -> Array:
-            zc, JJ = cache.get("last", (None, None))
-            if zc is not None and np.array_equal(zc, z):
-                return JJ
+            last = cache.get("last")
+            if last is not None and np.array_equal(last[0], z):
+                return last[1]
             res(z)
             return cache["last"][1]
 
@@ -177,7 +177,7 @@ def gauss_newton_batch(
     tol: float = 1e-3,
     *,
     cond_max: float = COND_MAX,
-) -> tuple[Array, Array, Array]:
+) -> tuple[Array, NDArray[np.int_], NDArray[np.bool_]]:
     """Algorithm 1 on B independent problems at once (Monte Carlo draws): ``fun(X (B, n))``
     returns ``(r (B, m), J (B, m, n))``. Each row stops on its own (step < ``tol``) or after
     ``max_iter`` steps. No fallback: this is the paper's plain algorithm.
@@ -248,19 +248,21 @@ def tof_model(
     sig = np.broadcast_to(np.asarray(sigma, dtype=float), t.shape)
     if np.any(~np.isfinite(sig)) or np.any(sig <= 0):
         raise ValueError("sigma must be positive")
+    depth_meas: tuple[Array, float] | None = None  # (depth (m), its std (m))
     if depth is not None:
         if sigma_depth is None or not sigma_depth > 0:
             raise ValueError("a depth measurement needs a positive sigma_depth")
-        zd = np.asarray(depth, dtype=float)
+        depth_meas = (np.asarray(depth, dtype=float), sigma_depth)
 
     def fun(x: Array) -> tuple[Array, Array]:
         x = np.asarray(x, dtype=float)
         dst = x[..., None, :]
         r = (time_fn(A, dst) - t) / sig
         J = np.asarray(grad_fn(A, dst), dtype=float) / sig[..., None]
-        if depth is not None:
-            rz = ((x[..., 2] - zd) / sigma_depth)[..., None]
-            Jz = np.broadcast_to(np.array([0.0, 0.0, 1.0 / sigma_depth]), J.shape[:-2] + (1, 3))
+        if depth_meas is not None:
+            zd, sd = depth_meas
+            rz = ((x[..., 2] - zd) / sd)[..., None]
+            Jz = np.broadcast_to(np.array([0.0, 0.0, 1.0 / sd]), J.shape[:-2] + (1, 3))
             r = np.concatenate([r, rz], axis=-1)
             J = np.concatenate([J, Jz], axis=-2)
         return r, J

@@ -35,6 +35,7 @@ from .motion import MotionModel
 __all__ = ["IMM", "IMMModel"]
 
 Array = NDArray[np.float64]
+IndexArray = NDArray[np.intp]
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class IMMModel:
     """One mode: its motion model and which joint-state components it uses."""
 
     motion: MotionModel
-    index: Array  #: int indices into the joint state, length motion.n
+    index: IndexArray  #: int indices into the joint state, length motion.n
 
 
 class IMM:
@@ -145,6 +146,20 @@ class IMM:
         self.mu = c / c.sum()
         self._combine()
 
+    def _model_measurement(
+        self, j: int, h: Callable[[Array], Array], H_jac: Callable[[Array], Array]
+    ) -> tuple[Callable[[Array], Array], Callable[[Array], Array]]:
+        """``h`` and its Jacobian as model j sees them: of its state embedded in the joint one."""
+        idx = self.models[j].index
+
+        def hj(xj: Array) -> Array:
+            return h(self._embed(j, xj, self.Ps[j])[0])
+
+        def Hjj(xj: Array) -> Array:
+            return np.atleast_2d(H_jac(self._embed(j, xj, self.Ps[j])[0]))[:, idx]
+
+        return hj, Hjj
+
     def update(
         self,
         z: ArrayLike,
@@ -157,24 +172,24 @@ class IMM:
         """Model-matched updates with a measurement on the joint state, then mode probabilities
         and combination. Give either a matrix ``H`` (m, n) for z = H x + v, or ``h`` and its
         Jacobian ``H_jac`` (functions of the joint state) for z = h(x) + v."""
-        if (H is None) == (h is None):
+        # the measurement: a matrix (m, n), or (h, H_jac)
+        meas: Array | tuple[Callable[[Array], Array], Callable[[Array], Array]]
+        if H is not None and h is None:
+            meas = np.atleast_2d(np.asarray(H, dtype=float))
+        elif H is None and h is not None:
+            if H_jac is None:
+                raise ValueError("h needs its Jacobian H_jac")
+            meas = (h, H_jac)
+        else:
             raise ValueError("give either H or (h, H_jac)")
-        if h is not None and H_jac is None:
-            raise ValueError("h needs its Jacobian H_jac")
         ll = np.empty(len(self.models))
         for j, m in enumerate(self.models):
             idx = m.index
-            if H is not None:
-                Hj = np.atleast_2d(np.asarray(H, dtype=float))[:, idx]
+            if isinstance(meas, np.ndarray):
+                Hj = meas[:, idx]
                 res = kf_update(self.xs[j], self.Ps[j], z, Hj, R)
             else:
-
-                def hj(xj: Array, j: int = j) -> Array:
-                    return h(self._embed(j, xj, self.Ps[j])[0])
-
-                def Hjj(xj: Array, j: int = j, idx: Array = idx) -> Array:
-                    return np.atleast_2d(H_jac(self._embed(j, xj, self.Ps[j])[0]))[:, idx]
-
+                hj, Hjj = self._model_measurement(j, *meas)
                 res = ekf_update(self.xs[j], self.Ps[j], z, hj, Hjj, R)
             self.xs[j], self.Ps[j], ll[j] = res.x, res.P, res.log_likelihood
         self.log_likelihoods = ll

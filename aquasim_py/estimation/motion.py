@@ -24,6 +24,7 @@ hence the ``...Model`` names here.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -31,17 +32,23 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ["ConstantVelocityModel", "CoordinatedTurnModel", "MotionModel", "cv_matrices", "cwna_noise"]
 
 Array = NDArray[np.float64]
+IndexArray = NDArray[np.intp]
+
+
+def _kron(a: Array, b: Array) -> Array:
+    # numpy's stubs type kron of two float64 arrays as NDArray[floating]; it is float64
+    return cast(Array, np.kron(a, b))
 
 
 def cwna_noise(dim: int, dt: float, q: float) -> Array:
     """Continuous white-noise acceleration covariance for the CV layout [p, v] (2d x 2d)."""
     blk = np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]) * q
-    return np.kron(blk, np.eye(dim))
+    return _kron(blk, np.eye(dim))
 
 
 def cv_matrices(dim: int, dt: float, q: float) -> tuple[Array, Array]:
     """(F, Q) of the CV model in the layout [p, v] (Ramezani's Phi and Q_k, eq 38)."""
-    F = np.kron(np.array([[1.0, dt], [0.0, 1.0]]), np.eye(dim))
+    F = _kron(np.array([[1.0, dt], [0.0, 1.0]]), np.eye(dim))
     return F, cwna_noise(dim, dt, q)
 
 
@@ -76,11 +83,16 @@ class MotionModel:
         raise NotImplementedError
 
     @property
-    def position_index(self) -> Array:
+    def F(self) -> Array:
+        """Transition matrix (linear models only)."""
+        raise NotImplementedError(f"{type(self).__name__} is not linear: it has no transition matrix")
+
+    @property
+    def position_index(self) -> IndexArray:
         return np.arange(self.dim)
 
     @property
-    def velocity_index(self) -> Array:
+    def velocity_index(self) -> IndexArray:
         return np.arange(self.dim, 2 * self.dim)
 
 

@@ -18,6 +18,7 @@ measurement confidence used to rank references (eqs 27-29) and reference promoti
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -103,6 +104,11 @@ class VariationalResult:
         return self.state[POS]
 
 
+def _inv(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    # numpy's stubs widen inv's result to NDArray[floating]; for float64 input it is float64
+    return cast(NDArray[np.float64], np.linalg.inv(m))
+
+
 def _sym(m: NDArray[np.float64]) -> NDArray[np.float64]:
     return 0.5 * (m + m.swapaxes(-1, -2))
 
@@ -113,8 +119,8 @@ def predict(
     """Variational prediction of q(mu_t) (eq 11): mu^p = mu*_{t-1},
     Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions)."""
     mu_p = np.array(mu_prev, dtype=float)
-    cov = np.linalg.inv(np.asarray(mu_precision_prev, float)) + np.linalg.inv(np.asarray(transition, float))
-    return mu_p, _sym(np.linalg.inv(cov))
+    cov = _inv(np.asarray(mu_precision_prev, float)) + _inv(np.asarray(transition, float))
+    return mu_p, _sym(_inv(cov))
 
 
 def initial_prior(position: ArrayLike, std: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -131,7 +137,7 @@ def _sample_gaussian(
     mean: NDArray[np.float64], precision: NDArray[np.float64], eps: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision)."""
-    chol_cov = np.linalg.cholesky(_sym(np.linalg.inv(precision)))
+    chol_cov = np.linalg.cholesky(_sym(_inv(precision)))
     return mean + eps @ chol_cov.T
 
 
@@ -232,11 +238,11 @@ def wishart_update(
     ``scale_inv`` (W^-1) may be passed to save an inversion per iteration."""
     s = np.asarray(state, float)
     m = np.asarray(mu, float)
-    w_inv = np.linalg.inv(np.asarray(scale, float)) if scale_inv is None else scale_inv
+    w_inv = _inv(np.asarray(scale, float)) if scale_inv is None else scale_inv
     mat = (
         np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s) + np.asarray(mu_second_moment, float) + w_inv
     )
-    return _sym(np.linalg.inv(_sym(mat)))
+    return _sym(_inv(_sym(mat)))
 
 
 def variational_update(
@@ -264,14 +270,14 @@ def variational_update(
 
     mu_prec = 2.0 * lp
     mu = mu_p.copy()
-    w_inv = np.linalg.inv(prior.wishart_scale)
-    w_star = _sym(np.linalg.inv(np.linalg.inv(2.0 * lp) + w_inv))
+    w_inv = _inv(prior.wishart_scale)
+    w_star = _sym(_inv(_inv(2.0 * lp) + w_inv))
     shape = prior.noise_shape + 0.5 * nr
     rate = 0.5 * prior.noise_rate
     speed = prior.speed
     lam = dof * w_star
     zeta = shape / rate
-    mu_mu = np.outer(mu, mu) + np.linalg.inv(mu_prec)
+    mu_mu = np.outer(mu, mu) + _inv(mu_prec)
 
     eps_s = rng.standard_normal((prior.n_state_samples, 4))
     eps_v = rng.standard_normal(prior.n_speed_samples)
@@ -291,7 +297,7 @@ def variational_update(
         shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed, prior.z_scale)
         step = float(np.linalg.norm(new_mu[POS] - mu[POS]))
         mu = new_mu
-        mu_mu = np.outer(mu, mu) + np.linalg.inv(mu_prec)
+        mu_mu = np.outer(mu, mu) + _inv(mu_prec)
         lam = dof * w_star
         zeta = shape / rate
         if step < prior.tol:
@@ -331,7 +337,7 @@ def localization_confidence(
     m2 = (np.asarray(z, float) * speed / z_scale) ** 2
     err = d2 - m2
     e = np.abs(err).sum() if absolute else err.sum()
-    eta = float(np.mean(ref_confidence)) * (1.0 - e / d2.sum())
+    eta = float(np.mean(np.asarray(ref_confidence, float))) * (1.0 - e / d2.sum())
     return float(np.clip(eta, 0.0, 1.0))
 
 
