@@ -25,14 +25,13 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from ramezani_mc import simulate_trajectories, tracking_monte_carlo  # tools/, beside this script
+from ramezani_mc import TrackingMC, simulate_trajectories, tracking_monte_carlo  # tools/, beside this script
 
 from aquasim_py.protocols.ramezani.math import (
     CUBE_VERTICES,
     PAPER_A,
     PAPER_B,
     TETRAHEDRON,
-    TrackingMC,
     batched_ekf,
     ddn_variance,
     essp_model,

@@ -220,7 +220,7 @@ def localize_batch(
     max_iter: int = 7,
     tol: float = 1e-3,
     rescue: bool = True,
-) -> tuple[Array, Array, Array]:
+) -> tuple[Array, NDArray[np.bool_], NDArray[np.bool_]]:
     """Algorithm 1 (K = ``max_iter``, eps = ``tol``) on B draws at once, ToFs (B, N) in s.
 
     Rows where the plain algorithm fails (an iterate leaves the model's domain, e.g. above the
