@@ -426,7 +426,8 @@ def _pick_brackets(h: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np
     cross = fin & (h0 * h1 <= 0.0) & ~((h0 == 0.0) & (h1 == 0.0))
     up = cross & (h0 <= 0.0) & (h1 >= 0.0)
     use = np.where(up.any(axis=1, keepdims=True), up, cross)
-    return np.nonzero(use)
+    rows, cols = np.nonzero(use)
+    return rows, cols
 
 
 @dataclass
@@ -715,10 +716,14 @@ def eigenray(profile: Layered, src: ArrayLike, dst: ArrayLike, *, reflections: R
     shape, s, d, x = _pairs(src, dst)
     st = _stack(profile, _deepest(s, d))
     direct = _direct(st, s[:, 2], d[:, 2], x)
-    parts = [(PathKind.DIRECT, _to_eigenray(direct, PathKind.DIRECT, shape))]
+    parts: list[tuple[int, Eigenray]] = [(PathKind.DIRECT, _to_eigenray(direct, PathKind.DIRECT, shape))]
     if reflections != "none":
         need = np.ones(x.size, bool) if reflections == "all" else ~direct.ok
-        for kind, name in ((PathKind.SURFACE, "surface"), (PathKind.BOTTOM, "bottom")):
+        boundaries: tuple[tuple[PathKind, Literal["surface", "bottom"]], ...] = (
+            (PathKind.SURFACE, "surface"),
+            (PathKind.BOTTOM, "bottom"),
+        )
+        for kind, name in boundaries:
             r = _Arrivals.empty(x.size)
             r.time[:] = np.nan
             i = np.flatnonzero(need)
