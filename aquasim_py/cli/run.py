@@ -104,24 +104,41 @@ def _all_variants(base: Any, args: argparse.Namespace, progress: bool) -> int:
         _warn_missing(res)
     if not args.quiet:
         con = console()
-        con.print(comparison_table(results, base))
+        con.print(comparison_table(results, base, width=con.width))
         con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}", soft_wrap=True)
     return 0
 
 
-def comparison_table(results: Mapping[str, RunResult], base: Any) -> Any:
-    """Rows = variants, columns = the metrics more than half of them report."""
+def comparison_table(results: Mapping[str, RunResult], base: Any, width: int | None = None) -> Any:
+    """Rows = variants, columns = the metrics more than half of them report (all of them are
+    in variants.csv). When that many columns cannot fit ``width`` characters, the same table
+    is printed transposed (one row per metric) rather than folded into unreadable slivers."""
     from rich.table import Table
 
-    common_cols, rest = comparison_columns(results)
+    cols, rest = comparison_columns(results)
+    cells = {name: [common.fmt(res.metrics.get(c, float("nan"))) for c in cols] for name, res in results.items()}
     sim = base.simulation
+    title = f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)"
     caption = f"{len(rest)} more metrics in variants.csv" if rest else None
-    t = Table(title=f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)", caption=caption)
-    t.add_column("variant", no_wrap=True)
-    for c in common_cols:
-        t.add_column(c, justify="right", overflow="fold")
-    for name, res in results.items():
-        t.add_row(name, *(common.fmt(res.metrics.get(c, float("nan"))) for c in common_cols))
+    # a column needs its widest cell and room for a header folded to ~10 characters a line,
+    # plus 3 for borders and padding
+    need = 4 + max(len("variant"), *(len(n) for n in results))
+    for j in range(len(cols)):
+        need += 3 + max(10, *(len(v[j]) for v in cells.values()))
+    if width is None or need <= width:
+        t = Table(title=title, caption=caption)
+        t.add_column("variant", no_wrap=True)
+        for c in cols:
+            t.add_column(c, justify="right", overflow="fold")
+        for name, row in cells.items():
+            t.add_row(name, *row)
+        return t
+    t = Table(title=title, caption=(caption + "; " if caption else "") + "one row per metric to fit")
+    t.add_column("metric", no_wrap=True)
+    for name in results:
+        t.add_column(name, justify="right")
+    for j, c in enumerate(cols):
+        t.add_row(c, *(cells[name][j] for name in results))
     return t
 
 

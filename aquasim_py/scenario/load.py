@@ -263,6 +263,14 @@ def load_dict(
     file = Path(path) if path is not None else None
     source = copy.deepcopy(raw)
     sets = _parse_overrides(overrides, file)
+    for loc, _ in sets:
+        if loc and loc[0] == "variants":
+            raise ScenarioError(
+                file,
+                "--set",
+                f"cannot change the [variants] tables ({format_key_path(loc)}): --set applies on top of "
+                "every variant; choose one with --variant",
+            )
     variants = _variant_overrides(source, file)
     if variant is not None:
         sc = _resolve_variant(source, file, variants, variant, sets, seed)
@@ -403,6 +411,13 @@ def _in_variant(e: ScenarioError, name: str, items: VariantItems, file: Path | N
             best = item
     if best is None:
         inner = f"{e.key_path}: {e.message}" if e.key_path else e.message
+        sets = {tuple(str(x) for x in item[0]) for item in items}
+        if len(loc) >= 3 and loc[0] == "nodes" and loc[2] == "params":
+            group = ("nodes", loc[1])
+            if (*group, "protocol") in sets and (*group, "params") not in sets:
+                inner += (
+                    f' (this variant changes the protocol: give its parameters with "nodes.{loc[1]}.params" = {{...}})'
+                )
         return ScenarioError(file, f"variants.{name}", inner)
     _, value, key = best
     n = len(best[0])
