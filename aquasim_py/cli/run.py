@@ -84,7 +84,7 @@ def command(argv: Sequence[str]) -> int:
     _warn_missing(res)
     if not args.quiet:
         con = console()
-        what = sc.name if sc.variant is None else f"{sc.name} [{sc.variant}]"
+        what = sc.name if sc.variant is None else f"{sc.name}/{sc.variant}"
         title = f"{what}: metrics (seed {sc.simulation.seed}, {sc.simulation.duration_s:g} s simulated)"
         con.print(common.metrics_table(res.metrics, title))
         for r in res.reports():

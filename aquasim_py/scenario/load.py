@@ -409,6 +409,11 @@ def _in_variant(e: ScenarioError, name: str, items: VariantItems, file: Path | N
         vloc = [str(x) for x in item[0]]
         if loc[: len(vloc)] == vloc and (best is None or len(vloc) > len(best[0])):
             best = item
+    if best is None and loc:
+        # an error about a whole table (found by a constructor) inside which the variant set one key
+        inside = [item for item in items if [str(x) for x in item[0]][: len(loc)] == loc]
+        if len(inside) == 1:
+            return ScenarioError(file, f'variants.{name}."{inside[0][2]}"', e.message)
     if best is None:
         inner = f"{e.key_path}: {e.message}" if e.key_path else e.message
         sets = {tuple(str(x) for x in item[0]) for item in items}
