@@ -21,6 +21,7 @@ from aquasim_py.runner import (
     run_scenario,
     staged_output,
 )
+from aquasim_py.scenario import Scenario
 
 EXAMPLES = """\
 examples:
@@ -93,7 +94,7 @@ def command(argv: Sequence[str]) -> int:
     return 0
 
 
-def _all_variants(base: Any, args: argparse.Namespace, progress: bool) -> int:
+def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> int:
     resolved = resolve_variants(base)  # every variant validated and built before any runs
     out, key = common.output_dir(base, args.out)
     for sc in resolved.values():
@@ -109,7 +110,7 @@ def _all_variants(base: Any, args: argparse.Namespace, progress: bool) -> int:
     return 0
 
 
-def comparison_table(results: Mapping[str, RunResult], base: Any, width: int | None = None) -> Any:
+def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:
     """Rows = variants, columns = the metrics more than half of them report (all of them are
     in variants.csv). When that many columns cannot fit ``width`` characters, the same table
     is printed transposed (one row per metric) rather than folded into unreadable slivers."""
