@@ -6,9 +6,15 @@ file order, values in list order) times ``runs``, the run index varying fastest.
 uses the seed :func:`run_seed` ``(scenario seed, r)`` at every grid point (common random
 numbers: grid points differ by their parameters, not by their luck).
 
-Rows come back in that job order whatever the number of workers or their finishing order, and
-each run depends only on its own (scenario, overrides, seed), so a sweep gives the same rows
-serially, on 2 local processes, or on a Dask cluster.
+The grid key ``variant`` takes names of the scenario's ``[variants.NAME]`` tables: each such
+job runs that variant, with the other grid values (and ``--set``) applied on top of it; the
+rows carry the variant's name in the ``variant`` column. Without that key a sweep runs the
+file as written.
+
+Every run goes through :func:`aquasim_py.run_scenario`. Rows come back in job order whatever
+the number of workers or their finishing order, and each run depends only on its own
+(scenario, overrides, seed), so a sweep gives the same rows serially, on 2 local processes,
+or on a Dask cluster.
 """
 
 from __future__ import annotations
@@ -26,10 +32,21 @@ from typing import Any
 
 import numpy as np
 
-from aquasim_py import metrics as _metrics
 from aquasim_py import scenario as _scenario
+from aquasim_py.scenario import VARIANT_KEY
 
-__all__ = ["DaskMissingError", "Job", "plan", "rows_to_csv", "run_job", "run_jobs", "run_seed"]
+__all__ = [
+    "DaskMissingError",
+    "Job",
+    "bases",
+    "check_points",
+    "columns",
+    "plan",
+    "rows_to_csv",
+    "run_job",
+    "run_jobs",
+    "run_seed",
+]
 
 Progress = Callable[[int, int], None]
 
@@ -71,28 +88,51 @@ def plan(sc: _scenario.Scenario) -> list[Job]:
     return jobs
 
 
+def bases(sc: _scenario.Scenario, jobs: Sequence[Job]) -> dict[str | None, dict[str, Any]]:
+    """The resolved scenario each job starts from, by variant (None: the file as written), as
+    plain data without the ``sweep`` and ``variants`` tables (a run needs neither)."""
+    out: dict[str | None, dict[str, Any]] = {}
+    for job in jobs:
+        v = _variant_of(job)
+        if v not in out:
+            src = sc if v is None else _scenario.resolve(sc, variant=v)
+            out[v] = {k: x for k, x in src.to_dict().items() if k not in ("sweep", "variants")}
+    return out
+
+
+def _variant_of(job: Job) -> str | None:
+    return next((v for k, v in job.point if k == VARIANT_KEY), None)
+
+
+def _job_scenario(base: dict[str, Any], path: str | None, job: Job) -> _scenario.Scenario:
+    overrides = [(_scenario.parse_key_path(k), v) for k, v in job.point if k != VARIANT_KEY]
+    return _scenario.load_dict(base, path, overrides=overrides, seed=job.seed)
+
+
+def check_points(sc: _scenario.Scenario, jobs: Sequence[Job]) -> None:
+    """Build (without running) every grid point once: what only the physics rejects fails
+    here, before any run."""
+    path = str(sc.path) if sc.path is not None else None
+    start = bases(sc, jobs)
+    for job in jobs:
+        if job.run == 0:
+            _scenario.build(_job_scenario(start[_variant_of(job)], path, job))
+
+
 def run_job(base: dict[str, Any], path: str | None, job: Job) -> dict[str, Any]:
     """Run one job (in any process) and return its row: swept values, run, seed, metrics.
 
-    ``base`` is the resolved scenario (:meth:`Scenario.to_dict`), ``path`` its file (for relative
+    ``base`` is the job's resolved scenario (:func:`bases`), ``path`` its file (for relative
     file names and messages).
     """
-    overrides = [(_scenario.parse_key_path(k), v) for k, v in job.point]
-    sc = _scenario.load_dict(base, path, overrides=overrides, seed=job.seed)
-    sim = _scenario.build(sc)
-    sim.run(sc.simulation.duration_s)
-    m = _metrics.summarize(
-        sim.trace.frames(),
-        sc.protocols(),
-        percentiles=sc.metrics.percentiles,
-        warmup_s=sc.metrics.warmup_s,
-        unknown_roles=sc.metrics.unknown_roles,
-    )
+    from aquasim_py.runner import run_scenario
+
+    res = run_scenario(_job_scenario(base, path, job), progress=False)
     row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
     row["seed"] = job.seed
     # plain Python numbers: a protocol's metrics may hand back numpy scalars
-    row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in m.items()})
+    row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in res.metrics.items()})
     return row
 
 
@@ -111,7 +151,7 @@ def run_jobs(
     ``progress(done, total)`` is called after each finished run (in this process).
     """
     # the runs need no [sweep] table (and re-checking its grid in every run would be wasted)
-    base = {k: v for k, v in sc.to_dict().items() if k != "sweep"}
+    start = bases(sc, jobs)
     path = str(sc.path) if sc.path is not None else None
     total = len(jobs)
     results: list[dict[str, Any] | None] = [None] * total
@@ -126,18 +166,18 @@ def run_jobs(
             progress(done, total)
 
     if scheduler is not None:
-        _run_dask(scheduler, base, path, jobs, pos, _done)
+        _run_dask(scheduler, start, path, jobs, pos, _done)
     else:
         n = workers if workers is not None else (os.cpu_count() or 1)
         n = max(1, min(int(n), total)) if total else 1
         if n == 1:
             for i, job in enumerate(jobs):
-                _done(i, run_job(base, path, job))
+                _done(i, run_job(start[_variant_of(job)], path, job))
         else:
             # Worker processes may be forked: the CLI's progress display runs no thread for
             # that reason (a lock held by another thread at fork time would stay held).
             with ProcessPoolExecutor(max_workers=n) as pool:
-                futs = {pool.submit(run_job, base, path, job): job for job in jobs}
+                futs = {pool.submit(run_job, start[_variant_of(job)], path, job): job for job in jobs}
                 try:
                     for fut in as_completed(futs):
                         _done(pos[futs[fut].index], fut.result())
@@ -156,7 +196,7 @@ def run_jobs(
 
 def _run_dask(
     scheduler: str,
-    base: dict[str, Any],
+    start: dict[str | None, dict[str, Any]],
     path: str | None,
     jobs: Sequence[Job],
     pos: dict[int, int],
@@ -168,7 +208,7 @@ def _run_dask(
     except ImportError as e:
         raise DaskMissingError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from e
     with Client(scheduler) as client:
-        futs = [client.submit(run_job, base, path, job, pure=False) for job in jobs]
+        futs = [client.submit(run_job, start[_variant_of(job)], path, job, pure=False) for job in jobs]
         index = {f.key: job.index for f, job in zip(futs, jobs)}
         for fut in dask_completed(futs):
             done(pos[index[fut.key]], fut.result())

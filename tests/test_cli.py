@@ -357,7 +357,7 @@ def test_progress_bar_follows_simulated_time(scen, tmp_path, capsys, monkeypatch
         return real(self, until, progress=p if progress is not None else None)
 
     monkeypatch.setattr(kernel.Simulation, "run", spy)
-    monkeypatch.setattr(cli, "_progress_wanted", lambda quiet: not quiet)  # as on a terminal
+    monkeypatch.setattr(cli.common, "_progress_wanted", lambda quiet: not quiet)  # as on a terminal
     assert run(capsys, scen, "--out", tmp_path / "a")[0] == 0
     times = [t for t, _ in seen]
     assert len(times) >= 50 and times == sorted(times) and seen[-1] == (60.0, 60.0)

@@ -1,0 +1,39 @@
+"""The ``aquasim-py`` command: run a scenario (:mod:`~aquasim_py.cli.run`), or a sweep of it
+(:mod:`~aquasim_py.cli.sweep`); both run through :func:`aquasim_py.run_scenario`.
+
+User mistakes (bad scenario, bad variant, bad override, unwritable output) print one line
+``error: FILE: KEY.PATH: problem`` on stderr and exit with status 2, before anything is
+written. Outputs are staged in a hidden temporary directory next to the target and renamed
+into place only when complete, so an interrupted or failed run leaves no half-written
+directory (and an existing one untouched until the new one is ready).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from aquasim_py.cli.common import EXIT_USAGE, UsageError
+from aquasim_py.cli.common import fmt as _fmt  # noqa: F401  (how the tables print a metric)
+from aquasim_py.scenario import ScenarioError
+
+__all__ = ["EXIT_USAGE", "UsageError", "main"]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``aquasim-py``; returns the exit status."""
+    from aquasim_py.cli import run, sweep
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv and argv[0] == "sweep":
+            return sweep.command(argv[1:])
+        return run.command(argv)
+    except (ScenarioError, UsageError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except SystemExit as e:  # argparse's --help / --version
+        return int(e.code) if isinstance(e.code, int) else (0 if e.code is None else EXIT_USAGE)
+    except KeyboardInterrupt:
+        print("error: interrupted (no output written)", file=sys.stderr)
+        return 130

@@ -1,0 +1,91 @@
+"""What the ``aquasim-py`` subcommands share: the one-line argument parser, option types and
+common options, output directories, progress and table helpers."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, NoReturn
+
+from aquasim_py.scenario import Scenario
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """A command-line mistake that is not about the scenario file."""
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, not usage + message
+        raise UsageError(f"{message} (see {self.prog} --help)")
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}") from None
+    if not 0 <= v < 2**63:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2^63), got {v}")
+    return v
+
+
+def add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file")
+    p.add_argument(
+        "--out", metavar="DIR", help="output directory (default: [output] directory, else out/<scenario name>)"
+    )
+    p.add_argument("--seed", type=seed, metavar="N", help="override [simulation] seed")
+    p.add_argument(
+        "--set", action="append", default=[], metavar="KEY.PATH=VALUE", help="override any scenario value (repeatable)"
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar and no tables")
+
+
+def output_dir(sc: Scenario, out: str | None, suffix: str = "") -> tuple[Path, str]:
+    """The output directory and the key an error about it names (``--out`` or the file's)."""
+    if out:
+        return Path(out), "--out"
+    if sc.output.directory:
+        return Path(sc.output.directory + suffix), "output.directory"
+    return Path("out") / f"{sc.name}{suffix}", "output.directory"
+
+
+def _progress_wanted(quiet: bool) -> bool:
+    return not quiet and sys.stderr.isatty()
+
+
+def fmt(v: Any) -> str:
+    """A metric as the tables print it."""
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return "-" if math.isnan(v) else f"{v:.6g}"
+    return str(v)
+
+
+def metrics_table(m: Mapping[str, Any], title: str) -> Any:
+    from rich.table import Table
+
+    t = Table(title=title)
+    t.add_column("metric")
+    t.add_column("value", justify="right")
+    for k, v in m.items():
+        t.add_row(k, fmt(v))
+    return t

@@ -1,0 +1,148 @@
+"""``aquasim-py SCENARIO.toml``: run a scenario (every variant, one variant, or the file as
+written when it declares none) through :func:`aquasim_py.run_scenario`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from aquasim_py import __version__
+from aquasim_py.cli import common
+from aquasim_py.runner import (
+    RunResult,
+    check_output_format,
+    comparison_columns,
+    console,
+    resolve_variants,
+    run_resolved_into,
+    run_scenario,
+    staged_output,
+)
+from aquasim_py.scenario import Scenario
+
+EXAMPLES = """\
+examples:
+  aquasim-py scenarios/beacon.toml
+  aquasim-py scenarios/beacon.toml --seed 7 --out out/beacon-7
+  aquasim-py scenarios/beacon.toml --set simulation.duration_s=120 --set nodes.1.count=12
+  aquasim-py scenarios/beacon.toml --set 'environment.sound_speed={model="constant", speed_mps=1490}'
+  aquasim-py scenarios/itmtl.toml                        # every [variants.NAME], one table
+  aquasim-py scenarios/itmtl.toml --variant wsc          # one variant, as a plain run
+  aquasim-py sweep scenarios/beacon.toml --workers 2
+  aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786
+
+--set values are TOML (numbers, strings in quotes, [arrays], {inline tables}, true/false);
+anything that is not valid TOML is taken as a plain string. List items are addressed by
+index: nodes.1.count or nodes[1].count. --set applies on top of every variant.
+
+A scenario with [variants.NAME] tables runs every variant on the same network and seed,
+writes each under DIR/NAME/ and the comparison to DIR/variants.csv.
+"""
+
+
+def parser() -> argparse.ArgumentParser:
+    p = common.Parser(
+        prog="aquasim-py",
+        description="Simulate an underwater acoustic sensor network scenario and write its trace "
+        "tables and metrics. Use 'aquasim-py sweep SCENARIO.toml' for a Monte Carlo "
+        "or parameter sweep (see 'aquasim-py sweep --help').",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--version", action="version", version=f"aquasim-py {__version__}")
+    common.add_common(p)
+    p.add_argument(
+        "--variant",
+        metavar="NAME",
+        help="run only this [variants.NAME] of the scenario and write what a plain run writes "
+        "(default: every variant, each under DIR/NAME/)",
+    )
+    return p
+
+
+def command(argv: Sequence[str]) -> int:
+    from aquasim_py import scenario
+
+    args = parser().parse_args(argv)
+    sc = scenario.load(args.scenario, overrides=args.set, seed=args.seed, variant=args.variant)
+    progress = common._progress_wanted(args.quiet)
+    if args.variant is None and sc.variant_names:
+        return _all_variants(sc, args, progress)
+    if args.variant is not None:
+        default, key = common.output_dir(sc, None)
+        out = Path(args.out) if args.out else default / args.variant
+        key = "--out" if args.out else key
+    else:
+        out, key = common.output_dir(sc, args.out)
+    sc.output.directory = str(out)  # the resolved scenario says where its outputs went
+    check_output_format(sc)
+    with staged_output(out, sc.path, key) as tmp:
+        res = run_scenario(sc, progress=progress)
+        res.write_into(tmp, final=out)
+    _warn_missing(res)
+    if not args.quiet:
+        con = console()
+        what = sc.name if sc.variant is None else f"{sc.name}/{sc.variant}"
+        title = f"{what}: metrics (seed {sc.simulation.seed}, {sc.simulation.duration_s:g} s simulated)"
+        con.print(common.metrics_table(res.metrics, title))
+        for r in res.reports():
+            con.print(r)
+        con.print(f"output: {out}", soft_wrap=True)
+    return 0
+
+
+def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> int:
+    resolved = resolve_variants(base)  # every variant validated and built before any runs
+    out, key = common.output_dir(base, args.out)
+    for sc in resolved.values():
+        check_output_format(sc)
+    with staged_output(out, base.path, key) as tmp:
+        results = run_resolved_into(resolved, tmp, out, progress)
+    for res in results.values():
+        _warn_missing(res)
+    if not args.quiet:
+        con = console()
+        con.print(comparison_table(results, base, width=con.width))
+        con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}", soft_wrap=True)
+    return 0
+
+
+def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:
+    """Rows = variants, columns = the metrics more than half of them report (all of them are
+    in variants.csv). When that many columns cannot fit ``width`` characters, the same table
+    is printed transposed (one row per metric) rather than folded into unreadable slivers."""
+    from rich.table import Table
+
+    cols, rest = comparison_columns(results)
+    cells = {name: [common.fmt(res.metrics.get(c, float("nan"))) for c in cols] for name, res in results.items()}
+    sim = base.simulation
+    title = f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)"
+    caption = f"{len(rest)} more metrics in variants.csv" if rest else None
+    # a column needs its widest cell and room for a header folded to ~10 characters a line,
+    # plus 3 for borders and padding
+    need = 4 + max(len("variant"), *(len(n) for n in results))
+    for j in range(len(cols)):
+        need += 3 + max(10, *(len(v[j]) for v in cells.values()))
+    if width is None or need <= width:
+        t = Table(title=title, caption=caption)
+        t.add_column("variant", no_wrap=True)
+        for c in cols:
+            t.add_column(c, justify="right", overflow="fold")
+        for name, row in cells.items():
+            t.add_row(name, *row)
+        return t
+    t = Table(title=title, caption=(caption + "; " if caption else "") + "one row per metric to fit")
+    t.add_column("metric", no_wrap=True)
+    for name in results:
+        t.add_column(name, justify="right")
+    for j, c in enumerate(cols):
+        t.add_row(c, *(cells[name][j] for name in results))
+    return t
+
+
+def _warn_missing(res: RunResult) -> None:
+    for name in res.missing_tables:
+        print(f"warning: trace table {name!r} was not produced by this run", file=sys.stderr)

@@ -1,0 +1,437 @@
+"""The one way to run a scenario: :func:`run_scenario` (and :func:`run_variants` for every
+variant of a file). The CLI, sweeps (local processes and Dask workers) and notebooks all run
+through :func:`run_scenario`.
+
+Example (a notebook)::
+
+    import aquasim_py
+    res = aquasim_py.run_scenario("scenarios/itmtl.toml", variant="wsc", seed=7,
+                                  overrides={"simulation.duration_s": 120})
+    res.metrics["localization.rmse_m"]
+    res.tables["estimates"].groupby("node").error.mean()
+    res.write("out/itmtl-wsc")          # exactly what `aquasim-py ... --variant wsc` writes
+
+Outputs are staged (:func:`staged_output`): written to a hidden temporary directory beside the
+target and renamed into place only when complete, so a failed run leaves nothing behind and an
+existing directory is replaced only once the new one is ready.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, suppress
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from aquasim_py import __version__
+from aquasim_py import scenario as _scenario
+from aquasim_py.scenario import Scenario, ScenarioError
+from aquasim_py.scenario.load import Overrides, variant_error
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "RunResult",
+    "check_output_format",
+    "compare",
+    "json_safe",
+    "run_scenario",
+    "run_variants",
+    "staged_output",
+    "write_comparison",
+]
+
+#: ``(simulated time, end time)`` in seconds, called as the run advances
+ProgressFn = Callable[[float, float], None]
+Progress = bool | ProgressFn | None
+
+
+# --------------------------------------------------------------------------- results
+@dataclass(eq=False)
+class RunResult:
+    """One finished run: its trace tables, metrics and the exact scenario that produced them.
+
+    ``tables``: trace table name -> DataFrame (every table the run produced, whatever
+    ``[trace] tables`` selects for writing); ``metrics``: summary metrics (name -> number);
+    ``scenario``: the resolved scenario (defaults, variant, overrides and seed applied);
+    ``variant``: the variant's name, or None for the file as written.
+    """
+
+    scenario: Scenario
+    tables: dict[str, pd.DataFrame]
+    metrics: dict[str, Any]
+    wall_time_s: float
+    variant: str | None = None
+    out: Path | None = field(default=None)  # where write() last put the outputs
+
+    @property
+    def seed(self) -> int:
+        return self.scenario.simulation.seed
+
+    @property
+    def name(self) -> str:
+        """``scenario`` or ``scenario/variant``."""
+        return self.scenario.name if self.variant is None else f"{self.scenario.name}/{self.variant}"
+
+    def summary(self) -> dict[str, Any]:
+        """What ``summary.json`` holds (JSON-safe: NaN becomes null)."""
+        sc = self.scenario
+        return json_safe(
+            {
+                "aquasim_py_version": __version__,
+                "scenario_file": str(sc.path),
+                "seed": sc.simulation.seed,
+                "variant": self.variant,
+                "wall_time_s": self.wall_time_s,
+                "metrics": self.metrics,
+                "scenario": sc.to_dict(),
+            }
+        )
+
+    def reports(self) -> list[Any]:
+        """What each protocol's optional ``report(tables)`` returns (rich renderables or text)."""
+        out = []
+        for cls in self.scenario.protocols():
+            report = getattr(cls, "report", None)
+            if callable(report):
+                r = report(self.tables)
+                if r is not None and r != "":
+                    out.append(r)
+        return out
+
+    @property
+    def missing_tables(self) -> list[str]:
+        """Tables ``[trace] tables`` asks for that this run did not produce."""
+        wanted = self.scenario.trace.tables or []
+        return [n for n in wanted if n not in self.tables]
+
+    def write(self, directory: str | Path) -> Path:
+        """Write the outputs of a plain run (the selected trace tables and ``summary.json``)
+        to ``directory``, staged: all or nothing. Returns the directory."""
+        directory = Path(directory)
+        check_output_format(self.scenario)
+        with staged_output(directory, self.scenario.path, "out") as tmp:
+            self.write_into(tmp, final=directory)
+        return directory
+
+    def write_into(self, directory: str | Path, *, final: str | Path | None = None) -> None:
+        """Write the outputs into an existing directory, unstaged. ``final``: the directory the
+        outputs will end up in (recorded as ``output.directory``); default ``directory``."""
+        from aquasim_py.trace import write_frames
+
+        directory = Path(directory)
+        final = Path(final) if final is not None else directory
+        self.scenario.output.directory = str(final)  # the resolved scenario says where its outputs went
+        self.out = final
+        wanted = self.scenario.trace.tables
+        selected = self.tables if wanted is None else {k: v for k, v in self.tables.items() if k in wanted}
+        write_frames(selected, directory, self.scenario.trace.format)
+        (directory / "summary.json").write_text(json.dumps(self.summary(), indent=2) + "\n")
+
+    def __repr__(self) -> str:
+        tables = ", ".join(f"{k} ({len(v)} rows)" for k, v in self.tables.items())
+        shown = [k for k in self.metrics if not k.startswith("packets.")][:4] or list(self.metrics)[:4]
+        metrics = ", ".join(f"{k}={_short(self.metrics[k])}" for k in shown)
+        more = len(self.metrics) - len(shown)
+        return (
+            f"<RunResult {self.name} seed={self.seed} {self.scenario.simulation.duration_s:g} s simulated"
+            f" in {self.wall_time_s:.1f} s\n  tables: {tables}\n  metrics: {metrics}"
+            + (f" (+{more} more)" if more > 0 else "")
+            + ">"
+        )
+
+
+def _short(v: Any) -> str:
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+# --------------------------------------------------------------------------- running
+def _as_scenario(
+    scenario_or_path: Scenario | str | os.PathLike[str],
+    variant: str | None,
+    seed: int | None,
+    overrides: Overrides,
+) -> Scenario:
+    if isinstance(scenario_or_path, Scenario):
+        if variant is None and seed is None and not overrides:
+            return scenario_or_path
+        return _scenario.resolve(scenario_or_path, variant=variant, overrides=overrides, seed=seed)
+    return _scenario.load(Path(scenario_or_path), overrides=overrides, seed=seed, variant=variant)
+
+
+def run_scenario(
+    scenario_or_path: Scenario | str | os.PathLike[str],
+    *,
+    variant: str | None = None,
+    seed: int | None = None,
+    overrides: Overrides = (),
+    out: str | Path | None = None,
+    progress: Progress = None,
+) -> RunResult:
+    """Run one scenario and return its tables, metrics and resolved scenario.
+
+    ``scenario_or_path``: a scenario file, or a :class:`~aquasim_py.scenario.Scenario` from
+    :func:`aquasim_py.scenario.load` (re-resolved from its source when ``variant``, ``seed`` or
+    ``overrides`` are given). ``variant``: one of the file's ``[variants.NAME]`` (None: the file
+    as written). ``seed`` replaces ``[simulation] seed``. ``overrides``: ``"key.path=value"``
+    strings (as ``--set``), ``(key path, value)`` pairs or a mapping key path -> value; applied
+    after the variant. ``out``: also write the outputs there (staged, as the CLI does).
+    ``progress``: True for a progress bar on stderr, False for none, a callable
+    ``(t_s, until_s)``; None shows a bar only when stderr is a terminal.
+
+    Raises :class:`~aquasim_py.scenario.ScenarioError` for a bad scenario, before running.
+    """
+    sc = _as_scenario(scenario_or_path, variant, seed, overrides)
+    if out is not None:
+        check_output_format(sc)
+        with staged_output(out, sc.path, "out") as tmp:
+            res = _execute(sc, progress)
+            res.write_into(tmp, final=out)
+        return res
+    return _execute(sc, progress)
+
+
+def _execute(sc: Scenario, progress: Progress) -> RunResult:
+    from aquasim_py import metrics
+
+    sim = _scenario.build(sc)
+    duration = sc.simulation.duration_s
+    variant = sc.variant
+    label = sc.name if variant is None else f"{sc.name}/{variant}"
+    started = time.perf_counter()
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if progress is True:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+        with Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed:.0f}/{task.total:.0f} s simulated"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            console=console(stderr=True),
+            transient=True,
+        ) as prog:
+            task = prog.add_task(label, total=duration)
+            sim.run(duration, progress=lambda t, until: prog.update(task, completed=t))
+    elif callable(progress):
+        sim.run(duration, progress=progress)
+    else:
+        sim.run(duration)
+    wall = time.perf_counter() - started
+    frames = sim.trace.frames()
+    m = metrics.summarize(
+        frames,
+        sc.protocols(),
+        percentiles=sc.metrics.percentiles,
+        warmup_s=sc.metrics.warmup_s,
+        unknown_roles=sc.metrics.unknown_roles,
+    )
+    return RunResult(scenario=sc, tables=dict(frames), metrics=dict(m), wall_time_s=wall, variant=variant)
+
+
+def run_variants(
+    scenario_or_path: Scenario | str | os.PathLike[str],
+    *,
+    variants: Sequence[str] | None = None,
+    seed: int | None = None,
+    overrides: Overrides = (),
+    out: str | Path | None = None,
+    progress: Progress = None,
+) -> dict[str, RunResult]:
+    """Run every variant of a scenario (or those named in ``variants``) on the same network and
+    seed; returns variant name -> result, in file order.
+
+    Every variant is resolved and built before the first one runs, so a bad variant fails
+    with nothing run. ``out``: write each variant's outputs under ``out/NAME/`` (each exactly
+    what a plain run writes) and the comparison (:func:`compare`) as ``out/variants.csv``,
+    all staged as one directory. A file without variants gives one result under the name
+    ``"default"``. The other arguments are those of :func:`run_scenario`.
+    """
+    if isinstance(scenario_or_path, Scenario):
+        base = scenario_or_path
+        if seed is not None or overrides:
+            base = _scenario.resolve(base, overrides=overrides, seed=seed)
+    else:
+        base = _scenario.load(Path(scenario_or_path), overrides=overrides, seed=seed)
+    resolved = resolve_variants(base, variants)
+    if out is None:
+        return {name: run_scenario(sc, progress=progress) for name, sc in resolved.items()}
+    out = Path(out)
+    for sc in resolved.values():
+        check_output_format(sc)
+    with staged_output(out, base.path, "out") as tmp:
+        results = run_resolved_into(resolved, tmp, out, progress)
+    return results
+
+
+def resolve_variants(base: Scenario, names: Sequence[str] | None = None) -> dict[str, Scenario]:
+    """The resolved scenario of each variant (``names``, default every declared one, in file
+    order; a file without variants gives itself as ``"default"``), each built once so that
+    what only the physics rejects fails before anything runs."""
+    declared = base.declared_variants
+    if names is None:
+        names = declared
+    out: dict[str, Scenario] = {}
+    if not declared and not names:
+        out["default"] = base
+    for name in names:
+        out[name] = _scenario.resolve(base, variant=name)
+    for sc in out.values():
+        try:
+            _scenario.build(sc)
+        except ScenarioError as e:
+            raise variant_error(sc, e) from None
+    return out
+
+
+def run_resolved_into(
+    resolved: Mapping[str, Scenario], tmp: Path, final: Path, progress: Progress
+) -> dict[str, RunResult]:
+    """Run each resolved variant, writing it under ``tmp/NAME`` (recorded as ``final/NAME``),
+    then ``tmp/variants.csv``."""
+    results: dict[str, RunResult] = {}
+    for name, sc in resolved.items():
+        res = run_scenario(sc, progress=progress)
+        (tmp / name).mkdir()
+        res.write_into(tmp / name, final=final / name)
+        results[name] = res
+    write_comparison(results, tmp / "variants.csv")
+    return results
+
+
+# --------------------------------------------------------------------------- comparison
+def compare(results: Mapping[str, RunResult]) -> pd.DataFrame:
+    """One row per variant (index ``variant``), one column per metric any of them reports:
+    the metrics most variants report first (in first-seen order), then the others."""
+    import pandas as pd
+
+    common, rest = comparison_columns(results)
+    df = pd.DataFrame([{c: r.metrics.get(c, math.nan) for c in common + rest} for r in results.values()])
+    df.index = pd.Index(list(results), name="variant")
+    return df
+
+
+def comparison_columns(results: Mapping[str, RunResult]) -> tuple[list[str], list[str]]:
+    """(metrics reported, as a finite number, by more than half of the results; the others)."""
+    order: dict[str, int] = {}
+    for r in results.values():
+        for k, v in r.metrics.items():
+            reported = isinstance(v, (int, float)) and not (isinstance(v, float) and math.isnan(v))
+            order[k] = order.get(k, 0) + int(reported)
+    n = len(results)
+    common = [k for k, c in order.items() if 2 * c > n]
+    return common, [k for k in order if k not in common]
+
+
+def write_comparison(results: Mapping[str, RunResult], path: str | Path) -> None:
+    """``variants.csv``: :func:`compare` with exact float text (as ``sweep.csv``)."""
+    from aquasim_py.sweep import rows_to_csv
+
+    common, rest = comparison_columns(results)
+    rows = [{"variant": name, **r.metrics} for name, r in results.items()]
+    rows_to_csv(rows, ["variant", *common, *rest], path)
+
+
+# --------------------------------------------------------------------------- output
+@contextmanager
+def staged_output(target: str | Path, file: Path | None, key: str) -> Iterator[Path]:
+    """Yield a fresh temporary directory beside ``target``; rename it to ``target`` on success.
+
+    Fails with :class:`ScenarioError` (naming ``key``) before yielding if the location cannot
+    be written. On any exception the temporary directory, and any parent directory created
+    here, are removed; an existing ``target`` is replaced only after the new one is complete.
+    """
+    target = Path(target)
+    parent = target.parent
+    created: list[Path] = []
+
+    def _unmake() -> None:
+        for d in reversed(created):
+            with suppress(OSError):
+                d.rmdir()
+
+    try:
+        missing = []
+        d = parent
+        while not d.exists():
+            missing.append(d)
+            if d.parent == d:
+                break
+            d = d.parent
+        for d in reversed(missing):
+            d.mkdir()
+            created.append(d)
+        if target.exists() and not target.is_dir():
+            raise ScenarioError(file, key, f"{target} exists and is not a directory")
+        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
+        # mkdtemp makes it private (0700); the final directory gets the usual permissions
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)
+    except ScenarioError:
+        _unmake()
+        raise
+    except OSError as e:
+        _unmake()
+        raise ScenarioError(file, key, f"cannot write to {target}: {e.strerror or e}") from None
+    ok = False
+    try:
+        yield tmp
+        ok = True
+    finally:
+        if not ok:
+            shutil.rmtree(tmp, ignore_errors=True)
+            _unmake()
+    if target.exists():
+        old = parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
+        os.rename(target, old)
+        os.rename(tmp, target)
+        shutil.rmtree(old, ignore_errors=True)
+    else:
+        os.rename(tmp, target)
+
+
+def check_output_format(sc: Scenario) -> None:
+    """Parquet traces need pyarrow: say so before running, not after."""
+    if sc.trace.format == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise ScenarioError(
+                sc.path, "trace.format", "parquet needs pyarrow (pip install 'aquasim-py[parquet]')"
+            ) from None
+
+
+def json_safe(v: Any) -> Any:
+    """Plain JSON data: NaN / inf -> None (strict JSON has neither), numpy scalars -> Python."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: json_safe(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [json_safe(x) for x in v]
+    if hasattr(v, "item") and callable(v.item):  # numpy scalars
+        return json_safe(v.item())
+    return v
+
+
+def console(stderr: bool = False) -> Any:
+    """A rich console on stdout (or stderr): a terminal sets its own width, a pipe or a file
+    gets 120 columns (room for the sweep table)."""
+    from rich.console import Console
+
+    stream = sys.stderr if stderr else sys.stdout
+    width = None if stream.isatty() or os.environ.get("COLUMNS") else 120
+    return Console(file=stream, highlight=False, width=width)

@@ -1,0 +1,279 @@
+"""The scenario file format: strict pydantic models of a TOML scenario (units in field names).
+
+Every model forbids unknown keys, rejects NaN / inf, and is strict about types (a TOML
+integer is accepted where a float is expected, nothing else is converted). Cross-section
+checks that need several sections at once (positions inside the volume, protocol parameters
+against the protocol's own model) are made in :mod:`aquasim_py.scenario.validate`; override
+sets (``[sweep]`` grid keys, ``[variants.NAME]`` tables) are resolved and checked in
+:mod:`aquasim_py.scenario.load`.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = [
+    "ROLES",
+    "ChannelSpec",
+    "EnvironmentSpec",
+    "MetricsSpec",
+    "NodeGroupSpec",
+    "OutputSpec",
+    "Scenario",
+    "SimulationSpec",
+    "SweepSpec",
+    "TraceSpec",
+]
+
+ROLES = ("buoy", "anchor", "ordinary", "target", "sink")
+
+PosFloat = Annotated[float, Field(gt=0.0)]
+NonNegFloat = Annotated[float, Field(ge=0.0)]
+PosInt = Annotated[int, Field(ge=1)]
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+class Strict(BaseModel):
+    """Base of every section: unknown keys are errors, no NaN / inf, no silent type conversion."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=False)
+
+
+# --------------------------------------------------------------------------- [simulation]
+class SimulationSpec(Strict):
+    duration_s: PosFloat = Field(description="simulated time to run (s)")
+    seed: Annotated[int, Field(ge=0, lt=2**63)] = Field(0, description="seed of every random stream")
+
+
+# --------------------------------------------------------------------------- [environment]
+class VolumeSpec(Strict):
+    lo: Vec3 = Field(description="lower corner (x, y, z) in m; z is depth, positive down")
+    hi: Vec3 = Field(description="upper corner (x, y, z) in m")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> VolumeSpec:
+        for k, (a, b) in enumerate(zip(self.lo, self.hi)):
+            if not a < b:
+                raise ValueError(f"lo must be below hi on every axis (axis {'xyz'[k]}: {a} >= {b})")
+        if self.lo[2] < 0.0:
+            raise ValueError(f"lo z (depth) must be >= 0, the sea surface (got {self.lo[2]})")
+        return self
+
+
+class ConstantSSP(Strict):
+    model: Literal["constant"]
+    speed_mps: PosFloat = 1500.0
+
+
+class IsogradientSSP(Strict):
+    model: Literal["isogradient"]
+    surface_speed_mps: PosFloat = 1480.0
+    gradient_per_s: float = Field(description="dc/dz in (m/s)/m = 1/s")
+
+
+class LayeredSSP(Strict):
+    model: Literal["layered"]
+    depths_m: Annotated[list[float], Field(min_length=2)]
+    speeds_mps: Annotated[list[PosFloat], Field(min_length=2)]
+
+    @model_validator(mode="after")
+    def _same_length(self) -> LayeredSSP:
+        if len(self.depths_m) != len(self.speeds_mps):
+            raise ValueError(
+                f"depths_m and speeds_mps differ in length ({len(self.depths_m)} vs {len(self.speeds_mps)})"
+            )
+        return self
+
+
+class MunkSSP(Strict):
+    model: Literal["munk"]
+    axis_depth_m: PosFloat = 1300.0
+    axis_speed_mps: PosFloat = 1500.0
+    epsilon: NonNegFloat = 0.00737
+    scale_m: PosFloat = 1300.0
+    n_layers: PosInt = 200
+
+
+class CtdSSP(Strict):
+    """A CTD cast: inline columns, or ``file`` = a CSV (columns depth_m, temperature_c,
+    salinity_psu) whose path is relative to the scenario file."""
+
+    model: Literal["ctd"]
+    file: str | None = None
+    depth_m: list[float] | None = None
+    temperature_c: list[float] | None = None
+    salinity_psu: list[float] | None = None
+
+    @model_validator(mode="after")
+    def _one_source(self) -> CtdSSP:
+        cols = (self.depth_m, self.temperature_c, self.salinity_psu)
+        inline = [c is not None for c in cols]
+        if self.file is not None and any(inline):
+            raise ValueError("give either file or the inline columns depth_m, temperature_c, salinity_psu, not both")
+        if self.file is None and not all(inline):
+            raise ValueError("needs file (a CSV path) or all of depth_m, temperature_c, salinity_psu")
+        if all(inline) and not len(self.depth_m) == len(self.temperature_c) == len(self.salinity_psu):  # type: ignore[arg-type]
+            raise ValueError("depth_m, temperature_c and salinity_psu differ in length")
+        return self
+
+
+SoundSpeedSpec = Annotated[ConstantSSP | IsogradientSSP | LayeredSSP | MunkSSP | CtdSSP, Field(discriminator="model")]
+
+
+class EnvironmentSpec(Strict):
+    volume: VolumeSpec
+    sound_speed: SoundSpeedSpec = Field(default_factory=lambda: ConstantSSP(model="constant"))
+    bottom_m: PosFloat | None = Field(None, description="sea-floor depth (m) for bottom reflections; none if unset")
+
+    @model_validator(mode="after")
+    def _bottom_below_volume(self) -> EnvironmentSpec:
+        if self.bottom_m is not None and self.bottom_m < self.volume.hi[2]:
+            raise ValueError(
+                f"bottom_m ({self.bottom_m}) is shallower than the volume's deepest point ({self.volume.hi[2]})"
+            )
+        return self
+
+
+# --------------------------------------------------------------------------- [channel]
+class NoiseSpec(Strict):
+    shipping: Annotated[float, Field(ge=0.0, le=1.0)] = Field(0.5, description="shipping activity 0..1")
+    wind_mps: NonNegFloat = Field(0.0, description="wind speed (m/s)")
+
+
+class ChannelSpec(Strict):
+    """Defaults equal those of aquasim_py.channel.acoustic.ChannelConfig (a test checks it)."""
+
+    max_range_m: PosFloat = Field(5000.0, description="straight-line range limit at send time (m)")
+    bitrate_bps: PosFloat = 1000.0
+    source_level_db: float = Field(170.0, description="dB re 1 uPa at 1 m")
+    frequency_khz: PosFloat = 10.0
+    bandwidth_khz: PosFloat = 5.0
+    spreading: Annotated[float, Field(ge=1.0, le=2.0)] = Field(1.5, description="spreading exponent k")
+    noise: NoiseSpec = Field(default_factory=NoiseSpec)
+    loss_model: Literal["default", "none"] = Field(
+        "default", description="default: the SNR model of aquasim_py.channel.loss; none: no SNR loss"
+    )
+    snr_threshold_db: float = Field(10.0, description="receptions below this SNR are lost (dB)")
+    collision: Literal["none", "destructive", "capture"] = "destructive"
+    capture_threshold_db: NonNegFloat = 6.0
+    jitter_std_s: NonNegFloat = Field(0.0, description="std of the MAC timestamp jitter (s)")
+    reflections: Literal["none", "fallback", "all"] = "fallback"
+
+
+# --------------------------------------------------------------------------- [[nodes]]
+class UniformPlacement(Strict):
+    kind: Literal["uniform"]
+    lo: Vec3 | None = Field(None, description="sub-box lower corner (m); default the volume")
+    hi: Vec3 | None = None
+
+
+class GridPlacement(Strict):
+    """``shape`` = points per axis, spread evenly from lo to hi inclusive (a single point sits
+    in the middle of its axis); count = nx * ny * nz."""
+
+    kind: Literal["grid"]
+    shape: Annotated[list[PosInt], Field(min_length=3, max_length=3)]
+    lo: Vec3 | None = None
+    hi: Vec3 | None = None
+
+
+class ExplicitPlacement(Strict):
+    kind: Literal["explicit"]
+    positions: Annotated[list[Vec3], Field(min_length=1)]
+
+
+PlacementSpec = Annotated[UniformPlacement | GridPlacement | ExplicitPlacement, Field(discriminator="kind")]
+
+
+class MobilitySpec(BaseModel):
+    """``model`` names an aquasim_py.mobility class; the other keys are its parameters, checked
+    (names, finiteness) against the class constructor when the scenario is loaded."""
+
+    model_config = ConfigDict(extra="allow", strict=True, allow_inf_nan=False)
+    model: Literal[
+        "static", "constant_velocity", "coordinated_turn", "random_walk", "meandering_current", "waypoints"
+    ] = "static"
+
+    def params(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class ClockSpec(Strict):
+    """Per-node clocks, local = (1 + skew) t + offset: each node draws skew ~ N(skew_ppm,
+    skew_std_ppm) * 1e-6 and offset ~ N(offset_s, offset_std_s) from its own random stream."""
+
+    skew_ppm: float = 0.0
+    skew_std_ppm: NonNegFloat = 0.0
+    offset_s: float = 0.0
+    offset_std_s: NonNegFloat = 0.0
+    drift_std_ppm: NonNegFloat = Field(0.0, description="std of each random-walk step of the skew (ppm)")
+    drift_interval_s: PosFloat = 10.0
+    jitter_std_s: NonNegFloat = Field(0.0, description="std of the clock read jitter (s)")
+
+
+class SensorSpec(Strict):
+    depth_noise_std_m: NonNegFloat = Field(0.0, description="depth gauge noise std (m)")
+    velocity_noise_std_mps: NonNegFloat = Field(0.0, description="velocity sensor noise std per axis (m/s)")
+    velocity_sensor: bool | None = Field(None, description="has a velocity sensor; default every role but target")
+    position_noise_std_m: NonNegFloat = Field(0.0, description="position fix (GPS / survey) noise std per axis (m)")
+    position_fix: bool | None = Field(None, description="knows its own position; default buoys and anchors only")
+
+
+class NodeGroupSpec(Strict):
+    name: str | None = Field(None, description="group name (default group<i>); keys its random streams")
+    role: Literal["buoy", "anchor", "ordinary", "target", "sink"]
+    count: PosInt | None = Field(None, description="nodes in the group (default from the placement)")
+    placement: PlacementSpec
+    mobility: MobilitySpec = Field(default_factory=MobilitySpec)
+    clock: ClockSpec = Field(default_factory=ClockSpec)
+    sensors: SensorSpec = Field(default_factory=SensorSpec)
+    protocol: str
+    params: dict[str, Any] = Field(default_factory=dict, description="the protocol's parameters")
+
+
+# --------------------------------------------------------------------------- the rest
+class TraceSpec(Strict):
+    tables: list[str] | None = Field(None, description="tables to write; none = all")
+    position_interval_s: PosFloat | None = Field(1.0, description="ground-truth position sampling (s)")
+    format: Literal["csv", "parquet"] = "csv"
+
+
+class OutputSpec(Strict):
+    directory: str | None = Field(None, description="run output directory; default out/<scenario name>")
+
+
+class SweepSpec(Strict):
+    runs: PosInt = Field(1, description="Monte Carlo runs (seeds) per grid point")
+    grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = Field(default_factory=dict)
+
+
+Role = Literal["buoy", "anchor", "ordinary", "target", "sink"]
+
+
+def _unknown_by_default() -> list[Role]:
+    return ["ordinary", "target"]
+
+
+class MetricsSpec(Strict):
+    percentiles: list[Annotated[float, Field(gt=0.0, le=100.0)]] = Field(default_factory=lambda: [50.0, 95.0])
+    warmup_s: NonNegFloat = Field(0.0, description="estimates and clock rows before this time are ignored")
+    unknown_roles: list[Role] = Field(default_factory=_unknown_by_default)
+
+
+class Scenario(Strict):
+    description: str = ""
+    simulation: SimulationSpec
+    environment: EnvironmentSpec
+    channel: ChannelSpec = Field(default_factory=ChannelSpec)
+    nodes: Annotated[list[NodeGroupSpec], Field(min_length=1)]
+    trace: TraceSpec = Field(default_factory=TraceSpec)
+    output: OutputSpec = Field(default_factory=OutputSpec)
+    sweep: SweepSpec | None = None
+    metrics: MetricsSpec = Field(default_factory=MetricsSpec)
+    variants: dict[str, dict[str, Any]] | None = Field(
+        None,
+        description="named override sets: variant name -> {quoted --set key path: TOML value}; "
+        "checked (and each variant validated) by aquasim_py.scenario.load",
+    )
