@@ -239,21 +239,21 @@ class AcousticChannel:
         with the sender's MAC transmit stamp (local s) as its value."""
         if bits <= 0:
             raise ValueError(f"a packet needs bits > 0, got {bits}")
-        core = self._modems[src]
+        modem = self._modems[src]
         env = self._env
         now = env.now
         duration = bits / self.config.bitrate_bps
         if duration > self._max_duration:
             self._max_duration = duration
-        start = core.tx_free_at if core.tx_free_at > now else now
-        core.tx_free_at = start + duration
+        start = modem.tx_free_at if modem.tx_free_at > now else now
+        modem.tx_free_at = start + duration
         if start == now:
-            tx_local = self._start(core, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration)
             return env.timeout(duration, tx_local)
         done = env.event()
 
         def later(_: simpy.Event) -> None:
-            tx_local = self._start(core, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration)
 
             def sent(_e: simpy.Event) -> None:
                 done.succeed(tx_local)
@@ -273,22 +273,22 @@ class AcousticChannel:
             s += float(rng.normal(0.0, self._jitter_std))
         return s
 
-    def _start(self, core: _Modem, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
+    def _start(self, modem: _Modem, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         env = self._env
         t0 = env.now
-        src = core.index
+        src = modem.index
         uid = self._uid
         self._uid = uid + 1
-        tx_local = self._stamp(core, t0)
+        tx_local = self._stamp(modem, t0)
         pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
         dst_code = -1 if dst is None else dst
         nan = math.nan
         row = self._row
         self._table.flush_if_large()
-        core.tx_log.append((t0, t0 + duration))
-        if len(core.tx_log) > core.log_cap:
-            self._prune(core)
+        modem.tx_log.append((t0, t0 + duration))
+        if len(modem.tx_log) > modem.log_cap:
+            self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
         in_range, heard, lost = self._links(src, t0)
@@ -306,29 +306,29 @@ class AcousticChannel:
         forget = t0 - 2.0 * self._max_duration
         finish = self._on_delivery
         if dst is None:
-            for rcore, T, path, s in heard:
+            for rx, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
                 # one tuple is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context, riding as the timeout's value (cheaper than a closure)
-                sig = (arr, end, s, rcore, pkt, T, path, -1)
+                sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
-                    log = rcore.rx_log
+                    log = rx.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 env.timeout(end - t0, sig).callbacks.append(finish)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
-            for rcore, T, path, s in heard:
-                intended = rcore.index == dst
+            for rx, T, path, s in heard:
+                intended = rx.index == dst
                 if not (track or intended):
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = (arr, end, s, rcore, pkt, T, path, dst)
+                sig = (arr, end, s, rx, pkt, T, path, dst)
                 if track:
-                    log = rcore.rx_log
+                    log = rx.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
@@ -435,16 +435,16 @@ class AcousticChannel:
     def _on_delivery(self, ev: simpy.Event) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
         sig = cast(_Signal, ev.value)  # the timeout's value: the record made in _start
-        arr, end, snr, rcore, pkt, tof, path, dst_code = sig
+        arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
-        for a, b in rcore.tx_log:
+        for a, b in rx.tx_log:
             if a < end and b > arr:
                 reason = "half_duplex"
                 break
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
-            log = rcore.rx_log
+            log = rx.rx_log
             i = bisect_left(log, arr - self._max_duration, key=_ARRIVAL)
             n = len(log)
             power = 0.0
@@ -467,7 +467,7 @@ class AcousticChannel:
                     arr,
                     "drop",
                     reason,
-                    rcore.index,
+                    rx.index,
                     pkt.src,
                     dst_code,
                     pkt.uid,
@@ -481,22 +481,20 @@ class AcousticChannel:
             )
             return
         # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
-        rx_local = self._stamp(rcore, arr) if self._jitter_std > 0.0 else rcore.clock_stamp(arr)
-        rcore.deliver(Reception(pkt, rx_local, snr))
-        self._row(
-            (arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local)
-        )
+        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
+        rx.deliver(Reception(pkt, rx_local, snr))
+        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
 
-    def _prune(self, core: _Modem) -> None:
+    def _prune(self, modem: _Modem) -> None:
         """Forget own transmissions that can no longer overlap a pending reception.
 
         A pending reception ends at or after now and lasts at most the longest packet so far,
         so it began after now - max_duration; anything that ended before cannot touch it.
         """
         cutoff = self._env.now - self._max_duration
-        core.tx_log = [e for e in core.tx_log if e[1] >= cutoff]
+        modem.tx_log = [e for e in modem.tx_log if e[1] >= cutoff]
         # next prune when the log has doubled: amortized O(1) per entry, short scans
-        core.log_cap = max(8, 2 * len(core.tx_log))
+        modem.log_cap = max(8, 2 * len(modem.tx_log))
 
 
 # -- straight-line start of the moving-receiver fixed point -----------------------------------------
