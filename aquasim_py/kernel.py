@@ -4,17 +4,22 @@ ground truth (positions, clocks) and the run loop.
 Ground truth lives here. Nodes reach it only through :class:`_NodeCore` (held by each node in
 a name-mangled attribute), whose methods hand back local observables: local clock readings,
 noisy sensor readings, receptions with local MAC stamps.
+
+The acoustic channel sees the kernel only through the interfaces of :mod:`aquasim_py.radio`:
+the Simulation is its :class:`~aquasim_py.radio.NetworkView`, each ``_NodeCore`` its node's
+:class:`~aquasim_py.radio.RadioPort`, and the trace's ``packets`` table its
+:class:`~aquasim_py.radio.PacketLog`.
 """
 
 from __future__ import annotations
 
 import gc
 import hashlib
-import inspect
 import math
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from types import GeneratorType
 from typing import Any
 
 import numpy as np
@@ -66,10 +71,10 @@ class Group:
 
 
 class _NodeCore:
-    """Kernel-side state of one node; the only bridge between a Node and ground truth."""
+    """Kernel-side state of one node; the only bridge between a Node and ground truth, and the
+    node's :class:`~aquasim_py.radio.RadioPort` on the channel."""
 
     __slots__ = (
-        "_rng_mac",
         "_rng_sensor",
         "affine",
         "channel",
@@ -81,18 +86,13 @@ class _NodeCore:
         "has_velocity",
         "inbox",
         "index",
-        "jitter_std",
-        "log_cap",
         "params",
         "protocol",
         "rng_protocol",
         "role",
-        "rx_log",
         "sensors",
         "sim",
         "slot",
-        "tx_free_at",
-        "tx_log",
         "waiters",
     )
 
@@ -127,15 +127,10 @@ class _NodeCore:
         self.has_position = sensors.has_position(group.role)
         self.rng_protocol = sim.rng("node", index, "protocol")
         self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
-        self._rng_mac: np.random.Generator | None = None
-        self.jitter_std = float(sim.channel_config.jitter_std_s)
         cap = getattr(group.node_cls, "inbox_capacity", None)
         self.inbox: deque[Reception] = deque(maxlen=cap)
         self.waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
-        self.tx_free_at = 0.0
-        self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
-        self.rx_log: list[tuple[Any, ...]] = []  # signals here, sorted by arrival (see channel.acoustic)
-        self.log_cap = 8  # prune tx_log beyond this length (the channel adapts it)
+        self.channel.attach(self)
 
     # -- truth ------------------------------------------------------------------------------------
 
@@ -160,22 +155,21 @@ class _NodeCore:
             return dt_local / (1.0 + c.skew)
         return max(0.0, float(c.to_true(c.to_local(now) + dt_local)) - now)
 
-    def stamp(self, t: float) -> float:
-        """MAC timestamp of true time ``t``: the clock's stamp plus the channel's MAC jitter."""
-        c = self.clock
-        s = (1.0 + c.skew) * t + c.offset if self.exact_stamp else float(c.stamp(t))
-        if self.jitter_std > 0.0:
-            if self._rng_mac is None:
-                self._rng_mac = self.sim.rng("node", self.index, "mac_jitter")
-            s += float(self._rng_mac.normal(0.0, self.jitter_std))
-        return s
+    # -- modem (the RadioPort the channel uses, and the node's way onto the channel) ---------------
 
-    # -- modem ------------------------------------------------------------------------------------
+    def clock_stamp(self, t: float) -> float:
+        """The clock's MAC stamp of true time ``t`` (local s); the channel adds its jitter."""
+        c = self.clock
+        return (1.0 + c.skew) * t + c.offset if self.exact_stamp else float(c.stamp(t))
+
+    def jitter_stream(self) -> np.random.Generator:
+        """The node's MAC-jitter stream ("node", id, "mac_jitter")."""
+        return self.sim.rng("node", self.index, "mac_jitter")
 
     def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         if dst is not None and not 0 <= dst < len(self.sim.nodes):
             raise ValueError(f"node {self.index}: no node with id {dst}")
-        return self.channel.transmit(self, dst, str(kind), payload, int(bits))
+        return self.channel.transmit(self.index, dst, str(kind), payload, int(bits))
 
     def deliver(self, rec: Reception) -> None:
         kind = rec.packet.kind
@@ -315,11 +309,9 @@ def _perfect_clock() -> Any:
 
 
 def _is_static(mobility: Any) -> bool:
-    try:
-        from .mobility import Static
-    except ImportError:  # pragma: no cover - mobility module not there yet
-        Static = ()  # type: ignore[assignment]
-    return bool(getattr(mobility, "is_static", False)) or (bool(Static) and isinstance(mobility, Static))
+    from .mobility import Static
+
+    return bool(getattr(mobility, "is_static", False)) or isinstance(mobility, Static)
 
 
 class Simulation:
@@ -350,7 +342,11 @@ class Simulation:
         self.volume = volume
         self.channel_config = channel if channel is not None else ChannelConfig()
         self.trace = Trace(trace)
-        self.channel = AcousticChannel(self, self.ssp, self.channel_config, loss_model=loss_model)
+        # the channel's view of the kernel: this Simulation (NetworkView), the packets table
+        # (PacketLog) and, attached node by node, each _NodeCore (RadioPort); see aquasim_py.radio
+        self.channel = AcousticChannel(
+            self.env, self, self.trace.table("packets"), self.ssp, self.channel_config, loss_model=loss_model
+        )
         self.nodes: list[Node] = []
         self.groups: list[Group] = []
         self._cores: list[_NodeCore] = []
@@ -468,7 +464,7 @@ class Simulation:
         self._pos_t = math.nan
         for node in new:
             gen = node.run()
-            if not inspect.isgenerator(gen):
+            if not isinstance(gen, GeneratorType):  # what inspect.isgenerator tests, keeping the type
                 raise TypeError(f"{node_cls.__name__}.run() must be a generator (use yield)")
             self.env.process(gen)
         return new

@@ -34,20 +34,20 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from operator import itemgetter
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 import simpy
 from numpy.typing import NDArray
 
 from ..packet import Packet, Reception
+from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
 from .rays import Eigenray, PathKind
-from .raytrace import eigenray
+from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..kernel import Simulation, _NodeCore
     from .ssp import SoundSpeedProfile
 
 __all__ = [
@@ -68,7 +68,8 @@ PATH_NAMES = {
     int(PathKind.BOTTOM): "bottom",
 }
 
-_ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver core, packet, tof, path, dst)
+_ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
+_Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
@@ -165,20 +166,52 @@ def default_loss_model() -> LossModel:
     return physical_snr
 
 
+class _Modem:
+    """The channel's own state for one node's modem, and the node's port (its bound methods)."""
+
+    __slots__ = ("clock_stamp", "deliver", "index", "jitter", "log_cap", "port", "rx_log", "tx_free_at", "tx_log")
+
+    def __init__(self, port: RadioPort) -> None:
+        self.port = port
+        self.index = port.index
+        # bound once: the per-reception path then makes one call per stamp / delivery
+        self.clock_stamp = port.clock_stamp
+        self.deliver = port.deliver
+        self.jitter: np.random.Generator | None = None  # the port's jitter stream, asked on first use
+        self.tx_free_at = 0.0  # true time (s) the modem is free to start the next queued packet
+        self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
+        self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
+        self.log_cap = 8  # prune tx_log beyond this length (see _prune)
+
+
 class AcousticChannel:
-    """Delivers packets between the nodes of a :class:`~aquasim_py.kernel.Simulation`."""
+    """Delivers packets between the nodes of a network (the SimPy side of the channel).
+
+    env: the SimPy environment. network: ground truth of the nodes (:class:`~aquasim_py.radio.
+    NetworkView`). packets: the ``packets`` trace table (:class:`~aquasim_py.radio.PacketLog`).
+    Each node's :class:`~aquasim_py.radio.RadioPort` is attached with :meth:`attach` (ids 0, 1,
+    ... in order); a node transmits with :meth:`transmit`.
+    """
 
     def __init__(
-        self, sim: Simulation, ssp: SoundSpeedProfile, config: ChannelConfig, loss_model: LossModel | None = None
+        self,
+        env: simpy.Environment,
+        network: NetworkView,
+        packets: PacketLog,
+        ssp: SoundSpeedProfile,
+        config: ChannelConfig,
+        loss_model: LossModel | None = None,
     ) -> None:
-        self._sim = sim
-        self._env = sim.env
+        self._net = network
+        self._env = env
         self.ssp = ssp
         self.config = config
         self.loss_model: LossModel = loss_model if loss_model is not None else default_loss_model()
+        self._modems: list[_Modem] = []
+        self._jitter_std = float(config.jitter_std_s)
         self._uid = 0
-        self._table = sim.trace.table("packets")
-        self._row = self._table.row_buffer().append  # rows go in as tuples, moved to columns in batches
+        self._table = packets
+        self._row = packets.row_buffer().append  # rows go in as tuples, moved to columns in batches
         self._range2 = float(config.max_range_m) ** 2
         self._max_duration = 0.0
         self._collision = config.collision
@@ -186,47 +219,76 @@ class AcousticChannel:
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
 
+    # -- nodes ------------------------------------------------------------------------------------
+
+    def attach(self, port: RadioPort) -> None:
+        """Give the channel the next node's modem port (its index must be the number attached so far)."""
+        if port.index != len(self._modems):
+            raise ValueError(f"attach: expected the port of node {len(self._modems)}, got node {port.index}")
+        self._modems.append(_Modem(port))
+
+    def signals_at(self, node: int) -> int:
+        """How many past signals the channel still keeps at ``node`` for collision checks
+        (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
+        return len(self._modems[node].rx_log)
+
     # -- transmit ---------------------------------------------------------------------------------
 
-    def transmit(self, core: _NodeCore, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
-        """Queue a packet on ``core``'s modem; the event fires when its last bit has left."""
+    def transmit(self, src: int, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+        """Queue a packet on node ``src``'s modem; the event fires when its last bit has left,
+        with the sender's MAC transmit stamp (local s) as its value."""
         if bits <= 0:
             raise ValueError(f"a packet needs bits > 0, got {bits}")
+        modem = self._modems[src]
         env = self._env
         now = env.now
         duration = bits / self.config.bitrate_bps
         if duration > self._max_duration:
             self._max_duration = duration
-        start = core.tx_free_at if core.tx_free_at > now else now
-        core.tx_free_at = start + duration
+        start = modem.tx_free_at if modem.tx_free_at > now else now
+        modem.tx_free_at = start + duration
         if start == now:
-            tx_local = self._start(core, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration)
             return env.timeout(duration, tx_local)
         done = env.event()
 
         def later(_: simpy.Event) -> None:
-            tx_local = self._start(core, dst, kind, payload, bits, duration)
-            env.timeout(duration).callbacks.append(lambda _e: done.succeed(tx_local))
+            tx_local = self._start(modem, dst, kind, payload, bits, duration)
+
+            def sent(_e: simpy.Event) -> None:
+                done.succeed(tx_local)
+
+            env.timeout(duration).callbacks.append(sent)
 
         env.timeout(start - now).callbacks.append(later)
         return done
 
-    def _start(self, core: _NodeCore, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
+    def _stamp(self, m: _Modem, t: float) -> float:
+        """MAC stamp (local s) of true time ``t`` at modem ``m``: its clock's stamp plus jitter."""
+        s = m.clock_stamp(t)
+        if self._jitter_std > 0.0:
+            rng = m.jitter
+            if rng is None:
+                rng = m.jitter = m.port.jitter_stream()
+            s += float(rng.normal(0.0, self._jitter_std))
+        return s
+
+    def _start(self, modem: _Modem, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         env = self._env
         t0 = env.now
-        src = core.index
+        src = modem.index
         uid = self._uid
         self._uid = uid + 1
-        tx_local = core.stamp(t0)
+        tx_local = self._stamp(modem, t0)
         pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
         dst_code = -1 if dst is None else dst
         nan = math.nan
         row = self._row
         self._table.flush_if_large()
-        core.tx_log.append((t0, t0 + duration))
-        if len(core.tx_log) > core.log_cap:
-            self._prune(core)
+        modem.tx_log.append((t0, t0 + duration))
+        if len(modem.tx_log) > modem.log_cap:
+            self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
         in_range, heard, lost = self._links(src, t0)
@@ -244,29 +306,29 @@ class AcousticChannel:
         forget = t0 - 2.0 * self._max_duration
         finish = self._on_delivery
         if dst is None:
-            for rcore, T, path, s in heard:
+            for rx, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
                 # one tuple is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context, riding as the timeout's value (cheaper than a closure)
-                sig = (arr, end, s, rcore, pkt, T, path, -1)
+                sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
-                    log = rcore.rx_log
+                    log = rx.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 env.timeout(end - t0, sig).callbacks.append(finish)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
-            for rcore, T, path, s in heard:
-                intended = rcore.index == dst
+            for rx, T, path, s in heard:
+                intended = rx.index == dst
                 if not (track or intended):
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = (arr, end, s, rcore, pkt, T, path, dst)
+                sig = (arr, end, s, rx, pkt, T, path, dst)
                 if track:
-                    log = rcore.rx_log
+                    log = rx.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
@@ -276,32 +338,32 @@ class AcousticChannel:
 
     def _links(
         self, src: int, t0: float
-    ) -> tuple[frozenset[int], list[tuple[Any, float, str, float]], list[tuple[int, str, float, str, float]]]:
+    ) -> tuple[frozenset[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
 
-        heard: (receiver core, delay s, path name, SNR dB) of signals that reach the receiver;
+        heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver;
         lost: (id, "no_path" | "snr", delay, path name, SNR) of those that do not. When no node
         moves the answer never changes, so it is cached per sender (recomputed if nodes are
         added; the loss model must be a pure function of the eigenray and the config).
         """
-        sim = self._sim
-        n = len(sim.nodes)
-        static = not sim.is_moving().any()
+        net = self._net
+        modems = self._modems
+        n = len(modems)
+        static = not net.is_moving().any()
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:
                 return hit[1]
-        pos = sim.positions(t0)
+        pos = net.positions(t0)
         p_src = pos[src]
         diff = pos - p_src
         d2 = np.einsum("ij,ij->i", diff, diff)
         d2[src] = np.inf
         cand = np.flatnonzero(d2 <= self._range2)
-        heard: list[tuple[Any, float, str, float]] = []
+        heard: list[tuple[_Modem, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
-            cores = sim._cores
             thr = self.config.snr_threshold_db
             for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
                 if T != T:  # NaN: no eigenray (shadow zone)
@@ -309,7 +371,7 @@ class AcousticChannel:
                 elif s < thr:  # NaN SNR (no loss model) compares False: never dropped on SNR
                     lost.append((rid, "snr", T, PATH_NAMES[p], s))
                 else:
-                    heard.append((cores[rid], T, PATH_NAMES[p], s))
+                    heard.append((modems[rid], T, PATH_NAMES[p], s))
         out = (frozenset(cand.tolist()), heard, lost)
         if static:
             self._static_links[src] = (n, out)
@@ -321,14 +383,14 @@ class AcousticChannel:
         """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point)."""
         ssp = self.ssp
         refl = self.config.reflections
-        sim = self._sim
-        moving = sim.is_moving()[cand]
+        net = self._net
+        moving = net.is_moving()[cand]
         if not moving.any():
             ray = eigenray(ssp, p_src, p_rx, reflections=refl)
         else:
-            start = None
+            start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
-                start = _constant_start(ssp, refl, p_src, p_rx, moving, sim.velocities(t0)[cand])
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, net.velocities(t0)[cand])
             if start is None:
                 ray = eigenray(ssp, p_src, p_rx, reflections=refl)
                 fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
@@ -336,7 +398,7 @@ class AcousticChannel:
                 # Start from the fixed point of the receivers' straight-line motion at t0
                 # (vectorized, no mobility queries): for constant velocity it is already the
                 # answer, and the exact iteration below then stops after one query per receiver.
-                v0 = sim.velocities(t0)[cand[active]]
+                v0 = net.velocities(t0)[cand[active]]
                 fields["time"][active] = _linear_fixed_point(
                     ssp,
                     refl,
@@ -354,7 +416,7 @@ class AcousticChannel:
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
-                p_new = sim.positions_at(cand[active], t0 + time[active])
+                p_new = net.positions_at(cand[active], t0 + time[active])
                 r = eigenray(ssp, p_src, p_new, reflections=refl)
                 step = np.abs(r.time - time[active])
                 for f in fields:
@@ -372,17 +434,17 @@ class AcousticChannel:
 
     def _on_delivery(self, ev: simpy.Event) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        sig = ev.value
-        arr, end, snr, rcore, pkt, tof, path, dst_code = sig
+        sig = cast(_Signal, ev.value)  # the timeout's value: the record made in _start
+        arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
-        for a, b in rcore.tx_log:
+        for a, b in rx.tx_log:
             if a < end and b > arr:
                 reason = "half_duplex"
                 break
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
-            log = rcore.rx_log
+            log = rx.rx_log
             i = bisect_left(log, arr - self._max_duration, key=_ARRIVAL)
             n = len(log)
             power = 0.0
@@ -405,7 +467,7 @@ class AcousticChannel:
                     arr,
                     "drop",
                     reason,
-                    rcore.index,
+                    rx.index,
                     pkt.src,
                     dst_code,
                     pkt.uid,
@@ -418,22 +480,21 @@ class AcousticChannel:
                 )
             )
             return
-        rx_local = rcore.stamp(arr)
-        rcore.deliver(Reception(pkt, rx_local, snr))
-        self._row(
-            (arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local)
-        )
+        # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
+        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
+        rx.deliver(Reception(pkt, rx_local, snr))
+        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
 
-    def _prune(self, core: _NodeCore) -> None:
+    def _prune(self, modem: _Modem) -> None:
         """Forget own transmissions that can no longer overlap a pending reception.
 
         A pending reception ends at or after now and lasts at most the longest packet so far,
         so it began after now - max_duration; anything that ended before cannot touch it.
         """
         cutoff = self._env.now - self._max_duration
-        core.tx_log = [e for e in core.tx_log if e[1] >= cutoff]
+        modem.tx_log = [e for e in modem.tx_log if e[1] >= cutoff]
         # next prune when the log has doubled: amortized O(1) per entry, short scans
-        core.log_cap = max(8, 2 * len(core.tx_log))
+        modem.log_cap = max(8, 2 * len(modem.tx_log))
 
 
 # -- straight-line start of the moving-receiver fixed point -----------------------------------------
@@ -441,7 +502,7 @@ class AcousticChannel:
 
 def _linear_fixed_point(
     ssp: SoundSpeedProfile,
-    refl: str,
+    refl: Reflections,
     p_src: NDArray[np.float64],
     p0: NDArray[np.float64],
     v: NDArray[np.float64],
@@ -471,7 +532,7 @@ def _linear_fixed_point(
 
 def _constant_start(
     ssp: Constant,
-    refl: str,
+    refl: Reflections,
     p_src: NDArray[np.float64],
     p_rx: NDArray[np.float64],
     moving: NDArray[np.bool_],
@@ -543,7 +604,7 @@ def _slope_along(
 
 
 def _travel_time_fn(
-    ssp: SoundSpeedProfile, refl: str, p_src: NDArray[np.float64], path: NDArray[np.int8]
+    ssp: SoundSpeedProfile, refl: Reflections, p_src: NDArray[np.float64], path: NDArray[np.int8]
 ) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
     """The cheapest exact first-arrival time (s) from ``p_src`` to receivers (k, 3) whose current
     arrival has kind ``path``: the isogradient closed form directly when every arrival is the
