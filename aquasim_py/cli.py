@@ -18,6 +18,7 @@ import sys
 import tempfile
 import time
 import uuid
+import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -429,13 +430,28 @@ def _sweep_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: S
     return t
 
 
+@contextmanager
+def _one_line_warnings() -> Iterator[None]:
+    """Scenario deprecations (e.g. an old mobility model name) as one ``warning:`` line each."""
+    from aquasim_py.scenario import ScenarioDeprecationWarning
+
+    def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        print(f"warning: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", ScenarioDeprecationWarning)
+        warnings.showwarning = show
+        yield
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        if argv and argv[0] == "sweep":
-            return _sweep(argv[1:])
-        return _run(argv)
+        with _one_line_warnings():
+            if argv and argv[0] == "sweep":
+                return _sweep(argv[1:])
+            return _run(argv)
     except ScenarioError as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -20,6 +20,7 @@ import inspect
 import math
 import re
 import tomllib
+import warnings
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -42,8 +43,10 @@ from aquasim_py.scenario_schema import (
 from aquasim_py.scenario_schema import Scenario as _ScenarioModel
 
 __all__ = [
+    "DEPRECATED_MOBILITY",
     "MOBILITY_CLASSES",
     "Scenario",
+    "ScenarioDeprecationWarning",
     "ScenarioError",
     "apply_override",
     "build",
@@ -60,9 +63,35 @@ MOBILITY_CLASSES = {
     "constant_velocity": "ConstantVelocity",
     "coordinated_turn": "CoordinatedTurn",
     "random_walk": "RandomWalk",
-    "meandering_current": "MeanderingCurrent",
+    "kinematic": "Kinematic",
+    "meandering_jet": "MeanderingJet",
+    "meandering_current": "Kinematic",  # deprecated alias, see DEPRECATED_MOBILITY
     "waypoints": "Waypoints",
 }
+
+# --- mobility model aliases (mobmetrics branch; kept apart for the scenario.py split) ------
+#: deprecated scenario mobility names -> the warning a load emits (once per name)
+DEPRECATED_MOBILITY = {
+    "meandering_current": (
+        "mobility model 'meandering_current' is deprecated: it still means the STVF/SLMP kinematic "
+        "model, now named 'kinematic'; the Bower/Caruso meandering current is 'meandering_jet'"
+    ),
+}
+
+
+class ScenarioDeprecationWarning(DeprecationWarning):
+    """A scenario uses a deprecated name; the CLI prints it as one ``warning:`` line."""
+
+
+def _warn_deprecated_mobility(model: str, file: Path | None) -> None:
+    msg = DEPRECATED_MOBILITY.get(model)
+    if msg is not None:
+        # one message per file (not per group): the default filter shows it once
+        where = f"{file}: " if file is not None else ""
+        warnings.warn(f"{where}{msg}", ScenarioDeprecationWarning, stacklevel=3)
+
+
+# --- end of mobility model aliases ----------------------------------------------------------
 
 
 class ScenarioError(Exception):
@@ -550,6 +579,7 @@ def _check_protocol(g: NodeGroupSpec, i: int, raw: dict[str, Any], file: Path | 
 
 
 def _check_mobility(g: NodeGroupSpec, i: int, file: Path | None) -> None:
+    _warn_deprecated_mobility(g.mobility.model, file)
     try:
         cls = mobility_class(g.mobility.model)
     except ImportError:

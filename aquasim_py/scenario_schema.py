@@ -191,7 +191,14 @@ class MobilitySpec(BaseModel):
 
     model_config = ConfigDict(extra="allow", strict=True, allow_inf_nan=False)
     model: Literal[
-        "static", "constant_velocity", "coordinated_turn", "random_walk", "meandering_current", "waypoints"
+        "static",
+        "constant_velocity",
+        "coordinated_turn",
+        "random_walk",
+        "kinematic",
+        "meandering_jet",
+        "meandering_current",  # deprecated alias of "kinematic"
+        "waypoints",
     ] = "static"
 
     def params(self) -> dict[str, Any]:
