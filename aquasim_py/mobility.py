@@ -869,8 +869,8 @@ class MeanderingJet(_CurrentDrift):
     """Drift in Bower's (1991) kinematic meandering jet, the "meandering current mobility
     model" of Caruso, Paparella, Vieira, Erol and Gerla (IEEE INFOCOM 2008).
 
-    Scenario name ``meandering_jet``. Dimensionless stream function (Caruso et al. eq. 1,
-    after Bower 1991), with theta = k (x' - c t') and B(t') = A + epsilon cos(omega t')::
+    Scenario name ``meandering_jet``. Dimensionless stream function (Bower 1991, as used by
+    Caruso et al.), with theta = k (x' - c t') and B(t') = A + epsilon cos(omega t')::
 
         psi(x', y', t') = 1 - tanh( (y' - B cos theta) / sqrt(1 + k^2 B^2 sin^2 theta) )
 
@@ -878,6 +878,8 @@ class MeanderingJet(_CurrentDrift):
     eastward jet of unit peak speed and unit half-width whose axis y' = B cos(theta) meanders
     with wavelength 2 pi / k, moves east at c and breathes with period 2 pi / omega (the
     breathing makes fluid cross between jet and recirculation cells: chaotic transport).
+    The authors' SmmLib code writes the same field as sin theta over sqrt(1 + k^2 B^2 cos^2),
+    i.e. shifted by a quarter wavelength in x.
 
     Defaults are Caruso et al.'s: A = 1.2, c = 0.12, k = 2 pi / 7.5 (``wavelength`` 7.5),
     omega = 0.4, epsilon = 0.3, with the authors' scaling (their SmmLib, README and test
