@@ -254,11 +254,15 @@ class SweepSpec(Strict):
     grid: dict[str, Annotated[list[Any], Field(min_length=1)]] = Field(default_factory=dict)
 
 
+_Role = Literal["buoy", "anchor", "ordinary", "target", "sink"]
+
+
 class MetricsSpec(Strict):
     percentiles: list[Annotated[float, Field(gt=0.0, le=100.0)]] = Field(default_factory=lambda: [50.0, 95.0])
     warmup_s: NonNegFloat = Field(0.0, description="estimates and clock rows before this time are ignored")
-    unknown_roles: list[Literal["buoy", "anchor", "ordinary", "target", "sink"]] = Field(
-        default_factory=lambda: ["ordinary", "target"]
+    unknown_roles: list[_Role] = Field(
+        default_factory=lambda: list[_Role](["ordinary", "target"]),
+        description="roles of the evaluated nodes of the localization.* / sync.* metrics (docs/metrics.md)",
     )
 
 
