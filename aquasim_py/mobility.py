@@ -887,8 +887,8 @@ class MeanderingJet(_CurrentDrift):
     1000 / 2592 = 0.386 m/s, meander wavelength 7.5 km, amplitude 1.2 km, phase speed
     0.046 m/s, breathing period 2 pi / 0.4 units = 11.3 h. ``origin`` (m) is where x' = y' = 0
     (default: the box centre in x-y, so the jet axis crosses the scenario volume); ``phase`` is
-    t' at t = 0 (Caruso et al. draw it uniformly on [0, 2 pi / (c k)); ``phase=None`` does so
-    from ``rng``). All nodes share one field (no per-node parameters); depth stays constant.
+    t' at t = 0 (Caruso et al. draw it uniformly on [0, 2 pi / (c k)); ``random_phase=True``
+    or ``phase=None`` does so from ``rng``). All nodes share one field (no per-node parameters); depth stays constant.
     The field is divergence-free, so the flow preserves area in x-y.
     """
 
@@ -906,6 +906,7 @@ class MeanderingJet(_CurrentDrift):
         length_scale: float = 1000.0,
         time_scale: float = 2592.0,
         phase: float | None = 0.0,
+        random_phase: bool = False,
         origin: ArrayLike | None = None,
         steps_per_unit: int = 128,
     ) -> None:
@@ -920,10 +921,10 @@ class MeanderingJet(_CurrentDrift):
         self.k = 2.0 * math.pi / self.wavelength
         self.omega = float(omega)
         self.epsilon = float(epsilon)
-        if phase is None:
+        if phase is None or random_phase:
             # Caruso et al.: a random shift over one meander passage period 2 pi / (c k).
             period = 2.0 * math.pi / (abs(self.phase_speed) * self.k) if self.phase_speed else 2.0 * math.pi
-            phase = float(_need_rng(rng, "MeanderingJet with phase=None").uniform(0.0, period))
+            phase = float(_need_rng(rng, "MeanderingJet with a random phase").uniform(0.0, period))
         if origin is None:
             origin = 0.5 * (box.lo[:2] + box.hi[:2])
         self._init_scales(length_scale, time_scale, phase, steps_per_unit, origin)

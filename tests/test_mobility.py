@@ -444,6 +444,7 @@ def test_meandering_jet_scaling_origin_and_phase() -> None:
     period = 2 * np.pi / (0.12 * 2 * np.pi / 7.5)
     draws = [MeanderingJet(inside(box, 2), box, gen(s), phase=None).phase for s in range(30)]
     assert all(0.0 <= d < period for d in draws) and len(set(draws)) == 30
+    assert MeanderingJet(inside(box, 2), box, gen(4), random_phase=True).phase == draws[4]
     with pytest.raises(ValueError, match="rng"):
         MeanderingJet(inside(box, 2), box, None, phase=None)
     with pytest.raises(ValueError, match="wavelength"):
