@@ -4,21 +4,29 @@ Because nothing here touches a live simulation, the same functions serve the CLI
 of a run and an analyst reading CSV traces afterwards. Table layouts are those of
 docs/internals.md (``packets``, ``positions``, ``estimates``, ``clocks``, ``nodes``).
 
-Definitions (x_hat an estimated position, x the true one, both in metres, sums over the
-selected estimate rows; "error" of a position is the Euclidean norm ||x_hat - x||):
+One definition per quantity, shared by the generic ``localization.*`` / ``sync.*`` metrics and
+every protocol family's metrics (docs/metrics.md gives the full rules):
 
-- RMSE  = sqrt( mean ||x_hat - x||^2 )                               [m]
-- NMSE  = sum ||x_hat - x||^2 / sum ||x||^2                           [dimensionless]
-  The normalized mean square error of ITMTL (Sun et al., Sec. 5). Its printed formula was
-  lost from our copy of the paper; this is the usual signal-normalized definition. It depends
-  on where the scenario's origin is (x is measured from it), so compare NMSE only between runs
-  in the same frame.
-- coverage = (number of unknown-position nodes with at least one estimate up to time t)
-             / (number of unknown-position nodes)                    [0..1]
-  Unknown-position nodes are, by default, the ``ordinary`` and ``target`` roles.
-- sync error = |error| of the ``clocks`` table rows, i.e. the absolute difference between a
-  node's estimate of true time and true time, as the kernel logs it          [s]
-  Reported as mean, percentiles and final (last row per node) mean.
+- Evaluated nodes: those whose *role* (``nodes`` table) is an unknown-position role, by
+  default ``ordinary`` and ``target``; optionally only those running one protocol. Every row
+  of an evaluated node counts, including rows it logged as a promoted reference
+  (``is_reference``): a promoted node is still estimating. Buoys and anchors never count.
+  Without a ``nodes`` table (hand-made traces) the rows flagged ``is_reference`` are dropped
+  instead.
+- Rows: those with ``t_min <= time <= t_max`` (true time, s); ``final`` keeps each evaluated
+  node's last row. Truth is what the kernel logged beside each row: the true position / time
+  at the moment the row was logged.
+- RMSE  = sqrt( mean ||x_hat - x||^2 )                                    [m]
+- NMSE  = sum ||x_hat - x||^2 / sum ||x - x_bar||^2, x_bar the mean true position of the
+  same rows                                                               [dimensionless]
+  (ITMTL, Sun et al. Sec. 5; the printed formula is lost from our copy). Normalizing by the
+  spread of the true positions about their centroid, not by ||x||^2, makes it independent of
+  where the scenario's origin is.
+- coverage = share of evaluated nodes with at least one row by ``until``   [0..1]
+  A node that never localized counts here (as not covered) and nowhere else: it has no
+  error to average.
+- sync error = |error| of the ``clocks`` rows (the node's estimate of true time minus true
+  time at the moment of logging, s); mean, percentiles, and the mean over final rows.
 """
 
 from __future__ import annotations
@@ -33,12 +41,17 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "UNKNOWN_ROLES",
     "coverage",
+    "evaluated_nodes",
+    "mean_error",
     "nmse",
     "packet_counts",
     "position_errors",
     "positions_at",
     "rmse",
+    "rmse_per_node",
+    "select_rows",
     "summarize",
+    "summarize_runs",
     "sync_error_stats",
     "sync_errors",
     "unknown_nodes",
@@ -47,21 +60,49 @@ __all__ = [
 UNKNOWN_ROLES: tuple[str, ...] = ("ordinary", "target")
 _XYZ = ["x", "y", "z"]
 _TRUE_XYZ = ["true_x", "true_y", "true_z"]
+_TRUE_FLAGS = [True, "True", "true"]
 
 
-def _select(
+def evaluated_nodes(
+    nodes: pd.DataFrame, roles: Iterable[str] = UNKNOWN_ROLES, protocol: str | None = None
+) -> NDArray[np.int64]:
+    """Ids of the nodes with one of ``roles`` (case-insensitive), optionally running ``protocol``."""
+    wanted = {r.lower() for r in roles}
+    mask = nodes["role"].astype(str).str.lower().isin(wanted)
+    if protocol is not None and "protocol" in nodes.columns:
+        mask &= nodes["protocol"].astype(str) == protocol
+    return np.sort(nodes.loc[mask, "node"].to_numpy(np.int64))
+
+
+def unknown_nodes(nodes: pd.DataFrame, roles: Iterable[str] = UNKNOWN_ROLES) -> NDArray[np.int64]:
+    """Ids of the nodes whose role is one of ``roles`` (case-insensitive), from the ``nodes`` table."""
+    return evaluated_nodes(nodes, roles)
+
+
+def select_rows(
     table: pd.DataFrame,
+    nodes: pd.DataFrame | None = None,
     *,
-    exclude_references: bool = True,
+    roles: Iterable[str] = UNKNOWN_ROLES,
+    protocol: str | None = None,
     t_min: float | None = None,
     t_max: float | None = None,
     final: bool = False,
 ) -> pd.DataFrame:
-    """Rows kept for a statistic: non-reference rows in [t_min, t_max], optionally the last per node."""
+    """The rows of ``estimates`` / ``clocks`` a statistic uses (see the module docstring).
+
+    ``nodes``: the run's ``nodes`` table (evaluated nodes by role; ``None``: drop the rows
+    flagged ``is_reference`` instead). ``protocol``: only that protocol's nodes and rows.
+    ``t_min`` / ``t_max``: true-time window (s, inclusive). ``final``: last row per node.
+    """
     df = table
-    if exclude_references and "is_reference" in df.columns:
+    if nodes is not None:
+        df = df[df["node"].isin(evaluated_nodes(nodes, roles, protocol))]
+    elif "is_reference" in df.columns:
         # None / NaN (a CSV round trip of an unset flag) count as "not a reference"
-        df = df[~df["is_reference"].isin([True, "True", "true"])]
+        df = df[~df["is_reference"].isin(_TRUE_FLAGS)]
+    if protocol is not None and "protocol" in df.columns:
+        df = df[df["protocol"].astype(str) == protocol]
     if t_min is not None and "time" in df.columns:
         df = df[df["time"] >= t_min]
     if t_max is not None and "time" in df.columns:
@@ -72,45 +113,61 @@ def _select(
     return df
 
 
-def position_errors(estimates: pd.DataFrame, **select: Any) -> NDArray[np.float64]:
+def _err_vectors(df: pd.DataFrame) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(x_hat - x, x) per row, (m, 3) each, from the estimate and truth columns."""
+    x = df[_TRUE_XYZ].to_numpy(float)
+    return df[_XYZ].to_numpy(float) - x, x
+
+
+def position_errors(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> NDArray[np.float64]:
     """Euclidean position error ||x_hat - x|| (m) of each selected estimate row.
 
     Computed from the estimate and truth columns (not the logged ``error`` column), so a
-    trace edited or filtered by hand stays consistent. ``select``: see :func:`rmse`.
+    trace edited or filtered by hand stays consistent. ``select``: see :func:`select_rows`.
     """
-    df = _select(estimates, **select)
+    df = select_rows(estimates, nodes, **select)
     if len(df) == 0:
         return np.empty(0)
-    d = df[_XYZ].to_numpy(float) - df[_TRUE_XYZ].to_numpy(float)
+    d, _ = _err_vectors(df)
     return np.sqrt(np.einsum("ij,ij->i", d, d))
 
 
-def rmse(estimates: pd.DataFrame, **select: Any) -> float:
-    """Root-mean-square position error (m); NaN when no row is selected.
+def rmse(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """Root-mean-square position error (m) over the selected rows; NaN when none.
 
-    ``select``: ``exclude_references`` (default True: anchors logging their known position
-    are not estimates), ``t_min`` / ``t_max`` (s, true time), ``final`` (last row per node).
+    ``nodes`` and ``select`` (``roles``, ``protocol``, ``t_min``, ``t_max``, ``final``): see
+    :func:`select_rows`.
     """
-    e = position_errors(estimates, **select)
+    e = position_errors(estimates, nodes, **select)
     return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
-def nmse(estimates: pd.DataFrame, **select: Any) -> float:
-    """Normalized mean square error sum ||x_hat - x||^2 / sum ||x||^2 (see module docstring)."""
-    df = _select(estimates, **select)
+def mean_error(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """Mean Euclidean position error (m) over the selected rows; NaN when none."""
+    e = position_errors(estimates, nodes, **select)
+    return float(e.mean()) if e.size else float("nan")
+
+
+def rmse_per_node(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> pd.Series:
+    """RMSE (m) of each evaluated node over its own selected rows (index: node id)."""
+    df = select_rows(estimates, nodes, **select)
+    if len(df) == 0:
+        return pd.Series(dtype=float)
+    d, _ = _err_vectors(df)
+    se = pd.Series(np.einsum("ij,ij->i", d, d), index=df["node"].to_numpy())
+    return np.sqrt(se.groupby(level=0).mean())
+
+
+def nmse(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """sum ||x_hat - x||^2 / sum ||x - x_bar||^2 over the selected rows, x_bar their mean true
+    position (origin-free; see the module docstring). NaN without rows or spread."""
+    df = select_rows(estimates, nodes, **select)
     if len(df) == 0:
         return float("nan")
-    x = df[_TRUE_XYZ].to_numpy(float)
-    d = df[_XYZ].to_numpy(float) - x
-    den = float(np.sum(x * x))
+    d, x = _err_vectors(df)
+    c = x - x.mean(axis=0)
+    den = float(np.sum(c * c))
     return float(np.sum(d * d) / den) if den > 0.0 else float("nan")
-
-
-def unknown_nodes(nodes: pd.DataFrame, roles: Iterable[str] = UNKNOWN_ROLES) -> NDArray[np.int64]:
-    """Ids of the nodes whose role is one of ``roles`` (case-insensitive), from the ``nodes`` table."""
-    wanted = {r.lower() for r in roles}
-    mask = nodes["role"].astype(str).str.lower().isin(wanted)
-    return np.sort(nodes.loc[mask, "node"].to_numpy(np.int64))
 
 
 def coverage(
@@ -119,23 +176,24 @@ def coverage(
     *,
     until: float | None = None,
 ) -> float:
-    """Share of ``candidates`` (node ids) with at least one non-reference estimate by ``until`` (s).
+    """Share of ``candidates`` (node ids: the evaluated nodes) with at least one row by ``until`` (s).
 
-    NaN when there are no candidates; 0 when nobody estimated anything.
+    Every row counts, reference-flagged ones too (a promoted node has localized). NaN when
+    there are no candidates; 0 when nobody estimated anything.
     """
     cand = np.unique(np.fromiter(candidates, dtype=np.int64))
     if cand.size == 0:
         return float("nan")
     if estimates is None or len(estimates) == 0:
         return 0.0
-    df = _select(estimates, t_max=until)
+    df = estimates if until is None else estimates[estimates["time"] <= until]
     have = np.unique(df["node"].to_numpy(np.int64))
     return float(np.isin(cand, have).sum() / cand.size)
 
 
-def sync_errors(clocks: pd.DataFrame, **select: Any) -> NDArray[np.float64]:
-    """|error| (s) of the selected ``clocks`` rows (``select`` as for :func:`rmse`)."""
-    df = _select(clocks, exclude_references=False, **select)
+def sync_errors(clocks: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> NDArray[np.float64]:
+    """|error| (s) of the selected ``clocks`` rows (``nodes``, ``select``: see :func:`select_rows`)."""
+    df = select_rows(clocks, nodes, **select)
     return np.abs(df["error"].to_numpy(float)) if len(df) else np.empty(0)
 
 
@@ -143,14 +201,15 @@ def sync_error_stats(
     clocks: pd.DataFrame,
     percentiles: Sequence[float] = (50.0, 95.0),
     *,
-    t_min: float | None = None,
+    nodes: pd.DataFrame | None = None,
+    **select: Any,
 ) -> dict[str, float]:
     """Mean and percentiles of the absolute sync error over rows (s), plus the final-row mean."""
-    e = sync_errors(clocks, t_min=t_min)
+    e = sync_errors(clocks, nodes, **select)
     out: dict[str, float] = {"mean_abs_error_s": float(e.mean()) if e.size else float("nan")}
     for p in percentiles:
         out[f"p{_fmt_pct(p)}_abs_error_s"] = float(np.percentile(e, p)) if e.size else float("nan")
-    ef = sync_errors(clocks, t_min=t_min, final=True)
+    ef = sync_errors(clocks, nodes, **{**select, "final": True})
     out["final_mean_abs_error_s"] = float(ef.mean()) if ef.size else float("nan")
     return out
 
@@ -223,24 +282,30 @@ def summarize(
 
     ``protocols``: the Node subclasses of the run; each one's ``metrics(tables)`` is added with
     its name as prefix. ``None``: the protocols named in the ``nodes`` table, through the registry.
+    ``warmup_s``: ``estimates`` and ``clocks`` rows before it are dropped, for the generic
+    metrics and the protocols' alike (one time window for every family).
     """
     out: dict[str, float] = {}
-    for k, n in packet_counts(tables.get("packets")).items():
-        out[f"packets.{k}"] = n
-    t0 = warmup_s if warmup_s > 0 else None
+    for k, v in packet_counts(tables.get("packets")).items():
+        out[f"packets.{k}"] = v
+    if warmup_s > 0:
+        tables = {k: _after(v, warmup_s) if k in ("estimates", "clocks") else v for k, v in tables.items()}
     est = tables.get("estimates")
     nodes = tables.get("nodes")
+    if nodes is not None and len(nodes) == 0:
+        nodes = None
+    roles = tuple(unknown_roles)
     if est is not None and len(est):
-        out["localization.estimates"] = len(_select(est, t_min=t0))
-        out["localization.rmse_m"] = rmse(est, t_min=t0)
-        out["localization.final_rmse_m"] = rmse(est, t_min=t0, final=True)
-        out["localization.nmse"] = nmse(est, t_min=t0)
-        if nodes is not None and len(nodes):
-            out["localization.coverage"] = coverage(est, unknown_nodes(nodes, unknown_roles))
+        out["localization.estimates"] = len(select_rows(est, nodes, roles=roles))
+        out["localization.rmse_m"] = rmse(est, nodes, roles=roles)
+        out["localization.final_rmse_m"] = rmse(est, nodes, roles=roles, final=True)
+        out["localization.nmse"] = nmse(est, nodes, roles=roles)
+        if nodes is not None:
+            out["localization.coverage"] = coverage(est, evaluated_nodes(nodes, roles))
     clk = tables.get("clocks")
     if clk is not None and len(clk):
-        for k, v in sync_error_stats(clk, percentiles, t_min=t0).items():
-            out[f"sync.{k}"] = v
+        for k, val in sync_error_stats(clk, percentiles, nodes=nodes, roles=roles).items():
+            out[f"sync.{k}"] = val
     if protocols is None:
         protocols = _protocols_from_nodes(nodes)
     seen: set[str] = set()
@@ -252,6 +317,59 @@ def summarize(
         seen.add(name)
         for k, v in (fn(tables) or {}).items():
             out[f"{name}.{k}"] = v
+    return out
+
+
+def _after(df: pd.DataFrame | None, t0: float) -> pd.DataFrame | None:
+    return df if df is None or "time" not in df.columns else df[df["time"] >= t0]
+
+
+def summarize_runs(
+    runs: pd.DataFrame,
+    by: Sequence[str] = (),
+    metrics: Sequence[str] | None = None,
+    *,
+    confidence: float = 0.95,
+) -> pd.DataFrame:
+    """Mean over runs (seeds) with a Student-t confidence interval, per group and metric.
+
+    ``runs``: one row per run (e.g. ``sweep.csv``); ``by``: the columns that define a point
+    (swept parameters, ``variant``); ``metrics``: the columns to summarize (default: every
+    numeric column but ``by``, ``run`` and ``seed``). Non-finite values (a run where a metric
+    was undefined) are left out and ``n`` counts the rest.
+
+    Returns one row per (group, metric): the ``by`` columns, ``metric``, ``n``, ``mean``,
+    ``std`` (ddof 1) and ``ci95_low`` / ``ci95_high`` (named after ``confidence``):
+    mean -/+ t_{(1 + confidence) / 2, n - 1} std / sqrt(n), the t interval for the mean of
+    independent runs. NaN bounds for n < 2; both bounds equal the mean when std = 0.
+    """
+    from scipy import stats
+
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must be in (0, 1), got {confidence!r}")
+    by = list(by)
+    missing = [c for c in by if c not in runs.columns]
+    if missing:
+        raise ValueError(f"summarize_runs: no column {missing[0]!r} in the runs table")
+    if metrics is None:
+        skip = set(by) | {"run", "seed"}
+        metrics = [c for c in runs.columns if c not in skip and pd.api.types.is_numeric_dtype(runs[c])]
+    tag = f"ci{confidence * 100:g}".replace(".", "_")
+    long = runs.melt(id_vars=by, value_vars=list(metrics), var_name="metric", value_name="value")
+    long["value"] = pd.to_numeric(long["value"], errors="coerce")
+    long = long[np.isfinite(long["value"].to_numpy(float))]
+    keys = [*by, "metric"]
+    g = long.groupby(keys, sort=False, dropna=False)["value"]
+    out = g.agg(n="count", mean="mean", std="std").reset_index()
+    n = out["n"].to_numpy(float)
+    mean = out["mean"].to_numpy(float)
+    std = out["std"].to_numpy(float)
+    half = np.full(len(out), np.nan)
+    ok = n >= 2
+    half[ok] = stats.t.ppf(0.5 + confidence / 2.0, n[ok] - 1.0) * std[ok] / np.sqrt(n[ok])
+    out[f"{tag}_low"] = mean - half
+    out[f"{tag}_high"] = mean + half
+    out["n"] = out["n"].astype(int)
     return out
 
 

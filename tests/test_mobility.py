@@ -14,7 +14,9 @@ from aquasim_py.mobility import (
     Box,
     ConstantVelocity,
     CoordinatedTurn,
+    Kinematic,
     MeanderingCurrent,
+    MeanderingJet,
     Mobility,
     RandomWalk,
     Static,
@@ -261,10 +263,10 @@ def test_waypoints_loop() -> None:
         np.testing.assert_allclose(m.velocity(base + 19.0), [[-3.0, -4.0, 0.0]], atol=1e-12)
 
 
-# -- meandering current ---------------------------------------------------------------------------
+# -- kinematic model (STVF / SLMP) ----------------------------------------------------------------
 
 
-def stvf_velocity(m: MeanderingCurrent, p: np.ndarray, t: float) -> np.ndarray:
+def stvf_velocity(m: Kinematic, p: np.ndarray, t: float) -> np.ndarray:
     """STVF Sec. 5.1 field written out independently, in the documented physical scales."""
     L, T = m.length_scale, m.time_scale
     x, y, tau = p[:, 0] / L, p[:, 1] / L, t / T + m.phase
@@ -274,10 +276,10 @@ def stvf_velocity(m: MeanderingCurrent, p: np.ndarray, t: float) -> np.ndarray:
 
 
 @pytest.mark.parametrize("scales", [{}, dict(length_scale=300.0, time_scale=1500.0, phase=0.3)])
-def test_meandering_current_matches_an_independent_ode_solution(scales) -> None:
+def test_kinematic_matches_an_independent_ode_solution(scales) -> None:
     n = 12
     p0 = np.column_stack([gen(5).uniform(0, 5000, (n, 2)), np.full(n, 40.0)])
-    m = MeanderingCurrent(p0, HUGE, gen(6), **scales)
+    m = Kinematic(p0, HUGE, gen(6), **scales)
     # Up to one time scale: the tidal flow is chaotic, so over many time scales any two
     # accurate integrators drift apart and stop being a reference for each other.
     times = m.time_scale * np.array([0.0, 3e-4, 2e-3, 0.0171, 0.1, 0.35, 1.0])
@@ -298,8 +300,8 @@ def test_meandering_current_matches_an_independent_ode_solution(scales) -> None:
     assert np.abs(ref.y[:, -1] - y0).max() > m.length_scale  # the nodes really crossed the pattern
 
 
-def test_meandering_current_parameter_draws() -> None:
-    m = MeanderingCurrent(inside(BOX, 4000), BOX, gen(9))
+def test_kinematic_parameter_draws() -> None:
+    m = Kinematic(inside(BOX, 4000), BOX, gen(9))
     for name, mean in [
         ("k1", math.pi),
         ("k2", math.pi),
@@ -313,20 +315,219 @@ def test_meandering_current_parameter_draws() -> None:
         assert vals.shape == (4000,)
         assert vals.mean() == pytest.approx(mean, rel=0.01)
         assert vals.std() / mean == pytest.approx(0.1, rel=0.05)
-    fixed = MeanderingCurrent(inside(BOX, 3), BOX, None, rel_std=0.0)
+    fixed = Kinematic(inside(BOX, 3), BOX, None, rel_std=0.0)
     assert np.all(fixed.k3 == 2 * math.pi)
 
 
-def test_meandering_current_drift_speed_is_about_one_metre_per_second() -> None:
+def test_kinematic_drift_speed_is_about_one_metre_per_second() -> None:
     """STVF layout (200 nodes, 500 m x 500 m): ~1 m/s, ~110 m per 100 s in the paper's sample."""
     box = Box((0.0, 0.0, 0.0), (500.0, 500.0, 100.0))
-    m = MeanderingCurrent(inside(box, 200, seed=10), box, gen(11))
+    m = Kinematic(inside(box, 200, seed=10), box, gen(11))
     speeds = np.array([np.linalg.norm(m.velocity(t), axis=1).mean() for t in np.arange(0.0, 500.0, 5.0)])
     assert 0.8 < speeds.mean() < 1.6
     unfolded = HUGE
-    free = MeanderingCurrent(inside(box, 200, seed=10), unfolded, gen(11))
+    free = Kinematic(inside(box, 200, seed=10), unfolded, gen(11))
     net = np.linalg.norm(free.position(100.0) - free.position(0.0), axis=1).mean()
     assert 80.0 < net < 160.0
+
+
+# -- Bower / Caruso meandering jet ----------------------------------------------------------------
+
+CARUSO = dict(amplitude=1.2, phase_speed=0.12, wavelength=7.5, omega=0.4, epsilon=0.3)
+
+
+def caruso_psi(x, y, t, amplitude, phase_speed, wavelength, omega, epsilon):
+    """Caruso et al. (INFOCOM 2008) eq. 1, dimensionless, written out independently."""
+    k = 2 * np.pi / wavelength
+    B = amplitude + epsilon * np.cos(omega * t)
+    th = k * (x - phase_speed * t)
+    return 1 - np.tanh((y - B * np.cos(th)) / np.sqrt(1 + k**2 * B**2 * np.sin(th) ** 2))
+
+
+def jet_nodes(n: int, seed: int) -> np.ndarray:
+    """Nodes spread over the meander region, |x'|, |y'| <= 3 km (origin at 0)."""
+    return np.column_stack([gen(seed).uniform(-3000, 3000, (n, 2)), np.full(n, 50.0)])
+
+
+def test_meandering_jet_steady_case_conserves_the_comoving_stream_function() -> None:
+    # epsilon = 0: in the frame moving east at c the flow is steady, so psi + c y' is a
+    # constant of motion. DOP853 at rtol 1e-12 plus the Hermite table (error ~ (h/T)^4 / 384
+    # ~ 1e-11 length units at 128 steps per unit) keep it to ~1e-11 (measured 7e-12); 1e-9
+    # leaves margin while a wrong derivative (a sign, a missing chain-rule term) breaks it at O(0.1).
+    p = dict(CARUSO, epsilon=0.0)
+    m = MeanderingJet(jet_nodes(40, 1), HUGE, None, origin=(0.0, 0.0), **p)
+    L, T, c = m.length_scale, m.time_scale, p["phase_speed"]
+
+    def invariant(t):
+        q = m.position(t)
+        return caruso_psi(q[:, 0] / L, q[:, 1] / L, t / T, **p) + c * q[:, 1] / L
+
+    phi0 = invariant(0.0)
+    moved = 0.0
+    for t in T * np.array([20.0, 0.37, 7.5, 3.0]):  # out of order on purpose
+        np.testing.assert_allclose(invariant(t), phi0, rtol=0, atol=1e-9)
+        moved = max(moved, float(np.abs(m.position(t)[:, 0] - m.initial_positions[:, 0]).max()))
+    assert moved > 5 * L  # some nodes rode the jet for kilometres
+
+
+def test_meandering_jet_matches_a_hand_integrated_trajectory() -> None:
+    # Independent reference: classical RK4 with a fixed step of 2e-3 time units on the
+    # velocity obtained by central differences of the published psi (step 1e-6). RK4 error
+    # ~ h^4 = 1.6e-11 per unit time, difference error ~ 1e-16 / 1e-6 = 1e-10; even with the
+    # flow's stretching (e-folding in about a time unit) the reference is good to ~1e-8
+    # length units over 2 units, i.e. 0.01 mm: 1 mm tolerance.
+    n, p = 10, CARUSO
+    m = MeanderingJet(jet_nodes(n, 2), HUGE, None, origin=(0.0, 0.0), phase=1.7, **p)
+    L, T = m.length_scale, m.time_scale
+    d = 1e-6
+
+    def vel(x, y, t):
+        u = -(caruso_psi(x, y + d, t, **p) - caruso_psi(x, y - d, t, **p)) / (2 * d)
+        v = (caruso_psi(x + d, y, t, **p) - caruso_psi(x - d, y, t, **p)) / (2 * d)
+        return u, v
+
+    x, y = m.initial_positions[:, 0] / L, m.initial_positions[:, 1] / L
+    t, h, steps = 1.7, 2e-3, 1000
+    for _ in range(steps):
+        k1 = vel(x, y, t)
+        k2 = vel(x + h / 2 * k1[0], y + h / 2 * k1[1], t + h / 2)
+        k3 = vel(x + h / 2 * k2[0], y + h / 2 * k2[1], t + h / 2)
+        k4 = vel(x + h * k3[0], y + h * k3[1], t + h)
+        x = x + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        y = y + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+        t += h
+    q = m.position(steps * h * T)
+    np.testing.assert_allclose(q[:, 0], x * L, rtol=0, atol=1e-3)
+    np.testing.assert_allclose(q[:, 1], y * L, rtol=0, atol=1e-3)
+    u, v = vel(x, y, t)
+    np.testing.assert_allclose(m.velocity(steps * h * T)[:, :2], np.column_stack([u, v]) * L / T, rtol=0, atol=1e-8)
+
+
+def test_meandering_jet_is_divergence_free_and_preserves_area() -> None:
+    m = MeanderingJet(jet_nodes(3, 3), HUGE, None, origin=(0.0, 0.0), **CARUSO)
+    # Pointwise: central differences (step 1 cm) of the field, error ~ (1e-5)^2 of a unit
+    # gradient (1 / L in s^-1 units after scaling): |div| << |grad|.
+    r = gen(4)
+    pts = np.column_stack([r.uniform(-4000, 4000, (200, 2)), np.zeros(200)])[:, None, :]
+    ts = r.uniform(0, 50 * m.time_scale, (200, 1))
+    h = 0.01
+    ex, ey = np.array([h, 0, 0]), np.array([0, h, 0])
+    dudx = (m.field(pts + ex, ts)[..., 0] - m.field(pts - ex, ts)[..., 0]) / (2 * h)
+    dvdy = (m.field(pts + ey, ts)[..., 1] - m.field(pts - ey, ts)[..., 1]) / (2 * h)
+    scale = np.abs(dudx).max()
+    assert scale > 1e-5  # the field really has gradients (s^-1)
+    assert np.abs(dudx + dvdy).max() < 1e-6 * scale
+    # Along trajectories: small triangles (1 m sides) keep their area while being sheared.
+    # The straight-edged image of a triangle of size s differs from the exact image by
+    # O(s * curvature / gradient) ~ 1e-3 relatively: 1 % tolerance, far below the
+    # e^{div t} change a compressible field of comparable gradients would give.
+    centres = jet_nodes(6, 5)[:, :2]
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    p0 = (centres[:, None, :] + tri[None]).reshape(-1, 2)
+    mt = MeanderingJet(np.column_stack([p0, np.full(len(p0), 50.0)]), HUGE, None, origin=(0.0, 0.0), **CARUSO)
+    q = mt.position(2.0 * mt.time_scale)[:, :2].reshape(-1, 3, 2)
+    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    area = 0.5 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    np.testing.assert_allclose(area, 0.5, rtol=1e-2)
+    side = np.linalg.norm(a, axis=1)
+    assert np.abs(side - 1.0).max() > 0.05  # the triangles were deformed, not just carried
+
+
+def test_meandering_jet_scaling_origin_and_phase() -> None:
+    box = Box((0.0, 0.0, 0.0), (1000.0, 600.0, 100.0))
+    m = MeanderingJet(inside(box, 5), box, None)
+    np.testing.assert_array_equal(m.origin, [500.0, 300.0])  # default: the box centre
+    # On the jet axis at a meander crest (theta = 0, y' = B = A + epsilon at t' = 0) the
+    # flow is due east at the peak speed, 1 km per 0.03 days.
+    crest = np.array([[[500.0, 300.0 + 1500.0, 50.0]]])
+    np.testing.assert_allclose(m.field(crest, 0.0)[0, 0], [1000.0 / 2592.0, 0.0, 0.0], atol=1e-15)
+    period = 2 * np.pi / (0.12 * 2 * np.pi / 7.5)
+    draws = [MeanderingJet(inside(box, 2), box, gen(s), phase=None).phase for s in range(30)]
+    assert all(0.0 <= d < period for d in draws) and len(set(draws)) == 30
+    assert MeanderingJet(inside(box, 2), box, gen(4), random_phase=True).phase == draws[4]
+    with pytest.raises(ValueError, match="rng"):
+        MeanderingJet(inside(box, 2), box, None, phase=None)
+    with pytest.raises(ValueError, match="wavelength"):
+        MeanderingJet(inside(box, 2), box, None, wavelength=0.0)
+    with pytest.raises(ValueError, match="origin"):
+        MeanderingJet(inside(box, 2), box, None, origin=(1.0, 2.0, 3.0))
+
+
+def test_meandering_current_is_a_deprecated_alias_of_kinematic() -> None:
+    p0 = inside(BOX, 4)
+    with pytest.warns(DeprecationWarning, match="Kinematic"):
+        old = MeanderingCurrent(p0, BOX, gen(3))
+    new = Kinematic(p0, BOX, gen(3))
+    np.testing.assert_array_equal(old.position(123.4), new.position(123.4))
+
+
+def test_scenario_model_names(tmp_path) -> None:
+    import warnings
+
+    from aquasim_py import scenario
+
+    assert scenario.mobility_class("kinematic") is Kinematic
+    assert scenario.mobility_class("meandering_jet") is MeanderingJet
+    assert scenario.mobility_class("random_walk") is RandomWalk
+    text = """
+[simulation]
+duration_s = 2.0
+seed = 3
+[environment]
+volume = {{ lo = [0.0, 0.0, 0.0], hi = [400.0, 400.0, 100.0] }}
+[[nodes]]
+role = "ordinary"
+count = 3
+protocol = "beacon"
+placement = {{ kind = "uniform" }}
+mobility = {{ model = "{model}" }}
+[[nodes]]
+role = "ordinary"
+count = 2
+protocol = "beacon"
+placement = {{ kind = "uniform" }}
+mobility = {{ model = "{model}" }}
+"""
+    for model in ("kinematic", "meandering_jet", "random_walk"):
+        f = tmp_path / f"{model}.toml"
+        f.write_text(text.format(model=model))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            scenario.load(f)
+    old = tmp_path / "old.toml"
+    old.write_text(text.format(model="meandering_current"))
+    with pytest.warns(scenario.ScenarioDeprecationWarning, match="'kinematic'.*'meandering_jet'"):
+        scenario.load(old)
+
+
+def test_cli_prints_one_warning_line_for_the_old_name(tmp_path, capsys) -> None:
+    from aquasim_py import cli
+
+    f = tmp_path / "old.toml"
+    f.write_text(
+        """
+[simulation]
+duration_s = 1.0
+seed = 3
+[environment]
+volume = { lo = [0.0, 0.0, 0.0], hi = [400.0, 400.0, 100.0] }
+[[nodes]]
+role = "ordinary"
+count = 2
+protocol = "beacon"
+placement = { kind = "uniform" }
+mobility = { model = "meandering_current" }
+[[nodes]]
+role = "anchor"
+count = 2
+protocol = "beacon"
+placement = { kind = "uniform" }
+mobility = { model = "meandering_current" }
+"""
+    )
+    assert cli.main([str(f), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("warning: ") and "kinematic" in lines[0]
 
 
 # -- properties shared by all models --------------------------------------------------------------
@@ -345,13 +546,18 @@ def build(kind: str, p0: np.ndarray, box: Box, seed: int, speed: float) -> Mobil
     if kind == "walk":
         return RandomWalk(p0, box, r, speed_min=0.0, speed_max=speed, leg_duration=5.0, vertical=True)
     if kind == "meander":
-        return MeanderingCurrent(p0, box, r, length_scale=2000.0 * speed, time_scale=20000.0)
+        return Kinematic(p0, box, r, length_scale=2000.0 * speed, time_scale=20000.0)
+    if kind == "jet":
+        # a jet much wider than the box, so nodes bounce, at speeds around ``speed``
+        # (time scale floored at 150 s: the table integration cost grows with t / time_scale)
+        T = max(300.0 / speed, 150.0)
+        return MeanderingJet(p0, box, r, length_scale=300.0, time_scale=T, phase=None, steps_per_unit=16)
     if kind == "waypoints":
         return Waypoints(p0, box, r, waypoints=[r.uniform(box.lo, box.hi, (3, 3)) for _ in p0], speed=speed, loop=True)
     raise AssertionError(kind)
 
 
-KINDS = ["static", "cv", "turn", "walk", "meander", "waypoints"]
+KINDS = ["static", "cv", "turn", "walk", "meander", "jet", "waypoints"]
 
 
 @settings(max_examples=40)
@@ -416,7 +622,7 @@ def test_track_and_state() -> None:
 def test_position_cost_200_nodes(benchmark) -> None:
     """Per-reception cost: one position(t) for a group of 200 drifting nodes."""
     box = Box((0.0, 0.0, 0.0), (500.0, 500.0, 100.0))
-    m = MeanderingCurrent(inside(box, 200), box, gen(1))
+    m = Kinematic(inside(box, 200), box, gen(1))
     ts = iter(np.linspace(0.0, 500.0, 10**7))
     out = benchmark(lambda: m.position(next(ts)))
     assert out.shape == (200, 3)

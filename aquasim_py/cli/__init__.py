@@ -11,7 +11,10 @@ directory (and an existing one untouched until the new one is ready).
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any
 
 from aquasim_py.cli.common import EXIT_USAGE, UsageError
 from aquasim_py.cli.common import fmt as _fmt  # noqa: F401  (how the tables print a metric)
@@ -20,15 +23,30 @@ from aquasim_py.scenario import ScenarioError
 __all__ = ["EXIT_USAGE", "UsageError", "main"]
 
 
+@contextmanager
+def _one_line_warnings() -> Iterator[None]:
+    """Scenario deprecations (e.g. an old mobility model name) as one ``warning:`` line each."""
+    from aquasim_py.scenario import ScenarioDeprecationWarning
+
+    def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        print(f"warning: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", ScenarioDeprecationWarning)
+        warnings.showwarning = show
+        yield
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
     from aquasim_py.cli import run, sweep
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        if argv and argv[0] == "sweep":
-            return sweep.command(argv[1:])
-        return run.command(argv)
+        with _one_line_warnings():
+            if argv and argv[0] == "sweep":
+                return sweep.command(argv[1:])
+            return run.command(argv)
     except (ScenarioError, UsageError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -16,7 +16,9 @@ Every user mistake raises :class:`ScenarioError` naming the file, the key path
 """
 
 from aquasim_py.scenario.build import (
+    DEPRECATED_MOBILITY,
     MOBILITY_CLASSES,
+    ScenarioDeprecationWarning,
     build,
     channel_config,
     make_ssp,
@@ -36,9 +38,11 @@ from aquasim_py.scenario.load import (
 )
 
 __all__ = [
+    "DEPRECATED_MOBILITY",
     "MOBILITY_CLASSES",
     "VARIANT_KEY",
     "Scenario",
+    "ScenarioDeprecationWarning",
     "ScenarioError",
     "apply_override",
     "build",

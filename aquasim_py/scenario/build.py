@@ -9,6 +9,7 @@ to check values only the physics constructors can judge.
 from __future__ import annotations
 
 import csv
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -31,7 +32,17 @@ from aquasim_py.scenario.schema import (
 if TYPE_CHECKING:
     from aquasim_py.scenario.load import Scenario
 
-__all__ = ["MOBILITY_CLASSES", "build", "channel_config", "make_ssp", "mobility_class", "placement_positions"]
+__all__ = [
+    "DEPRECATED_MOBILITY",
+    "MOBILITY_CLASSES",
+    "ScenarioDeprecationWarning",
+    "build",
+    "channel_config",
+    "make_ssp",
+    "mobility_class",
+    "placement_positions",
+    "warn_deprecated_mobility",
+]
 
 #: scenario mobility model name -> class name in aquasim_py.mobility
 MOBILITY_CLASSES = {
@@ -39,9 +50,31 @@ MOBILITY_CLASSES = {
     "constant_velocity": "ConstantVelocity",
     "coordinated_turn": "CoordinatedTurn",
     "random_walk": "RandomWalk",
-    "meandering_current": "MeanderingCurrent",
+    "kinematic": "Kinematic",
+    "meandering_jet": "MeanderingJet",
+    "meandering_current": "Kinematic",  # deprecated alias, see DEPRECATED_MOBILITY
     "waypoints": "Waypoints",
 }
+
+#: deprecated scenario mobility names -> the warning a load emits (once per name)
+DEPRECATED_MOBILITY = {
+    "meandering_current": (
+        "mobility model 'meandering_current' is deprecated: it still means the STVF/SLMP kinematic "
+        "model, now named 'kinematic'; the Bower/Caruso meandering current is 'meandering_jet'"
+    ),
+}
+
+
+class ScenarioDeprecationWarning(DeprecationWarning):
+    """A scenario uses a deprecated name; the CLI prints it as one ``warning:`` line."""
+
+
+def warn_deprecated_mobility(model: str, file: Path | None) -> None:
+    msg = DEPRECATED_MOBILITY.get(model)
+    if msg is not None:
+        # one message per file (not per group): the default filter shows it once
+        where = f"{file}: " if file is not None else ""
+        warnings.warn(f"{where}{msg}", ScenarioDeprecationWarning, stacklevel=3)
 
 
 def mobility_class(model: str) -> type:

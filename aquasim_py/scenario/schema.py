@@ -193,7 +193,14 @@ class MobilitySpec(BaseModel):
 
     model_config = ConfigDict(extra="allow", strict=True, allow_inf_nan=False)
     model: Literal[
-        "static", "constant_velocity", "coordinated_turn", "random_walk", "meandering_current", "waypoints"
+        "static",
+        "constant_velocity",
+        "coordinated_turn",
+        "random_walk",
+        "kinematic",
+        "meandering_jet",
+        "meandering_current",  # deprecated alias of "kinematic"
+        "waypoints",
     ] = "static"
 
     def params(self) -> dict[str, Any]:
@@ -259,7 +266,10 @@ def _unknown_by_default() -> list[Role]:
 class MetricsSpec(Strict):
     percentiles: list[Annotated[float, Field(gt=0.0, le=100.0)]] = Field(default_factory=lambda: [50.0, 95.0])
     warmup_s: NonNegFloat = Field(0.0, description="estimates and clock rows before this time are ignored")
-    unknown_roles: list[Role] = Field(default_factory=_unknown_by_default)
+    unknown_roles: list[Role] = Field(
+        default_factory=_unknown_by_default,
+        description="roles of the evaluated nodes of the localization.* / sync.* metrics (docs/metrics.md)",
+    )
 
 
 class Scenario(Strict):

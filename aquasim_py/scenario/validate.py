@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from aquasim_py import registry
-from aquasim_py.scenario.build import make_ssp, mobility_class
+from aquasim_py.scenario.build import make_ssp, mobility_class, warn_deprecated_mobility
 from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_validation, show
 from aquasim_py.scenario.schema import ExplicitPlacement, GridPlacement, NodeGroupSpec, UniformPlacement
 
@@ -124,6 +124,7 @@ def _check_protocol(g: NodeGroupSpec, i: int, file: Path | None) -> None:
 
 
 def _check_mobility(g: NodeGroupSpec, i: int, file: Path | None) -> None:
+    warn_deprecated_mobility(g.mobility.model, file)
     try:
         cls = mobility_class(g.mobility.model)
     except ImportError:

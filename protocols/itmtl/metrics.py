@@ -3,22 +3,28 @@
 Ordinary nodes are selected by role (the ``nodes`` table), not by ``is_reference``: a promoted
 node stays an ordinary node whose errors count.
 
+- sync error, RMSE, NMSE and coverage are :mod:`aquasim_py.metrics`'s definitions (one per
+  quantity, docs/metrics.md), called with this protocol's evaluated nodes: so
+  ``loc_rmse_m`` = ``localization.rmse_m``, ``loc_final_rmse_m`` = ``localization.final_rmse_m``,
+  ``loc_nmse`` = ``localization.nmse`` (origin-free), ``coverage`` = ``localization.coverage``
+  and ``sync_final_mean_all_s`` = ``sync.final_mean_abs_error_s`` in a one-protocol run.
 - sync error: |estimated true time - true time| at each ``clocks`` row (s). ``sync_final_*``:
   mean and 95th percentile over the final rows of the *covered* nodes (localized in one of
   their last three rounds: the paper's "range of synchronization and localization");
-  ``sync_final_*_all``: over every ordinary node, covered or not; per round: over the nodes
+  ``sync_final_*_all``: over every evaluated node, covered or not; per round: over the nodes
   localized in that round (and ``sync_all_mean_s`` over all).
-- localization: RMSE (m) and NMSE (sum of squared errors / sum of squared true positions,
-  :func:`aquasim_py.metrics.nmse`'s definition) over all rows and over the final rows;
-  ``*_fixed``: only rounds with a fix (not the track's predictions while coasting).
-- coverage: share of ordinary nodes with at least one position estimate; ``coverage_final``:
-  share covered at the end.
+- localization: RMSE (m) and NMSE over all rows and over the final rows; ``*_fixed``: only
+  rounds with a fix (not the track's predictions while coasting).
+- coverage: share of evaluated nodes with at least one position estimate; ``coverage_final``:
+  share covered at the end (localized in one of their last three rounds).
 - coverage upper bound: iterated ">= 3 localized neighbours" promotion on the connectivity
   graph seen in the ``packets`` table (an edge wherever a frame was received), from the
   buoys and anchors (networkx).
-- rounds to convergence: first round from which the per-round mean sync error stays within
-  twice its last value (and the same for the localization error).
-- promoted: share of ordinary nodes that ever logged ``is_reference``.
+- no "rounds to converge": the per-round means are over a different set of nodes each round
+  (those localized in it), so their trend mixes convergence with coverage, and the former
+  "within twice the last value" rule hinged on one noisy round; the per-round table
+  (:func:`per_round`, :func:`round_table`) shows the trend itself (docs/metrics.md).
+- promoted: share of evaluated nodes that ever logged ``is_reference``.
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ from collections.abc import Mapping
 import networkx as nx
 import numpy as np
 import pandas as pd
+
+from aquasim_py import metrics as generic
 
 REFERENCE_ROLES = ("buoy", "anchor")
 
@@ -70,17 +78,6 @@ def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
     return out.fillna({"promoted": 0}) if "promoted" in out else out
 
 
-def _converged_at(series: pd.Series) -> float:
-    s = series.dropna()
-    if len(s) == 0:
-        return float("nan")
-    ok = (s <= 2.0 * s.iloc[-1]).to_numpy()
-    # first index from which every later value is ok
-    bad = np.nonzero(~ok)[0]
-    k = 0 if bad.size == 0 else bad[-1] + 1
-    return float(s.index[k]) if k < len(s) else float("nan")
-
-
 def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int = 3) -> float:
     """Share of ordinary nodes reachable by iterated promotion on the observed link graph."""
     nodes, pk = tables.get("nodes"), tables.get("packets")
@@ -104,55 +101,53 @@ def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int
 
 
 def protocol_metrics(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str, float]:
-    ids = _ordinary(tables, name)
+    nodes = tables.get("nodes")
+    if nodes is not None and len(nodes) == 0:
+        nodes = None
+    ids = generic.evaluated_nodes(nodes, protocol=name) if nodes is not None else np.empty(0, dtype=np.int64)
     nan = float("nan")
     out: dict[str, float] = {}
-    clk = _rows(tables.get("clocks"), name, ids)
-    est = _rows(tables.get("estimates"), name, ids)
+    clk_t, est_t = tables.get("clocks"), tables.get("estimates")
+    clk = (
+        generic.select_rows(clk_t, nodes, protocol=name) if nodes is not None and clk_t is not None else pd.DataFrame()
+    )
+    est = (
+        generic.select_rows(est_t, nodes, protocol=name) if nodes is not None and est_t is not None else pd.DataFrame()
+    )
     out["sync_final_mean_s"] = out["sync_final_p95_s"] = out["sync_mean_s"] = nan
     out["sync_final_mean_all_s"] = out["sync_final_p95_all_s"] = nan
     out["coverage_final"] = 0.0 if len(ids) else nan
     if len(clk):
-        last = clk.sort_values("time").groupby("node").tail(1)
-        fin = last["error"].abs()
+        last = generic.select_rows(clk, nodes, protocol=name, final=True)
+        fin = generic.sync_errors(last, nodes, protocol=name)
         out["sync_final_mean_all_s"] = float(fin.mean())
         out["sync_final_p95_all_s"] = float(np.percentile(fin, 95))
         if len(est) and "round" in clk and "round" in est:
             # covered nodes: localized in one of their last three rounds
             last_est = est.groupby("node")["round"].max()
-            ok = last["node"].map(last_est).fillna(-np.inf) >= last["round"] - 2
+            ok = (last["node"].map(last_est).fillna(-np.inf) >= last["round"] - 2).to_numpy()
             if ok.any():
-                out["sync_final_mean_s"] = float(fin[ok.to_numpy()].mean())
-                out["sync_final_p95_s"] = float(np.percentile(fin[ok.to_numpy()], 95))
-            loc = clk.merge(est[["node", "round"]], on=["node", "round"])
-            out["sync_mean_s"] = float(loc["error"].abs().mean()) if len(loc) else nan
+                out["sync_final_mean_s"] = float(fin[ok].mean())
+                out["sync_final_p95_s"] = float(np.percentile(fin[ok], 95))
+            loc = generic.sync_errors(clk.merge(est[["node", "round"]], on=["node", "round"]), nodes, protocol=name)
+            out["sync_mean_s"] = float(loc.mean()) if loc.size else nan
             out["coverage_final"] = float(ok.sum() / max(len(ids), 1))
     if len(est):
-        x = est[["true_x", "true_y", "true_z"]].to_numpy(float)
-        d = est[["x", "y", "z"]].to_numpy(float) - x
-        out["loc_rmse_m"] = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-        out["loc_nmse"] = float(np.sum(d * d) / np.sum(x * x))
-        fin = est.sort_values("time").groupby("node").tail(1)
-        xf = fin[["true_x", "true_y", "true_z"]].to_numpy(float)
-        df = fin[["x", "y", "z"]].to_numpy(float) - xf
-        out["loc_final_rmse_m"] = float(np.sqrt(np.mean(np.sum(df * df, axis=1))))
-        out["loc_final_nmse"] = float(np.sum(df * df) / np.sum(xf * xf))
+        out["loc_rmse_m"] = generic.rmse(est, nodes, protocol=name)
+        out["loc_nmse"] = generic.nmse(est, nodes, protocol=name)
+        out["loc_final_rmse_m"] = generic.rmse(est, nodes, protocol=name, final=True)
+        out["loc_final_nmse"] = generic.nmse(est, nodes, protocol=name, final=True)
         out["promoted_share"] = float(est[est["is_reference"].astype(bool)]["node"].nunique() / max(len(ids), 1))
         if "fixed" in est:
             fx = est[est["fixed"].astype(bool)]
-            xs = fx[["true_x", "true_y", "true_z"]].to_numpy(float)
-            ds = fx[["x", "y", "z"]].to_numpy(float) - xs
-            out["loc_rmse_fixed_m"] = float(np.sqrt(np.mean(np.sum(ds * ds, axis=1)))) if len(fx) else nan
-            out["loc_nmse_fixed"] = float(np.sum(ds * ds) / np.sum(xs * xs)) if len(fx) else nan
+            out["loc_rmse_fixed_m"] = generic.rmse(fx, nodes, protocol=name)
+            out["loc_nmse_fixed"] = generic.nmse(fx, nodes, protocol=name)
     else:
         for k in ("loc_rmse_m", "loc_nmse", "loc_final_rmse_m", "loc_final_nmse"):
             out[k] = nan
         out["promoted_share"] = 0.0
-    out["coverage"] = float(est["node"].nunique() / len(ids)) if len(ids) and len(est) else (0.0 if len(ids) else nan)
+    out["coverage"] = generic.coverage(est, ids)
     out["coverage_upper_bound"] = coverage_upper_bound(tables)
-    pr = per_round(tables, name)
-    out["rounds_to_converge_sync"] = _converged_at(pr["sync_mean_s"]) if "sync_mean_s" in pr else nan
-    out["rounds_to_converge_loc"] = _converged_at(pr["loc_rmse_m"]) if "loc_rmse_m" in pr else nan
     return out
 
 

@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from aquasim_py import metrics as generic
+
 __all__ = ["localization_metrics"]
 
 
@@ -20,35 +22,39 @@ def localization_metrics(
 
     avg_rmse_m: mean over unknown nodes of each node's RMSE over its estimates (Sec. 5.2.3);
     share_below_avg: share of those nodes whose RMSE is below that mean; mean_error_m: mean
-    distance error over all estimates ("localization accuracy", Sec. 5.1); coverage: mean over
-    periods of (unknown nodes localized in the period) / (unknown nodes); coverage_ever: share
-    localized at least once; converge_within_5: share of localizations whose iteration count
-    is <= ``converge_within`` (Fig. 6); mean_iterations; localizations.
-    Rows of every estimate of the protocol count, promoted references included."""
+    distance error over all estimates ("localization accuracy", Sec. 5.1); rmse_m: RMSE over
+    all estimates; coverage: mean over 1-s periods (first to last estimate) of (unknown nodes
+    localized in the period) / (unknown nodes), the paper's time-averaged coverage;
+    coverage_ever: share localized at least once; converge_within_5: share of localizations
+    whose iteration count is <= ``converge_within`` (Fig. 6); mean_iterations; localizations.
+
+    Rows and nodes are :mod:`aquasim_py.metrics`'s (docs/metrics.md): every row of the
+    protocol's evaluated (unknown-role) nodes, promoted references included, and the RMSE,
+    mean error, per-node RMSE and coverage_ever are its functions, so ``rmse_m`` =
+    ``localization.rmse_m``, ``coverage_ever`` = ``localization.coverage`` and
+    ``localizations`` = ``localization.estimates`` in a one-protocol run."""
     est = tables.get("estimates")
     nodes = tables.get("nodes")
     out: dict[str, float] = {}
-    if nodes is None or est is None or len(est) == 0:
+    if nodes is None or len(nodes) == 0 or est is None or len(est) == 0:
         return {"coverage": 0.0, "localizations": 0.0}
-    unknown = nodes[(nodes["protocol"] == protocol) & (nodes["role"].astype(str) == "ordinary")]["node"]
+    unknown = generic.evaluated_nodes(nodes, protocol=protocol)
     n_unknown = max(len(unknown), 1)
-    e = est[(est["protocol"] == protocol) & est["node"].isin(unknown)]
-    if t_min is not None:
-        e = e[e["time"] >= t_min]
+    sel: dict[str, Any] = dict(protocol=protocol, t_min=t_min)
+    e = generic.select_rows(est, nodes, **sel)
     if len(e) == 0:
         return {"coverage": 0.0, "localizations": 0.0}
-    err2 = (e["x"] - e["true_x"]) ** 2 + (e["y"] - e["true_y"]) ** 2 + (e["z"] - e["true_z"]) ** 2
-    per_node = np.sqrt(err2.groupby(e["node"]).mean())
+    per_node = generic.rmse_per_node(e, nodes, **sel)
     avg = float(per_node.mean())
     out["avg_rmse_m"] = avg
     out["share_below_avg"] = float((per_node < avg).mean())
-    out["mean_error_m"] = float(np.sqrt(err2).mean())
-    out["rmse_m"] = float(np.sqrt(err2.mean()))
+    out["mean_error_m"] = generic.mean_error(e, nodes, **sel)
+    out["rmse_m"] = generic.rmse(e, nodes, **sel)
     periods = np.floor(e["time"].to_numpy() + 1e-9)
     per_period = pd.Series(e["node"].to_numpy()).groupby(periods).nunique()
     n_periods = int(np.ptp(periods)) + 1 if len(periods) else 1
     out["coverage"] = float(per_period.sum() / (n_periods * n_unknown))
-    out["coverage_ever"] = float(e["node"].nunique() / n_unknown)
+    out["coverage_ever"] = generic.coverage(e, unknown)
     if "iterations" in e.columns:
         it = pd.to_numeric(e["iterations"], errors="coerce").dropna()
         if len(it):

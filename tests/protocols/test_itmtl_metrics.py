@@ -41,10 +41,10 @@ def test_metrics_sync_over_covered_nodes_and_nmse():
             "node": [3, 3],
             "protocol": "itmtl",
             "round": [1, 2],
-            "x": [103.0, 100.0],
+            "x": [103.0, 130.0],
             "y": [200.0, 204.0],
             "z": [50.0, 50.0],
-            "true_x": [100.0, 100.0],
+            "true_x": [100.0, 130.0],
             "true_y": [200.0, 200.0],
             "true_z": [50.0, 50.0],
             "error": [3.0, 4.0],
@@ -62,7 +62,8 @@ def test_metrics_sync_over_covered_nodes_and_nmse():
     assert m["sync_final_mean_s"] == pytest.approx(1e-5)
     assert m["sync_final_mean_all_s"] == pytest.approx((1e-5 + 5e-4) / 2)
     assert m["loc_rmse_m"] == pytest.approx(np.sqrt((9 + 16) / 2))
-    assert m["loc_nmse"] == pytest.approx(25.0 / (2 * (100**2 + 200**2 + 50**2)))
+    # NMSE about the centroid of the true positions (115, 200, 50): spread 2 * 15^2
+    assert m["loc_nmse"] == pytest.approx(25.0 / (2 * 15**2))
     assert m["loc_rmse_fixed_m"] == pytest.approx(3.0)
     assert m["coverage"] == pytest.approx(1 / 3)
     assert m["promoted_share"] == pytest.approx(1 / 3)
