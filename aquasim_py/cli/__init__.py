@@ -39,13 +39,15 @@ def _one_line_warnings() -> Iterator[None]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
-    from aquasim_py.cli import run, sweep
+    from aquasim_py.cli import report, run, sweep
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         with _one_line_warnings():
             if argv and argv[0] == "sweep":
                 return sweep.command(argv[1:])
+            if argv and argv[0] == "report":
+                return report.command(argv[1:])
             return run.command(argv)
     except (ScenarioError, UsageError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -33,6 +33,7 @@ examples:
   aquasim-py scenarios/itmtl.toml --variant wsc          # one variant, as a plain run
   aquasim-py sweep scenarios/beacon.toml --workers 2
   aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786
+  aquasim-py report out/beacon                       # plots and report.html of a finished run
 
 --set values are TOML (numbers, strings in quotes, [arrays], {inline tables}, true/false);
 anything that is not valid TOML is taken as a plain string. List items are addressed by
@@ -59,6 +60,9 @@ def parser() -> argparse.ArgumentParser:
         metavar="NAME",
         help="run only this [variants.NAME] of the scenario and write what a plain run writes "
         "(default: every variant, each under DIR/NAME/)",
+    )
+    p.add_argument(
+        "--report", action="store_true", help="also write plots and report.html (see 'aquasim-py report --help')"
     )
     return p
 
@@ -91,6 +95,7 @@ def command(argv: Sequence[str]) -> int:
         for r in res.reports():
             con.print(r)
         con.print(f"output: {out}", soft_wrap=True)
+    _report(out, args)
     return 0
 
 
@@ -107,7 +112,19 @@ def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> i
         con = console()
         con.print(comparison_table(results, base, width=con.width))
         con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}", soft_wrap=True)
+    _report(out, args)
     return 0
+
+
+def _report(out: Path, args: argparse.Namespace) -> None:
+    """``--report``: plots and report.html beside the outputs (each variant's in its directory)."""
+    if not args.report:
+        return
+    from aquasim_py.cli.report import reports_for
+
+    for p in reports_for(out):
+        if not args.quiet:
+            print(f"report: {p}")
 
 
 def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:

@@ -1,0 +1,60 @@
+"""``aquasim-py report DIR``: plots and ``report.html`` for a run's or a sweep's output directory."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+from pathlib import Path
+
+from aquasim_py.cli import common
+
+EXAMPLES = """examples:
+  aquasim-py report out/itmtl                  # a run: map, errors, sync, CDF, packets
+  aquasim-py report out/itmtl/wsc              # one variant of a run with variants
+  aquasim-py report out/itmtl_sweep            # a sweep: each metric vs the swept values, 95 % CI
+  aquasim-py report out/itmtl --out /tmp/rep   # write the report elsewhere
+"""
+
+
+def parser() -> argparse.ArgumentParser:
+    p = common.Parser(
+        prog="aquasim-py report",
+        description="Draw PNG plots and one self-contained report.html (images embedded) from the "
+        "output directory of a run (summary.json + trace tables) or of a sweep (sweep.csv).",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("directory", metavar="DIR", help="a run's or a sweep's output directory")
+    p.add_argument("--out", metavar="DIR", help="where to write the plots and report.html (default: DIR)")
+    return p
+
+
+def reports_for(out: Path) -> list[Path]:
+    """Report every run under ``out``: the run itself, or each variant directory of a run with
+    variants (``out/NAME/summary.json``); returns the report.html paths."""
+    from aquasim_py.report import write_report
+
+    if (out / "summary.json").is_file() or (out / "sweep.csv").is_file():
+        return [write_report(out)]
+    return [write_report(d) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
+
+
+def command(argv: Sequence[str]) -> int:
+    from aquasim_py.report import ReportError, write_report
+
+    args = parser().parse_args(argv)
+    directory = Path(args.directory)
+    if not directory.is_dir():
+        raise common.UsageError(f"{directory}: no such directory")
+    try:
+        if args.out is None:
+            paths = reports_for(directory)
+            if not paths:
+                raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
+        else:
+            paths = [write_report(directory, Path(args.out))]
+    except ReportError as e:
+        raise common.UsageError(str(e)) from None
+    for p in paths:
+        print(f"report: {p}")
+    return 0

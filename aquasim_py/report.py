@@ -1,0 +1,303 @@
+"""Reports: PNG plots and one self-contained ``report.html`` from a run's or a sweep's output.
+
+Everything is drawn from what the run wrote (trace tables, ``summary.json``, ``sweep.csv``), so
+the same call serves ``aquasim-py report DIR`` long after the run, ``--report`` at the end of
+one, and a notebook. matplotlib runs on its non-interactive Agg backend; nothing opens a window.
+
+Run directory (``summary.json`` and the trace tables):
+
+- ``map.png``: nodes by role, the links packets were heard on, true and estimated trajectories;
+- ``error_vs_time.png``: localization error of each node over time;
+- ``sync_vs_time.png``: clock error (estimated minus true time) of each node over time;
+- ``error_cdf.png``: empirical CDF of the localization error;
+- ``packets.png``: packet outcomes (received, and each drop reason) per time bin.
+
+Sweep directory (``sweep.csv``): one plot per metric against each swept parameter, mean with
+its 95 % confidence interval (Student t over the runs of a grid point), one line per variant.
+
+A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")  # reports are files: never a window, also on a machine without a display
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from . import trace
+from .metrics import summarize_runs
+
+__all__ = ["ReportError", "report_run", "report_sweep", "write_report"]
+
+_ROLE_STYLE = {
+    "buoy": ("#1f77b4", "^"),
+    "anchor": ("#d62728", "s"),
+    "ordinary": ("#2ca02c", "o"),
+    "target": ("#ff7f0e", "*"),
+    "sink": ("#9467bd", "D"),
+}
+_DPI = 110
+
+
+class ReportError(ValueError):
+    """The directory holds neither a run's nor a sweep's output."""
+
+
+def _save(fig: Any, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=_DPI)
+    plt.close(fig)
+    return path
+
+
+def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
+    pos = t.get("positions")
+    nodes = t.get("nodes")
+    if pos is None or len(pos) == 0:
+        return None
+    fig, ax = plt.subplots(figsize=(7.0, 6.0))
+    first = pos.sort_values("time").groupby("node").first()
+    pk = t.get("packets")
+    if pk is not None and len(pk):
+        heard = pk[pk["event"] == "rx"][["src", "node"]].drop_duplicates()
+        heard = heard[heard["src"].isin(first.index) & heard["node"].isin(first.index)]
+        for s, r in heard.itertuples(index=False):
+            ax.plot(*zip(first.loc[s, ["x", "y"]], first.loc[r, ["x", "y"]]), color="0.85", lw=0.6, zorder=0)
+    for _node, tr in pos.groupby("node"):
+        ax.plot(tr["x"], tr["y"], color="0.4", lw=0.8, zorder=1)
+    est = t.get("estimates")
+    if est is not None and len(est):
+        for i, (_node, e) in enumerate(est.groupby("node")):
+            ax.plot(
+                e["x"],
+                e["y"],
+                ".",
+                ms=3,
+                color="tab:purple",
+                alpha=0.6,
+                zorder=2,
+                label="estimates" if i == 0 else None,
+            )
+    roles = nodes.set_index("node")["role"].astype(str) if nodes is not None and len(nodes) else None
+    for role, (color, marker) in _ROLE_STYLE.items():
+        ids = first.index if roles is None else [n for n in first.index if roles.get(n) == role]
+        if roles is None and role != "ordinary":
+            continue
+        if len(ids):
+            ax.scatter(first.loc[ids, "x"], first.loc[ids, "y"], c=color, marker=marker, s=40, zorder=3, label=role)
+    ax.plot([], [], color="0.4", lw=0.8, label="true trajectory")
+    if pk is not None and len(pk):
+        ax.plot([], [], color="0.85", lw=0.6, label="link heard")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title("Network map (start positions)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=8, loc="best")
+    return _save(fig, out / "map.png")
+
+
+def _per_node_lines(df: pd.DataFrame, y: pd.Series, ax: Any) -> None:
+    for node, g in df.assign(_y=y).groupby("node"):
+        ax.plot(g["time"], g["_y"], lw=0.9, label=f"node {node}")
+    if df["node"].nunique() <= 12:
+        ax.legend(fontsize=7, ncol=2)
+
+
+def _plot_error_vs_time(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
+    est = t.get("estimates")
+    if est is None or len(est) == 0 or "error" not in est:
+        return None
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    _per_node_lines(est, est["error"], ax)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("localization error (m)")
+    ax.set_yscale("log" if (est["error"] > 0).all() and est["error"].max() > 50 * est["error"].min() else "linear")
+    ax.set_title("Localization error per node")
+    return _save(fig, out / "error_vs_time.png")
+
+
+def _plot_sync(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
+    clk = t.get("clocks")
+    if clk is None or len(clk) == 0 or "error" not in clk:
+        return None
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    err_us = 1e6 * clk["error"].abs()
+    _per_node_lines(clk, err_us, ax)
+    if (err_us > 0).all():
+        ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("|clock error| (us)")
+    ax.set_title("Time-synchronization error per node")
+    return _save(fig, out / "sync_vs_time.png")
+
+
+def _plot_cdf(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
+    est = t.get("estimates")
+    if est is None or len(est) == 0 or "error" not in est:
+        return None
+    e = np.sort(est["error"].to_numpy(dtype=float))
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return None
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    ax.step(e, np.arange(1, e.size + 1) / e.size, where="post")
+    for q in (0.5, 0.9):
+        v = float(np.quantile(e, q))
+        ax.axvline(v, color="0.6", ls=":", lw=0.8)
+        ax.text(v, q, f" {int(q * 100)} %: {v:.3g} m", fontsize=8, va="bottom")
+    ax.set_xlabel("localization error (m)")
+    ax.set_ylabel("fraction of estimates")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(f"Error CDF ({e.size} estimates)")
+    return _save(fig, out / "error_cdf.png")
+
+
+def _plot_packets(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
+    pk = t.get("packets")
+    if pk is None or len(pk) == 0:
+        return None
+    rows = pk[pk["event"].isin(["rx", "drop"])]
+    if len(rows) == 0:
+        return None
+    outcome = np.where(rows["event"] == "rx", "received", "drop: " + rows["reason"].fillna("").astype(str))
+    span = float(rows["time"].max() - rows["time"].min()) or 1.0
+    nbins = int(np.clip(span / 10.0, 10, 60))
+    edges = np.linspace(float(rows["time"].min()), float(rows["time"].max()) + 1e-9, nbins + 1)
+    mids = 0.5 * (edges[:-1] + edges[1:])
+    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    bottom = np.zeros(len(mids))
+    times = rows["time"].to_numpy(dtype=float)
+    for label in sorted(set(outcome), key=lambda o: (o != "received", o)):
+        counts = np.histogram(times[outcome == label], edges)[0]
+        ax.bar(mids, counts, width=edges[1] - edges[0], bottom=bottom, label=label)
+        bottom += counts
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("packets per bin")
+    ax.set_title(
+        f"Packet outcomes ({int(edges[1] - edges[0])} s bins)" if edges[1] - edges[0] >= 1 else "Packet outcomes"
+    )
+    ax.legend(fontsize=8)
+    return _save(fig, out / "packets.png")
+
+
+def report_run(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """The run plots of ``run_dir`` written into ``out`` (default ``run_dir``); returns their paths."""
+    run_dir = Path(run_dir)
+    out = Path(out) if out is not None else run_dir
+    out.mkdir(parents=True, exist_ok=True)
+    tables = trace.load(run_dir)
+    plots = (_plot_map, _plot_error_vs_time, _plot_sync, _plot_cdf, _plot_packets)
+    return [p for f in plots if (p := f(tables, out)) is not None]
+
+
+def _sweep_params(df: pd.DataFrame) -> list[str]:
+    """Grid columns of a sweep table: those before ``run`` (sweep.csv writes grid keys first)."""
+    cols = list(df.columns)
+    return cols[: cols.index("run")] if "run" in cols else []
+
+
+def report_sweep(sweep_dir: str | Path, out: str | Path | None = None) -> list[Path]:
+    """One plot per (metric, swept parameter): mean and 95 % CI per grid point, a line per variant."""
+    sweep_dir = Path(sweep_dir)
+    out = Path(out) if out is not None else sweep_dir
+    out.mkdir(parents=True, exist_ok=True)
+    df = pd.read_csv(sweep_dir / "sweep.csv")
+    if "error" in df.columns:  # failed runs are recorded, not plotted
+        df = df[df["error"].isna()]
+    params = _sweep_params(df)
+    metrics = [
+        c
+        for c in df.columns
+        if c not in {*params, "run", "seed", "error", "key"} and pd.api.types.is_numeric_dtype(df[c])
+    ]
+    paths: list[Path] = []
+    # x axes: each swept parameter; with only variants swept, the variants themselves
+    xs: list[str | None] = [p for p in params if p != "variant"] or [None]
+    for metric in metrics:
+        for x in xs:
+            by = [c for c in ("variant",) if c in params] + ([x] if x else [])
+            if not by:
+                continue
+            s = summarize_runs(df, by=by, metrics=[metric])
+            fig, ax = plt.subplots(figsize=(6.5, 4.0))
+            groups = s.groupby("variant") if "variant" in by else [(None, s)]
+            for name, g in groups:
+                g = g.sort_values(x) if x else g
+                xv = (
+                    g[x].astype(str) if x and not pd.api.types.is_numeric_dtype(g[x]) else (g[x] if x else g["variant"])
+                )
+                lo, hi, mean = g["ci95_low"], g["ci95_high"], g["mean"]
+                ax.errorbar(xv, mean, yerr=[mean - lo, hi - mean], marker="o", capsize=3, label=name)
+            ax.set_xlabel(x or "variant")
+            ax.set_ylabel(metric)
+            ax.set_title(f"{metric}: mean and 95 % CI over runs")
+            if "variant" in by:
+                ax.legend(fontsize=8)
+            safe = "".join(ch if ch.isalnum() or ch in "._-" else "_" for ch in f"{metric}__{x or 'variant'}")
+            paths.append(_save(fig, out / f"sweep_{safe}.png"))
+    return paths
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return f'<figure><img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}"><figcaption>{html.escape(path.name)}</figcaption></figure>'
+
+
+def _metrics_table(metrics: Mapping[str, Any]) -> str:
+    rows = "".join(
+        f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(f'{v:.6g}' if isinstance(v, float) else str(v))}</td></tr>"
+        for k, v in metrics.items()
+    )
+    return f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
+
+
+_CSS = (
+    "body{font-family:sans-serif;max-width:60em;margin:2em auto;color:#222}"
+    "img{max-width:100%}figure{margin:1em 0}table{border-collapse:collapse}"
+    "td,th{border:1px solid #ccc;padding:2px 8px;text-align:left}pre{background:#f6f6f6;padding:1em;overflow:auto}"
+)
+
+
+def write_report(directory: str | Path, out: str | Path | None = None) -> Path:
+    """Plots and ``report.html`` (images embedded) for a run or a sweep directory; returns the HTML path.
+
+    Raises :class:`ReportError` when ``directory`` holds neither ``summary.json`` nor ``sweep.csv``.
+    """
+    directory = Path(directory)
+    out = Path(out) if out is not None else directory
+    if (directory / "summary.json").is_file():
+        summary = json.loads((directory / "summary.json").read_text())
+        images = report_run(directory, out)
+        title = f"aquasim-py run: {summary.get('scenario_file', directory.name)}"
+        body = "<h2>Metrics</h2>" + _metrics_table(summary.get("metrics", {}))
+        body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
+        scen = json.dumps(summary.get("scenario", {}), indent=2, sort_keys=True)
+        body += f"<h2>Resolved scenario (seed {summary.get('seed')})</h2><pre>{html.escape(scen)}</pre>"
+    elif (directory / "sweep.csv").is_file():
+        images = report_sweep(directory, out)
+        df = pd.read_csv(directory / "sweep.csv")
+        title = f"aquasim-py sweep: {directory.name}"
+        body = f"<p>{len(df)} runs.</p><h2>Plots</h2>" + "".join(_img(p) for p in images)
+        if (directory / "summary.csv").is_file():
+            body += "<h2>Summary per grid point</h2>" + pd.read_csv(directory / "summary.csv").to_html(index=False)
+    else:
+        raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
+    page = (
+        f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+        f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>{body}</body></html>\n"
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "report.html"
+    path.write_text(page)
+    return path
