@@ -340,3 +340,28 @@ def test_mobility_constructor_errors_become_scenario_errors(base):
     with pytest.raises(ScenarioError) as ei:
         scenario.build(sc)
     assert ei.value.key_path == "nodes[1].mobility" and "speed_min" in ei.value.message
+
+
+@pytest.mark.parametrize(
+    "old, new, key",
+    [
+        ("duration_s = 30.0", "duraton_s = 30.0", "simulation.duration_s"),  # a key
+        ("[environment]", "[environmnt]", "environment"),  # a whole table
+        ('placement = { kind = "explicit"', 'placemnt = { kind = "explicit"', "nodes[0].placement"),  # in a list
+    ],
+)
+def test_missing_key_names_the_misspelling_beside_it(tmp_path: Path, old: str, new: str, key: str) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text(BASE.replace(old, new, 1))
+    e = err_of(p)
+    misspelled = new.split()[0].strip("[]")
+    assert (
+        str(e)
+        == f"{p}: {key}: required key missing (found {misspelled!r}: did you mean {key.split('.')[-1].split('[')[0]!r}?)"
+    )
+
+
+def test_missing_key_without_a_lookalike_says_only_missing(tmp_path: Path) -> None:
+    p = tmp_path / "m.toml"
+    p.write_text(BASE.replace("duration_s = 30.0", "").replace("seed = 5", "seed = 5\nnotes = 'x'"))
+    assert str(err_of(p)).endswith("simulation.duration_s: required key missing")

@@ -115,14 +115,35 @@ def _clean_loc(loc: Sequence[str | int], raw: Any) -> list[str | int]:
     return out
 
 
-def _message(err: dict[str, Any], loc: list[str | int], model: type[BaseModel] | None) -> tuple[list[str | int], str]:
+def _missing_hint(raw: Any, loc: Sequence[str | int], model: type[BaseModel] | None) -> str:
+    """For a required key that is missing: an unknown key beside it that looks like a
+    misspelling of it (``duraton_s`` for ``duration_s``), as a hint; "" when there is none."""
+    parent = raw
+    for el in loc[:-1]:
+        if isinstance(parent, dict) and el in parent:
+            parent = parent[el]
+        elif isinstance(parent, list) and isinstance(el, int) and -len(parent) <= el < len(parent):
+            parent = parent[el]
+        else:
+            return ""
+    if not isinstance(parent, dict) or not isinstance(loc[-1], str):
+        return ""
+    allowed = set(_allowed_keys(model, loc[:-1])) if model is not None else set()
+    unknown = [k for k in parent if isinstance(k, str) and k not in allowed and k != loc[-1]]
+    near = difflib.get_close_matches(loc[-1], unknown, n=1)
+    return f" (found {near[0]!r}: did you mean {loc[-1]!r}?)" if near else ""
+
+
+def _message(
+    err: dict[str, Any], loc: list[str | int], model: type[BaseModel] | None, raw: Any = None
+) -> tuple[list[str | int], str]:
     typ = err["type"]
     ctx = err.get("ctx") or {}
     inp = err.get("input")
     if typ == "missing":
         if loc == ["nodes"]:
             return loc, "at least one node group is required (add a [[nodes]] table)"
-        return loc, "required key missing"
+        return loc, "required key missing" + _missing_hint(raw, loc, model)
     if typ == "extra_forbidden":
         msg = "unknown key"
         keys = _allowed_keys(model, loc[:-1]) if model is not None else []
@@ -205,5 +226,5 @@ def raise_validation(
     to fix: one line)."""
     err = exc.errors(include_url=False)[0]
     loc = _clean_loc(list(err["loc"]), raw)
-    loc, msg = _message(dict(err), loc, model)
+    loc, msg = _message(dict(err), loc, model, raw)
     raise ScenarioError(file, format_key_path(list(prefix) + loc), msg) from None
