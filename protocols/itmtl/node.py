@@ -53,6 +53,9 @@ __all__ = ["ItmtlNode"]
 class ItmtlParams(ReqResParams):
     """ITMTL parameters (ITMTL-wsc: ``compensate = false``; no tracking: ``imm = false``)."""
 
+    hierarchy: bool = Field(
+        True, description="with >= min_refs buoy / anchor answers, use those alone (the paper's hierarchy)"
+    )
     compensate: bool = Field(True, description="stratification compensation through the ray tracer (False = ITMTL-wsc)")
     imm: bool = Field(True, description="IMM (CV KF + coordinated-turn EKF) filtering of the fixes; False = raw fixes")
     motion_split: bool = Field(True, description="relative-motion split of the round trip (False = half round trip)")
@@ -307,6 +310,11 @@ class ItmtlNode(ReqResNode):
     def process_round(self, rnd: Round) -> None:
         p = self.params
         ans = rnd.answers
+        anchors = [a for a in ans if a.anchor]
+        if p.hierarchy and len(anchors) >= p.min_refs:
+            # the paper's hierarchy: a node that reaches enough buoys / anchors synchronizes and
+            # localizes on them alone; promoted references serve the nodes that do not
+            ans = anchors
         if not ans:
             return
         r = rnd.index
@@ -317,6 +325,12 @@ class ItmtlNode(ReqResNode):
             self._ref_vel.append(a.vel)
         depth = self.depth()
         ref_pos = np.array([a.pos for a in ans])
+        # answers to the retry saw the node later: with a track velocity, move their reference
+        # back by the node's displacement since the first Req (same relative geometry)
+        late = np.array([(a.T1 - rnd.T1) / self.alpha for a in ans])
+        v_now = self._velocity_now()
+        if v_now is not None and np.any(late > 0):
+            ref_pos = ref_pos - late[:, None] * np.array([v_now[0], v_now[1], 0.0])
         ref_conf = np.array([a.conf for a in ans])
         ref_pstd = np.array([a.pos_std for a in ans])
         can_fix = len(ans) >= p.min_refs
@@ -329,24 +343,30 @@ class ItmtlNode(ReqResNode):
                     self.log_clock(self.alpha - 1.0, self.beta, round=r, n_refs=len(ans))
                 return
             t2 = np.array([a.t2 for a in ans])
-            try:
-                td = tdoa_ls(ref_pos, t2, p.mean_speed_mps, depth=depth)
-                rough, d1 = td.x, td.range_pivot
-                # Two hyperbola intersections (3 references), or a linearized solution thrown
-                # far off by a reference outside the node's hull: keep the candidate whose
-                # ranges agree best with the round trips (half of each at the mean speed;
-                # alpha ~ 1 is enough), the round-trip multilateration being one candidate.
-                S = np.array([(a.T4 - a.T1) - (a.t3 - a.t2) for a in ans])
-                rr = 0.5 * S * p.mean_speed_mps
-                cands = list(td.candidates) or [(td.x, td.range_pivot)]
-                with contextlib.suppress(EstimationError):  # degenerate: TDOA candidates only
-                    q = multilaterate(ref_pos, rr, depth=depth)
-                    cands.append((q, float(np.linalg.norm(ref_pos[0] - q))))
+            # TDOA needs the answers to one Req (the first or the retry, whichever has more)
+            first = np.array([a.T1 == rnd.T1 for a in ans])
+            grp = first if first.sum() >= (~first).sum() else ~first
+            piv = int(np.flatnonzero(grp)[0])
+            # Two hyperbola intersections (3 references), or a linearized solution thrown far
+            # off by a reference outside the node's hull: keep the candidate whose ranges agree
+            # best with the round trips (half of each at the mean speed; alpha ~ 1 is enough),
+            # the round-trip multilateration being one candidate.
+            S = np.array([(a.T4 - a.T1) - (a.t3 - a.t2) for a in ans])
+            rr = 0.5 * S * p.mean_speed_mps
+            cands: list[tuple[np.ndarray, float]] = []
+            if grp.sum() >= p.min_refs:
+                with contextlib.suppress(ValueError, np.linalg.LinAlgError, EstimationError):
+                    td = tdoa_ls(ref_pos[grp], t2[grp], p.mean_speed_mps, depth=depth)
+                    cands = list(td.candidates) or [(td.x, td.range_pivot)]
+            with contextlib.suppress(ValueError, np.linalg.LinAlgError, EstimationError):
+                q = multilaterate(ref_pos, rr, depth=depth)
+                cands.append((q, float(np.linalg.norm(ref_pos[piv] - q))))
+            if cands:
                 mis = [np.sum((np.linalg.norm(ref_pos - c, axis=1) - rr) ** 2) for c, _ in cands]
                 rough, d1 = cands[int(np.argmin(mis))]
                 if not self.synced:
-                    self.alpha, self.beta = initial_clock(ans[0].T1, ans[0].t2, d1, p.mean_speed_mps)
-            except (ValueError, np.linalg.LinAlgError):
+                    self.alpha, self.beta = initial_clock(ans[piv].T1, ans[piv].t2, d1, p.mean_speed_mps)
+            else:
                 rough = np.append(ref_pos[:, :2].mean(axis=0), depth)
             t1 = self.ref_time(rnd.T1)
         else:
