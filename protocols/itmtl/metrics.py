@@ -222,3 +222,18 @@ def mac_metrics(tables: Mapping[str, pd.DataFrame], name: str, res_kind: str = "
     could = scheduled.to_numpy(int) >= rounds["needed"].to_numpy(int)
     out["short_round_fraction"] = float((short & could).mean())
     return out
+
+
+def per_round_nmse(tables: Mapping[str, pd.DataFrame], name: str) -> pd.Series:
+    """Per round: localization NMSE of the ordinary nodes' estimates logged in that round
+    (sum of squared errors / sum of squared true positions, :func:`aquasim_py.metrics.nmse`'s
+    definition), the paper's Fig. 12 ordinate."""
+    ids = _ordinary(tables, name)
+    est = _rows(tables.get("estimates"), name, ids)
+    if len(est) == 0 or "round" not in est:
+        return pd.Series(dtype=float, name="loc_nmse")
+    x = est[["true_x", "true_y", "true_z"]].to_numpy(float)
+    d = est[["x", "y", "z"]].to_numpy(float) - x
+    g = pd.DataFrame({"round": est["round"].to_numpy(), "se": (d * d).sum(axis=1), "ss": (x * x).sum(axis=1)})
+    s = g.groupby("round")[["se", "ss"]].sum()
+    return (s["se"] / s["ss"]).rename("loc_nmse")
