@@ -19,6 +19,7 @@ import argparse
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -56,7 +57,7 @@ def _plot(
     series: str | None,
     ylabel: str,
     xlabel: str,
-    label: Callable[[object], str] = str,
+    label: Callable[[Any], str | None] = str,
     log: bool = True,
 ) -> None:
     import matplotlib
@@ -68,7 +69,14 @@ def _plot(
     groups = [(None, tab)] if series is None else list(tab.groupby(level=series))
     for key, g in groups:
         xs = g.index.get_level_values(x)
-        ax.errorbar(xs, g["mean"], yerr=g["half"], marker="o", capsize=3, label=None if key is None else label(key))
+        ax.errorbar(
+            xs,
+            g["mean"],
+            yerr=g["half"],
+            marker="o",
+            capsize=3,
+            label=None if key is None else (label(key) or str(key)),
+        )
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if log:

@@ -60,6 +60,7 @@ def correlation_weights(ranges_m: np.ndarray, corr_length_m: float) -> np.ndarra
 @register
 class MobiSyncNode(BaselineNode):
     name: ClassVar[str] = "mobi_sync"
+    paper: ClassVar[dict[str, str]] = {"sync error": "time error above ITMTL's (Fig. 9)"}
     Params = MobiSyncParams
 
     def setup(self) -> None:

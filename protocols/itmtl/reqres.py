@@ -40,7 +40,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
 from aquasim_py.node import Node, Role, SensorUnavailable
@@ -52,10 +52,8 @@ RES = "sync_res"
 REFERENCE_ROLES = (Role.BUOY, Role.ANCHOR)
 
 
-class ReqResParams(BaseModel):
+class ReqResParams(Node.Params):
     """Parameters shared by ITMTL and the baselines (times in local seconds)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     round_period_s: float = Field(30.0, gt=0, description="time between an ordinary node's Req broadcasts (s)")
     first_round_s: float = Field(10.0, ge=0, description="first Req at a uniform random time in [0, this) (s)")
@@ -364,6 +362,21 @@ class ReqResNode(Node):
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
 
+    #: What the ITMTL paper (seed 004) reports for this protocol, metric -> claim; for a
+    #: variants runner to print beside the measured comparison (``paper`` column).
+    paper: ClassVar[dict[str, str]] = {}
+
     @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
-        return itmtl_metrics.round_table(tables, cls.name)
+        m = itmtl_metrics.mac_metrics(tables, cls.name)
+        lines = [
+            itmtl_metrics.round_table(tables, cls.name),
+            f"{cls.name}: Res frames lost to collisions {m['res_collision_fraction']:.3f}, rounds short of "
+            f"answers by the MAC {m['short_round_fraction']:.3f} (for any reason {m['short_round_fraction_all']:.3f}), "
+            f"rounds retried {m['retry_fraction']:.3f}",
+        ]
+        if cls.paper:
+            # printed here until the variants runner shows a ``paper`` column of its own
+            lines.append(f"{cls.name} in the ITMTL paper (Gao et al.; compare with the variants table):")
+            lines += [f"  {k}: {v}" for k, v in cls.paper.items()]
+        return "\n".join(lines)
