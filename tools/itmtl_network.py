@@ -30,6 +30,7 @@ KEYS = ("coverage_final", "coverage", "coverage_upper_bound", "sync_final_mean_s
 
 def run(n: int, density: float, share: float, seed: int, duration: float) -> dict[str, float]:
     raw = tomllib.loads(SCEN.read_text())
+    raw.pop("variants", None)  # ITMTL only
     R = raw["channel"]["max_range_m"]
     side = math.sqrt(n * math.pi * R * R / density)
     rng = np.random.default_rng([seed, int(density * 100), int(share * 100)])

@@ -64,9 +64,9 @@ class BaselineNode(ReqResNode):
         self.log_clock(fit.alpha - 1.0, fit.beta, round=rnd.index, n_refs=len(ans))
         if len(ans) < self.params.min_refs or self.p_est is None:
             return
-        a = np.asarray(self.rows, float)
+        rows = np.asarray(self.rows, float)
         kn, kr = self.k_rates()
-        ex = Exchanges.build(a[:, 0], a[:, 1], a[:, 2], a[:, 3], kn, kr)
+        ex = Exchanges.build(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], kn, kr)
         tau_f, _ = split_delays(ex, fit.alpha)
         sel = np.array(self.rounds) == rnd.index
         fx = position_fix(self.model, ref_pos, tau_f[sel], self.p_est, depth=depth)

@@ -163,7 +163,11 @@ def position_fix(
         p[axes] = u
         return p
 
-    sw = np.ones(ref.shape[0]) if weights is None else np.sqrt(np.asarray(weights, dtype=float) / np.mean(weights))
+    if weights is None:
+        sw = np.ones(ref.shape[0])
+    else:
+        w = np.asarray(weights, dtype=float)
+        sw = np.sqrt(w / w.mean())
 
     def res(u: FloatArray) -> FloatArray:
         return sw * (model.delay(ref, full(u)) - tau)
@@ -181,7 +185,7 @@ def position_fix(
     except np.linalg.LinAlgError:
         cov = np.full((len(axes), len(axes)), np.inf)
     rms = float(np.sqrt(np.mean(sol.fun**2)))
-    return Fix(full(sol.x), cov, rms, bool(sol.success) and np.all(np.isfinite(sol.x)))
+    return Fix(full(sol.x), np.asarray(cov, dtype=np.float64), rms, bool(sol.success and np.all(np.isfinite(sol.x))))
 
 
 def reference_variance(confidence: ArrayLike, floor_m: float, residual_scale_m: float) -> FloatArray:

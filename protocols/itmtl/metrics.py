@@ -171,3 +171,64 @@ def round_table(tables: Mapping[str, pd.DataFrame], name: str) -> str:
             f"{row.get('loc_rmse_m', np.nan):>13.3f} {row.get('sync_all_mean_s', np.nan) * 1e6:>14.2f}"
         )
     return "\n".join(lines)
+
+
+def mac_metrics(tables: Mapping[str, pd.DataFrame], name: str, res_kind: str = "sync_res") -> dict[str, float]:
+    """How the Req/Res exchange fared (added for the slotted reply MAC).
+
+    - ``res_collision_fraction``: Res frames lost to a collision at their addressee / Res
+      frames sent (``packets`` table; every node of a Req/Res run shares the frame kinds);
+    - ``short_round_fraction``: rounds that ended with fewer answers than the node needs
+      (``min_refs``) although at least that many references scheduled an answer to them
+      (``reqres_replies``), i.e. rounds the MAC made short / rounds (``reqres_rounds``);
+    - ``short_round_fraction_all``: rounds with fewer answers than needed for any reason
+      (including nodes that do not reach enough references) / rounds;
+    - ``retry_fraction``: rounds that needed the retry.
+    """
+    nan = float("nan")
+    out = {
+        "res_collision_fraction": nan,
+        "short_round_fraction": nan,
+        "short_round_fraction_all": nan,
+        "retry_fraction": nan,
+    }
+    pk = tables.get("packets")
+    if pk is not None and len(pk):
+        res = pk[pk["kind"].astype(str) == res_kind]
+        sent = int((res["event"].astype(str) == "tx").sum())
+        lost = int(((res["event"].astype(str) == "drop") & (res["reason"].astype(str) == "collision")).sum())
+        if sent:
+            out["res_collision_fraction"] = lost / sent
+    rounds = tables.get("reqres_rounds")
+    if rounds is None or len(rounds) == 0:
+        return out
+    rounds = rounds[rounds["protocol"].astype(str) == name]
+    if len(rounds) == 0:
+        return out
+    short = rounds["answers"].to_numpy(int) < rounds["needed"].to_numpy(int)
+    out["short_round_fraction_all"] = float(short.mean())
+    out["retry_fraction"] = float(rounds["retried"].astype(bool).mean())
+    rep = tables.get("reqres_replies")
+    scheduled = pd.Series(0, index=pd.MultiIndex.from_arrays([rounds["node"], rounds["round"]]))
+    if rep is not None and len(rep):
+        n = rep.groupby(["requester", "round"])["node"].nunique()
+        n.index = n.index.set_names(["node", "round"])
+        scheduled = n.reindex(scheduled.index, fill_value=0)
+    could = scheduled.to_numpy(int) >= rounds["needed"].to_numpy(int)
+    out["short_round_fraction"] = float((short & could).mean())
+    return out
+
+
+def per_round_nmse(tables: Mapping[str, pd.DataFrame], name: str) -> pd.Series:
+    """Per round: localization NMSE of the ordinary nodes' estimates logged in that round
+    (sum of squared errors / sum of squared true positions, :func:`aquasim_py.metrics.nmse`'s
+    definition), the paper's Fig. 12 ordinate."""
+    ids = _ordinary(tables, name)
+    est = _rows(tables.get("estimates"), name, ids)
+    if len(est) == 0 or "round" not in est:
+        return pd.Series(dtype=float, name="loc_nmse")
+    x = est[["true_x", "true_y", "true_z"]].to_numpy(float)
+    d = est[["x", "y", "z"]].to_numpy(float) - x
+    g = pd.DataFrame({"round": est["round"].to_numpy(), "se": (d * d).sum(axis=1), "ss": (x * x).sum(axis=1)})
+    s = g.groupby("round")[["se", "ss"]].sum()
+    return (s["se"] / s["ss"]).rename("loc_nmse")

@@ -4,12 +4,26 @@ One SimPy process per node multiplexes three activities on a single receive loop
 two processes compete for the modem's inbox:
 
 - reference side (buoys, anchors, promoted ordinary nodes): a ``sync_req`` received at local
-  ``T`` is answered after a random hold with a ``sync_res`` to its sender carrying
-  ``t2`` (receive stamp, reference time), the reference's clock model (so that the frame's
-  MAC transmit stamp gives ``t3`` in reference time), position, velocity and confidence;
-- ordinary side: every ``round_period_s`` (local) broadcast ``sync_req``, collect the
-  answers for ``collect_window_s``, then hand the round to :meth:`ReqResNode.process_round`;
+  ``T`` is answered in the reply slot the requester assigned to it with a ``sync_res`` to its
+  sender carrying ``t2`` (receive stamp, reference time), the reference's clock model (so
+  that the frame's MAC transmit stamp gives ``t3`` in reference time), position, velocity,
+  confidence and whether it is a buoy / anchor;
+- ordinary side: every ``round_period_s`` (local, plus a per-round uniform jitter) broadcast
+  ``sync_req``, collect the answers until the last slot can have arrived, ask the references
+  that did not answer once more (one retry), then hand the round to
+  :meth:`ReqResNode.process_round`;
 - TSHL's one-way beacons are the ``sync_res`` stamps themselves (``t3`` sent, ``T4`` received).
+
+The reply MAC (``mac = "slots"``, added: the paper gives no MAC). The Req lists the
+references the node heard in its last rounds, closest first (by their last round trip), and
+gives each a slot index ``k``; a listed reference answers ``turnaround_s + k * slot`` after
+it received the Req, with ``slot = Res duration + max_prop_delay_s + slot_guard_s``. Sorted
+by round trip, consecutive answers arrive at least ``slot - 2 * (change of a delay since the
+last round)`` apart, so they cannot overlap at the requester. Unlisted references (not heard
+yet) pick one of ``contention_slots`` random slots after the listed ones; a Req marked closed
+(the node already knows enough buoys / anchors: the hierarchy) gets no unlisted answers.
+``mac = "random"`` is the former scheme (hold ``hold_min_s + U(0, hold_spread_s)``, fixed
+``collect_window_s``, no retry), kept to measure what the slots change.
 
 Buoys and anchors keep true time and know their position (GPS / surveyed deployment); a
 promoted node answers with its synchronized time and its estimated position.
@@ -22,11 +36,11 @@ from __future__ import annotations
 import math
 from collections.abc import Generator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
 from aquasim_py.node import Node, Role, SensorUnavailable
@@ -38,16 +52,25 @@ RES = "sync_res"
 REFERENCE_ROLES = (Role.BUOY, Role.ANCHOR)
 
 
-class ReqResParams(BaseModel):
+class ReqResParams(Node.Params):
     """Parameters shared by ITMTL and the baselines (times in local seconds)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     round_period_s: float = Field(30.0, gt=0, description="time between an ordinary node's Req broadcasts (s)")
     first_round_s: float = Field(10.0, ge=0, description="first Req at a uniform random time in [0, this) (s)")
-    collect_window_s: float = Field(5.0, gt=0, description="how long answers are collected after a Req (s)")
-    hold_min_s: float = Field(0.15, ge=0, description="a reference's minimum delay before answering (s)")
-    hold_spread_s: float = Field(2.0, ge=0, description="plus a uniform random delay up to this (s)")
+    round_jitter_s: float = Field(
+        10.0, ge=0, description="each round starts round_period_s + U(-this/2, this/2) after the last (s)"
+    )
+    mac: Literal["slots", "random"] = Field("slots", description="reply MAC: assigned slots + retry, or random holds")
+    bitrate_bps: float = Field(5000.0, gt=0, description="the modem's bit rate, for frame durations (bit/s)")
+    max_prop_delay_s: float = Field(0.85, gt=0, description="longest one-way delay within modem range (s)")
+    slot_guard_s: float = Field(0.05, ge=0, description="guard time added to each reply slot (s)")
+    turnaround_s: float = Field(0.15, ge=0, description="a reference's delay before its first slot (s)")
+    contention_slots: int = Field(4, ge=0, description="random slots for references the Req does not list")
+    retry: bool = Field(True, description="ask once more the listed references that did not answer")
+    forget_rounds: int = Field(2, ge=1, description="a reference silent this many rounds in a row is not listed")
+    collect_window_s: float = Field(5.0, gt=0, description="mac = random: how long answers are collected (s)")
+    hold_min_s: float = Field(0.15, ge=0, description="mac = random: minimum delay before answering (s)")
+    hold_spread_s: float = Field(2.0, ge=0, description="mac = random: plus a uniform random delay up to this (s)")
     req_bits: int = Field(96, ge=1, description="Req frame size (bits)")
     res_bits: int = Field(224, ge=1, description="Res frame size (bits)")
     min_refs: int = Field(3, ge=1, description="answers needed to localize (3 at known depth)")
@@ -75,6 +98,7 @@ class Answer:
     pos_std: float = 0.0  #: announced position std (m)
     vel_std: float = 0.0  #: announced velocity std per axis (m/s)
     time_std: float = 0.0  #: announced reference-time std (s)
+    anchor: bool = True  #: a buoy / anchor (true time, known position), not a promoted node
 
 
 @dataclass
@@ -82,6 +106,10 @@ class Round:
     index: int
     T1: float
     answers: list[Answer] = field(default_factory=list)
+    asked: list[int] = field(default_factory=list)  #: references given a slot (first Req)
+    open: bool = True  #: the first Req had open slots (not closed by the hierarchy)
+    T1s: list[float] = field(default_factory=list)  #: local send stamps of the Req and its retry
+    retried: bool = False
 
 
 class ReqResNode(Node):
@@ -101,6 +129,8 @@ class ReqResNode(Node):
         self.beta = 0.0
         self.synced = self.is_reference
         self._replies: list[tuple[float, int, dict[str, Any]]] = []  # (due local, dst, payload)
+        # references heard: id -> (last round, last round trip S in local s, buoy / anchor)
+        self._known: dict[int, tuple[int, float, bool]] = {}
 
     # -- what a reference tells others ------------------------------------------------------------
 
@@ -154,6 +184,46 @@ class ReqResNode(Node):
 
     # -- main loop --------------------------------------------------------------------------------
 
+    def slot_s(self) -> float:
+        """Reply slot length (s): Res duration + longest one-way delay + guard."""
+        p = self.params
+        return p.res_bits / p.bitrate_bps + p.max_prop_delay_s + p.slot_guard_s
+
+    def _slot_plan(self, rnd_index: int) -> tuple[list[int], int]:
+        """References to list in the next Req (closest first) and the number of open slots.
+
+        The hierarchy: when the node heard at least ``min_refs`` buoys / anchors in its last
+        rounds it lists only those and closes the Req to everyone else."""
+        p = self.params
+        fresh = {j: k for j, k in self._known.items() if rnd_index - k[0] <= p.forget_rounds}
+        self._known = fresh
+        anchors = [j for j, k in fresh.items() if k[2]]
+        if len(anchors) >= p.min_refs:
+            return sorted(anchors, key=lambda j: (fresh[j][1], j)), 0
+        return sorted(fresh, key=lambda j: (fresh[j][1], j)), p.contention_slots
+
+    def _send_req(
+        self, rnd_index: int, listed: list[int], n_open: int, attempt: int = 0
+    ) -> Generator[Any, Any, tuple[float, float]]:
+        """Broadcast a Req; returns (local send stamp, local end of its collection window)."""
+        p = self.params
+        if p.mac == "random":
+            T1 = yield self.broadcast(REQ, {"round": rnd_index, "try": attempt}, p.req_bits)
+            return float(T1), float(T1) + p.collect_window_s
+        slot = self.slot_s()
+        payload = {
+            "round": rnd_index,
+            "try": attempt,
+            "slots": tuple(listed),
+            "open": n_open,
+            "slot_s": slot,
+            "turn_s": p.turnaround_s,
+        }
+        # 8 bits per listed reference id
+        T1 = yield self.broadcast(REQ, payload, p.req_bits + 8 * len(listed))
+        last = p.turnaround_s + (len(listed) + n_open) * slot + 2.0 * p.max_prop_delay_s
+        return float(T1), float(T1) + last
+
     def run(self) -> Generator[Any, Any, None]:
         p = self.params
         start = self.local_time()
@@ -171,15 +241,37 @@ class ReqResNode(Node):
                     yield from self._send_due_replies()
                     continue
                 if collect_end <= now and current is not None:
+                    got = {a.ref for a in current.answers}
+                    missing = [j for j in current.asked if j not in got]
+                    # one retry: the listed references that did not answer, plus open slots if
+                    # the round is still short and was not closed by the hierarchy
+                    n_open = p.contention_slots if len(current.answers) < p.min_refs and current.open else 0
+                    if p.mac == "slots" and p.retry and not current.retried and (missing or n_open):
+                        current.retried = True
+                        T1r, collect_end = yield from self._send_req(current.index, missing, n_open, 1)
+                        current.T1s.append(T1r)
+                        continue
+                    for a in current.answers:
+                        self._known[a.ref] = (current.index, (a.T4 - a.T1) - (a.t3 - a.t2), a.anchor)
+                    self.log(
+                        "reqres_rounds",
+                        round=current.index,
+                        answers=len(current.answers),
+                        anchors=sum(a.anchor for a in current.answers),
+                        asked=len(current.asked),
+                        retried=current.retried,
+                        needed=p.min_refs,
+                    )
                     self.process_round(current)
                     current, collect_end = None, math.inf
                     continue
                 if next_round <= now:
                     self.round_index += 1
-                    T1 = yield self.broadcast(REQ, {"round": self.round_index}, p.req_bits)
-                    current = Round(self.round_index, float(T1))
-                    collect_end = float(T1) + p.collect_window_s
-                    next_round = float(T1) + p.round_period_s
+                    listed, n_open = self._slot_plan(self.round_index)
+                    T1, collect_end = yield from self._send_req(self.round_index, listed, n_open)
+                    current = Round(self.round_index, T1, asked=listed, open=n_open > 0, T1s=[T1])
+                    jitter = float(self.rng.uniform(-0.5, 0.5)) * p.round_jitter_s if p.round_jitter_s > 0 else 0.0
+                    next_round = T1 + p.round_period_s + jitter
                     continue
             timeout = None if math.isinf(wake) else max(0.0, wake - now)
             rec = yield self.recv(timeout=timeout, kinds=(REQ, RES))
@@ -187,26 +279,32 @@ class ReqResNode(Node):
                 continue
             pkt = rec.packet
             if pkt.kind == REQ and self.answers_requests():
-                hold = p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
+                pl = pkt.payload
+                if "slots" in pl:
+                    if self.id in pl["slots"]:
+                        k = pl["slots"].index(self.id)
+                    elif pl["open"] > 0:
+                        k = len(pl["slots"]) + int(self.rng.integers(pl["open"]))
+                    else:
+                        continue  # closed Req: the requester has enough buoys / anchors
+                    hold = pl["turn_s"] + k * pl["slot_s"]
+                else:
+                    hold = p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
+                self.log("reqres_replies", requester=pkt.src, round=pl["round"], hold_s=hold)
                 self._replies.append(
-                    (
-                        rec.rx_local + hold,
-                        pkt.src,
-                        {
-                            "round": pkt.payload["round"],
-                            "T2_local": rec.rx_local,
-                        },
-                    )
+                    (rec.rx_local + hold, pkt.src, {"round": pl["round"], "try": pl["try"], "T2_local": rec.rx_local})
                 )
             elif (
                 pkt.kind == RES and current is not None and pkt.dst == self.id and pkt.payload["round"] == current.index
             ):
                 pl = pkt.payload
+                if any(a.ref == pkt.src for a in current.answers):
+                    continue  # a late first answer after the retry asked again: keep one
                 a_ref, b_ref = pl["clock"]
                 current.answers.append(
                     Answer(
                         pkt.src,
-                        current.T1,
+                        current.T1s[pl["try"]],
                         pl["t2"],
                         (pkt.tx_local - b_ref) / a_ref,
                         rec.rx_local,
@@ -216,6 +314,7 @@ class ReqResNode(Node):
                         float(pl["pos_std"]),
                         float(pl["vel_std"]),
                         float(pl["time_std"]),
+                        bool(pl["anchor"]),
                     )
                 )
 
@@ -239,6 +338,7 @@ class ReqResNode(Node):
             # reference time (identity for buoys and anchors).
             payload = {
                 "round": info["round"],
+                "try": info["try"],
                 "t2": t2,
                 "clock": (self.alpha, self.beta),
                 "pos": tuple(map(float, pos)),
@@ -247,6 +347,7 @@ class ReqResNode(Node):
                 "pos_std": self.position_std(),
                 "vel_std": self.velocity_std(),
                 "time_std": self.time_std(t2),
+                "anchor": bool(self.is_anchor),
             }
             yield self.send(dst, RES, payload, self.params.res_bits)
 
@@ -259,8 +360,23 @@ class ReqResNode(Node):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
-        return itmtl_metrics.protocol_metrics(tables, cls.name)
+        return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
+
+    #: What the ITMTL paper (seed 004) reports for this protocol, metric -> claim; for a
+    #: variants runner to print beside the measured comparison (``paper`` column).
+    paper: ClassVar[dict[str, str]] = {}
 
     @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
-        return itmtl_metrics.round_table(tables, cls.name)
+        m = itmtl_metrics.mac_metrics(tables, cls.name)
+        lines = [
+            itmtl_metrics.round_table(tables, cls.name),
+            f"{cls.name}: Res frames lost to collisions {m['res_collision_fraction']:.3f}, rounds short of "
+            f"answers by the MAC {m['short_round_fraction']:.3f} (for any reason {m['short_round_fraction_all']:.3f}), "
+            f"rounds retried {m['retry_fraction']:.3f}",
+        ]
+        if cls.paper:
+            # printed here until the variants runner shows a ``paper`` column of its own
+            lines.append(f"{cls.name} in the ITMTL paper (Gao et al.; compare with the variants table):")
+            lines += [f"  {k}: {v}" for k, v in cls.paper.items()]
+        return "\n".join(lines)

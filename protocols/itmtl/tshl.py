@@ -24,6 +24,7 @@ from .baseline import BaselineNode
 @register
 class TshlNode(BaselineNode):
     name: ClassVar[str] = "tshl"
+    paper: ClassVar[dict[str, str]] = {"sync error": "time error above ITMTL's, ITMTL-wsc's and Mobi-Sync's (Fig. 9)"}
 
     def fit(self) -> ClockFit:
         a = np.asarray(self.rows, float)

@@ -70,3 +70,34 @@ def test_metrics_sync_over_covered_nodes_and_nmse():
     pr = per_round(tables, "itmtl")
     assert pr.loc[1, "sync_mean_s"] == pytest.approx(4e-5)
     assert pr.loc[2, "sync_all_mean_s"] == pytest.approx((1e-5 + 5e-4) / 2)
+
+
+def test_mac_metrics_on_a_hand_made_table():
+    from aquasim_py.protocols.itmtl.metrics import mac_metrics
+
+    # 4 Res sent, 1 lost to a collision at its addressee, 1 to half duplex
+    pk = pd.DataFrame(
+        {
+            "event": ["tx"] * 4 + ["drop", "drop", "rx", "rx"] + ["tx"],
+            "reason": [None] * 4 + ["collision", "half_duplex", None, None] + [None],
+            "kind": ["sync_res"] * 8 + ["sync_req"],
+        }
+    )
+    # node 3: round 1 short although 3 references scheduled answers (MAC), round 2 short with
+    # only 2 references in reach (topology), round 3 complete
+    rounds = pd.DataFrame(
+        {
+            "node": [3, 3, 3],
+            "protocol": "itmtl",
+            "round": [1, 2, 3],
+            "answers": [2, 2, 3],
+            "needed": [3, 3, 3],
+            "retried": [True, True, False],
+        }
+    )
+    rep = pd.DataFrame({"node": [0, 1, 2, 0, 1, 0, 1, 2], "requester": 3, "round": [1, 1, 1, 2, 2, 3, 3, 3]})
+    m = mac_metrics({"packets": pk, "reqres_rounds": rounds, "reqres_replies": rep}, "itmtl")
+    assert m["res_collision_fraction"] == pytest.approx(1 / 4)
+    assert m["short_round_fraction"] == pytest.approx(1 / 3)
+    assert m["short_round_fraction_all"] == pytest.approx(2 / 3)
+    assert m["retry_fraction"] == pytest.approx(2 / 3)
