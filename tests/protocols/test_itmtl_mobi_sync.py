@@ -39,7 +39,7 @@ def _drifting(protocol: str, seed: int) -> dict:
     raw.pop("variants", None)
     raw["simulation"].update(seed=seed, duration_s=300.0)
     raw["environment"]["sound_speed"] = {"model": "constant", "speed_mps": 1500.0}
-    cur = {"model": "meandering_current", "phase": 0.0}
+    cur = {"model": "kinematic", "phase": 0.0}
     raw["nodes"] = [
         {
             "name": "buoys",
