@@ -62,6 +62,7 @@ MOBILITY_CLASSES = {
     "random_walk": "RandomWalk",
     "meandering_current": "MeanderingCurrent",
     "waypoints": "Waypoints",
+    "noisy_constant_velocity": "NoisyConstantVelocity",
 }
 
 
@@ -713,6 +714,10 @@ def channel_config(sc: Scenario) -> Any:
         capture_threshold_db=c.capture_threshold_db,
         jitter_std_s=c.jitter_std_s,
         reflections=c.reflections,
+        pressure_kind=c.pressure_kind,
+        pressure_source_level=c.pressure_source_level,
+        pressure_exponent=c.pressure_exponent,
+        pressure_noise_std=c.pressure_noise_std,
     )
 
 

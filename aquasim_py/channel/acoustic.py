@@ -93,6 +93,10 @@ class ChannelConfig:
         then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
+    pressure_kind: packets of this kind are sound emissions: each reception carries the received
+        pressure (``channel.pressure``, eq 6 of MSWPF) plus N(0, pressure_noise_std^2) drawn from
+        the receiver's ("node", id, "pressure") stream; None = off.
+    pressure_source_level, pressure_exponent: S and k of h = S / D^k.
     """
 
     max_range_m: float = 5000.0
@@ -108,6 +112,10 @@ class ChannelConfig:
     capture_threshold_db: float = 6.0
     jitter_std_s: float = 0.0
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    pressure_kind: str | None = None
+    pressure_source_level: float = 5e4
+    pressure_exponent: float = 1.0
+    pressure_noise_std: float = 5.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -419,10 +427,20 @@ class AcousticChannel:
             )
             return
         rx_local = rcore.stamp(arr)
-        rcore.deliver(Reception(pkt, rx_local, snr))
+        p = self._pressure(pkt.src, rcore, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
+        rcore.deliver(Reception(pkt, rx_local, snr, p))
         self._row(
             (arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local)
         )
+
+    def _pressure(self, src: int, rcore: _NodeCore, t_send: float, t_arr: float) -> float:
+        """Hydrophone reading of a sound emission (sender at send time, receiver at arrival)."""
+        from .pressure import received_pressure
+
+        pos = self._sim.positions_at(np.array([src, rcore.index]), np.array([t_send, t_arr]))
+        c = self.config
+        h = float(received_pressure(pos[0], pos[1], c.pressure_source_level, c.pressure_exponent))
+        return float(rcore._noisy("pressure", h, c.pressure_noise_std))
 
     def _prune(self, core: _NodeCore) -> None:
         """Forget own transmissions that can no longer overlap a pending reception.
