@@ -193,6 +193,7 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
+        self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
 
     # -- transmit ---------------------------------------------------------------------------------
 
@@ -427,19 +428,22 @@ class AcousticChannel:
             )
             return
         rx_local = rcore.stamp(arr)
-        p = self._pressure(pkt.src, rcore, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
+        p = self._pressure(pkt, rcore, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
         rcore.deliver(Reception(pkt, rx_local, snr, p))
         self._row(
             (arr, "rx", None, rcore.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local)
         )
 
-    def _pressure(self, src: int, rcore: _NodeCore, t_send: float, t_arr: float) -> float:
+    def _pressure(self, pkt: Packet, rcore: _NodeCore, t_send: float, t_arr: float) -> float:
         """Hydrophone reading of a sound emission (sender at send time, receiver at arrival)."""
         from .pressure import received_pressure
 
-        pos = self._sim.positions_at(np.array([src, rcore.index]), np.array([t_send, t_arr]))
+        if self._emitter[0] != pkt.uid:  # one source position per emission, shared by its receivers
+            self._emitter = (pkt.uid, self._sim._cores[pkt.src].position(t_send))
         c = self.config
-        h = float(received_pressure(pos[0], pos[1], c.pressure_source_level, c.pressure_exponent))
+        h = float(
+            received_pressure(self._emitter[1], rcore.position(t_arr), c.pressure_source_level, c.pressure_exponent)
+        )
         return float(rcore._noisy("pressure", h, c.pressure_noise_std))
 
     def _prune(self, core: _NodeCore) -> None:
