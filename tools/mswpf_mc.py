@@ -111,9 +111,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--only", action="append", default=[], help="KEY=V1,V2: run only these grid values")
+    ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the base scenario")
     ap.add_argument("--summary-only", action="store_true", help="summarize an existing CSV")
     a = ap.parse_args(argv)
-    sc = _scenario.load(a.sweep)
+    sc = _scenario.load(a.sweep, overrides=a.set)
     assert sc.sweep is not None
     keys = list(sc.sweep.grid)
     out = Path(a.out or f"out/mswpf_mc/{sc.name}.csv")
