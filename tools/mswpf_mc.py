@@ -108,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("sweep")
     ap.add_argument("--runs", type=int, default=None, help="first N runs of each grid point (default: the file's)")
+    ap.add_argument("--first-run", type=int, default=0, help="skip runs below this index (extend a CSV)")
+    ap.add_argument("--append", action="store_true", help="add the new runs to an existing CSV")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--only", action="append", default=[], help="KEY=V1,V2: run only these grid values")
@@ -123,7 +125,9 @@ def main(argv: list[str] | None = None) -> int:
         jobs = [
             j
             for j in _sweep.plan(sc)
-            if (a.runs is None or j.run < a.runs) and all(str(v) in only.get(k, [str(v)]) for k, v in j.point)
+            if (a.runs is None or j.run < a.runs)
+            and j.run >= a.first_run
+            and all(str(v) in only.get(k, [str(v)]) for k, v in j.point)
         ]
         base = {k: v for k, v in sc.to_dict().items() if k != "sweep"}
         path = str(sc.path) if sc.path is not None else None
@@ -140,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
                     frames.append(f.result())
                     print(f"\r{i + 1}/{len(jobs)} runs, {time.perf_counter() - t0:.0f} s", end="", file=sys.stderr)
         print(file=sys.stderr)
+        if a.append and out.exists():
+            frames.insert(0, pd.read_csv(out))
         df = pd.concat(frames, ignore_index=True).sort_values(keys + ["run", "step"], kind="stable")
         out.parent.mkdir(parents=True, exist_ok=True)
         df.to_csv(out, index=False)

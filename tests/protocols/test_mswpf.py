@@ -145,3 +145,15 @@ def test_network_tracks_and_is_deterministic(ideal: bool) -> None:
         for w in steps["weights"]:
             if w:
                 assert sum(map(float, w.split())) == pytest.approx(1.0, abs=1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    not hasattr(__import__("aquasim_py"), "run_scenario"), reason="variants loader not on this branch yet"
+)
+def test_shipped_2d_scenario_variants_run() -> None:
+    import aquasim_py
+
+    r = aquasim_py.run_scenario("scenarios/mswpf_2d.toml", variant="ew", overrides=["nodes.1.params.steps=10"])  # type: ignore[attr-defined]
+    assert r.metrics["mswpf.steps"] == 10
+    assert r.scenario.nodes[1].params["weights"] == "ew"
