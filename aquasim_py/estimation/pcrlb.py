@@ -65,7 +65,7 @@ def best_subset(J_prior: ArrayLike, infos: ArrayLike, k: int) -> NDArray[np.intp
     """Indices of the k candidates minimizing the PCRLB, i.e. maximizing det J (eq 36); all
     candidates if there are at most k. Ties go to the lexicographically first subset."""
     C = np.asarray(infos).shape[0]
-    if C <= k:
+    if k >= C:
         return np.arange(C, dtype=np.intp)
     subs, dets = subset_determinants(J_prior, infos, k)
     return subs[int(np.argmax(dets))]
