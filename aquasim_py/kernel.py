@@ -166,6 +166,10 @@ class _NodeCore:
         """The node's MAC-jitter stream ("node", id, "mac_jitter")."""
         return self.sim.rng("node", self.index, "mac_jitter")
 
+    def stream(self, purpose: str) -> np.random.Generator:
+        """The node's own stream ("node", id, ``purpose``) for a channel-side measurement."""
+        return self.sim.rng("node", self.index, purpose)
+
     def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         if dst is not None and not 0 <= dst < len(self.sim.nodes):
             raise ValueError(f"node {self.index}: no node with id {dst}")

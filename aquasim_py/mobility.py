@@ -37,6 +37,7 @@ __all__ = [
     "MeanderingCurrent",
     "MeanderingJet",
     "Mobility",
+    "NoisyConstantVelocity",
     "RandomWalk",
     "Static",
     "Waypoints",
@@ -539,6 +540,103 @@ class RandomWalk(Mobility):
             return np.empty((0, self.n, 3))
         self._leg((count - 1) * self.leg_duration)
         return self._vel_data[:count].copy()
+
+
+class NoisyConstantVelocity(Mobility):
+    """The discrete-time nearly-constant-velocity target of tracking papers (e.g. MSWPF eqs 1-3,
+    38-40): states sampled every ``dt`` s from ``start_s`` on, x_{k+1} = F x_k + w_k with the
+    exactly discretized white-noise-acceleration covariance of density ``q`` (m^2/s^3) on each
+    moving axis (x, y; and z with ``vertical``). Between samples the node moves in a straight
+    line (the reported velocity is that segment's), so positions at the sample instants are
+    exactly the model's; before ``start_s`` it rests at its initial position. Steps are drawn
+    from ``rng`` in fixed blocks of 64, all nodes at once, as far as queries reach.
+    """
+
+    _BLOCK = 64
+
+    def __init__(
+        self,
+        initial_positions: ArrayLike,
+        box: Box,
+        rng: np.random.Generator | None = None,
+        *,
+        velocity: ArrayLike = (0.0, 0.0, 0.0),
+        q: float = 1.0,
+        dt: float = 1.0,
+        start_s: float = 0.0,
+        vertical: bool = False,
+    ) -> None:
+        super().__init__(initial_positions, box, rng)
+        self._steps_rng = _need_rng(rng, "NoisyConstantVelocity")
+        v = np.asarray(velocity, dtype=float)
+        try:
+            v = np.broadcast_to(v, (self.n, 3)).copy()
+        except ValueError:
+            raise ValueError(f"velocity must be a 3-vector or shape ({self.n}, 3), got {v.shape}") from None
+        if not np.all(np.isfinite(v)):
+            raise ValueError("velocity must be finite")
+        if not (math.isfinite(q) and q >= 0.0):
+            raise ValueError(f"q must be >= 0 and finite, got {q!r}")
+        self.dt = _positive("dt", dt)
+        self.start_s = float(start_s)
+        if not (math.isfinite(self.start_s) and self.start_s >= 0.0):
+            raise ValueError(f"start_s must be >= 0 and finite, got {start_s!r}")
+        self.vertical = bool(vertical)
+        if not self.vertical:
+            v[:, 2] = 0.0
+        self.q = float(q)
+        T = self.dt
+        # per axis: [p, v] covariance of the exact CWNA discretization, as a Cholesky factor
+        self._L = np.linalg.cholesky(q * np.array([[T**3 / 3.0, T**2 / 2.0], [T**2 / 2.0, T]]) + 1e-300 * np.eye(2))
+        self._P = _Table(self._p0)
+        self._V = _Table(v)
+
+    def _draw_block(self) -> None:
+        b, n = self._BLOCK, self.n
+        z = self._steps_rng.standard_normal((b, n, 3, 2))
+        w = z @ self._L.T  # (b, n, 3, [p, v])
+        if not self.vertical:
+            w[:, :, 2, :] = 0.0
+        p, v = self._P.last.copy(), self._V.last.copy()
+        ps, vs = np.empty((b, n, 3)), np.empty((b, n, 3))
+        for j in range(b):  # a recursion in time (over steps, not nodes)
+            p = p + self.dt * v + w[j, :, :, 0]
+            v = v + w[j, :, :, 1]
+            ps[j], vs[j] = p, v
+        self._P.append(ps)
+        self._V.append(vs)
+
+    def _seg(self, t: Array) -> tuple[NDArray[np.intp], Array]:
+        """Segment index k (-1 before the start) and time into it."""
+        u = (t - self.start_s) / self.dt
+        k = np.where(u < 0.0, -1, np.floor(u)).astype(np.intp)
+        kmax = int(k.max()) if k.size else 0
+        while self._P.count <= kmax + 1:
+            self._draw_block()
+        return k, t - self.start_s - np.maximum(k, 0) * self.dt
+
+    def _at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
+        k, tau = self._seg(t)
+        kk = np.maximum(k, 0)
+        p0 = self._P.data[kk, idx]
+        seg_v = (self._P.data[kk + 1, idx] - p0) / self.dt
+        before = (k < 0)[:, None]
+        pos = np.where(before, self._p0[idx], p0 + seg_v * tau[:, None])
+        return pos, np.where(before, 0.0, seg_v)
+
+    def _raw_position(self, t: float) -> Array:
+        idx = np.arange(self.n)
+        return self._at(idx, np.full(self.n, t))[0]
+
+    def _raw_velocity(self, t: float) -> Array:
+        idx = np.arange(self.n)
+        return self._at(idx, np.full(self.n, t))[1]
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._at(idx, t)[0]
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._at(idx, t)[1]
 
 
 class Waypoints(Mobility):

@@ -211,6 +211,11 @@ class Node:
         """
         return self.__k.read_position()
 
+    def position_fix_std(self) -> float:
+        """The stated accuracy (noise std per axis, m) of the node's own position fix: its spec
+        sheet (or a GPS's reported accuracy), not its actual error."""
+        return float(self.__k.sensors.position_std)
+
     # -- logging --------------------------------------------------------------------------------
 
     def log(self, table: str, **columns: Any) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,8 +33,11 @@ class Reception:
 
     ``rx_local`` is the receiver's MAC stamp (s, receiver's local clock) of the first bit's
     arrival; ``snr_db`` the signal-to-noise ratio of the reception (NaN without a loss model).
+    ``pressure`` is the received acoustic pressure the receiver's hydrophone measured (with its
+    noise), for packets of the channel's ``pressure_kind`` (sound emissions); NaN otherwise.
     """
 
     packet: Packet
     rx_local: float
     snr_db: float
+    pressure: float = math.nan

@@ -86,6 +86,10 @@ class RadioPort(Protocol):
         """The node's own random stream for MAC timestamp jitter (the channel asks once)."""
         ...
 
+    def stream(self, purpose: str) -> np.random.Generator:
+        """The node's own random stream ("node", id, ``purpose``), e.g. its hydrophone noise."""
+        ...
+
     def deliver(self, reception: Reception) -> None:
         """Hand a reception to the node (its waiting ``recv`` or its inbox)."""
         ...

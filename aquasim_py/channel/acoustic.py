@@ -94,6 +94,10 @@ class ChannelConfig:
         then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
+    pressure_kind: packets of this kind are sound emissions: each reception carries the received
+        pressure (``channel.pressure``, eq 6 of MSWPF) plus N(0, pressure_noise_std^2) drawn from
+        the receiver's ("node", id, "pressure") stream; None = off.
+    pressure_source_level, pressure_exponent: S and k of h = S / D^k.
     """
 
     max_range_m: float = 5000.0
@@ -109,6 +113,10 @@ class ChannelConfig:
     capture_threshold_db: float = 6.0
     jitter_std_s: float = 0.0
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    pressure_kind: str | None = None
+    pressure_source_level: float = 5e4
+    pressure_exponent: float = 1.0
+    pressure_noise_std: float = 5.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -169,7 +177,18 @@ def default_loss_model() -> LossModel:
 class _Modem:
     """The channel's own state for one node's modem, and the node's port (its bound methods)."""
 
-    __slots__ = ("clock_stamp", "deliver", "index", "jitter", "log_cap", "port", "rx_log", "tx_free_at", "tx_log")
+    __slots__ = (
+        "clock_stamp",
+        "deliver",
+        "index",
+        "jitter",
+        "log_cap",
+        "port",
+        "pressure_rng",
+        "rx_log",
+        "tx_free_at",
+        "tx_log",
+    )
 
     def __init__(self, port: RadioPort) -> None:
         self.port = port
@@ -178,6 +197,7 @@ class _Modem:
         self.clock_stamp = port.clock_stamp
         self.deliver = port.deliver
         self.jitter: np.random.Generator | None = None  # the port's jitter stream, asked on first use
+        self.pressure_rng: np.random.Generator | None = None  # ("node", id, "pressure"), on first use
         self.tx_free_at = 0.0  # true time (s) the modem is free to start the next queued packet
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
@@ -218,6 +238,7 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
+        self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
 
     # -- nodes ------------------------------------------------------------------------------------
 
@@ -482,8 +503,26 @@ class AcousticChannel:
             return
         # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
         rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
-        rx.deliver(Reception(pkt, rx_local, snr))
+        p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
+        rx.deliver(Reception(pkt, rx_local, snr, p))
         self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+
+    def _pressure(self, pkt: Packet, rx: _Modem, t_send: float, t_arr: float) -> float:
+        """Hydrophone reading of a sound emission (sender at send time, receiver at arrival),
+        with the noise drawn from the receiver's own ("node", id, "pressure") stream."""
+        from .pressure import received_pressure
+
+        if self._emitter[0] != pkt.uid:  # one source position per emission, shared by its receivers
+            src = self._net.positions_at(np.array([pkt.src]), np.array([t_send]))[0]
+            self._emitter = (pkt.uid, src)
+        c = self.config
+        here = self._net.positions_at(np.array([rx.index]), np.array([t_arr]))[0]
+        h = float(received_pressure(self._emitter[1], here, c.pressure_source_level, c.pressure_exponent))
+        if c.pressure_noise_std <= 0.0:
+            return h
+        if rx.pressure_rng is None:
+            rx.pressure_rng = rx.port.stream("pressure")
+        return h + float(rx.pressure_rng.normal(0.0, c.pressure_noise_std))
 
     def _prune(self, modem: _Modem) -> None:
         """Forget own transmissions that can no longer overlap a pending reception.

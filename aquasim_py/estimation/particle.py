@@ -24,6 +24,7 @@ __all__ = [
     "propagate",
     "resample",
     "residual_resample",
+    "sir_update",
     "systematic_resample",
     "update_log_weights",
     "weighted_cov",
@@ -153,3 +154,22 @@ def weighted_cov(x: ArrayLike, w: ArrayLike) -> Array:
     D = x - w @ x
     C = (D * w[:, None]).T @ D
     return 0.5 * (C + C.T)
+
+
+def sir_update(
+    particles: ArrayLike,
+    logw: ArrayLike,
+    loglik: ArrayLike,
+    rng: np.random.Generator,
+    method: str = "systematic",
+) -> tuple[Array, Array, Array, Array]:
+    """One SIR measurement update (transition prior as proposal): weight by the likelihood,
+    take the weighted mean and covariance, resample. Returns (particles, log-weights, mean,
+    cov); the moments are of the weighted set before resampling (same expectation as after,
+    without the resampling noise)."""
+    X = np.asarray(particles, dtype=float)
+    lw = update_log_weights(logw, loglik)
+    w = np.exp(lw)
+    mean, cov = weighted_mean(X, w), weighted_cov(X, w)
+    Xr, lwr = resample(X, lw, rng, method)
+    return Xr, lwr, mean, cov

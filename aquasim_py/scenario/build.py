@@ -54,6 +54,7 @@ MOBILITY_CLASSES = {
     "meandering_jet": "MeanderingJet",
     "meandering_current": "Kinematic",  # deprecated alias, see DEPRECATED_MOBILITY
     "waypoints": "Waypoints",
+    "noisy_constant_velocity": "NoisyConstantVelocity",
 }
 
 #: deprecated scenario mobility names -> the warning a load emits (once per name)
@@ -212,6 +213,10 @@ def channel_config(sc: Scenario) -> Any:
         capture_threshold_db=c.capture_threshold_db,
         jitter_std_s=c.jitter_std_s,
         reflections=c.reflections,
+        pressure_kind=c.pressure_kind,
+        pressure_source_level=c.pressure_source_level,
+        pressure_exponent=c.pressure_exponent,
+        pressure_noise_std=c.pressure_noise_std,
     )
 
 

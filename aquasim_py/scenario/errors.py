@@ -120,8 +120,8 @@ def _missing_hint(raw: Any, loc: Sequence[str | int], model: type[BaseModel] | N
     misspelling of it (``duraton_s`` for ``duration_s``), as a hint; "" when there is none."""
     parent = raw
     for el in loc[:-1]:
-        if isinstance(parent, dict) and el in parent:
-            parent = parent[el]
+        if isinstance(parent, dict):
+            parent = parent.get(el)
         elif isinstance(parent, list) and isinstance(el, int) and -len(parent) <= el < len(parent):
             parent = parent[el]
         else:

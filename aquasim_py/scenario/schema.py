@@ -160,6 +160,10 @@ class ChannelSpec(Strict):
     capture_threshold_db: NonNegFloat = 6.0
     jitter_std_s: NonNegFloat = Field(0.0, description="std of the MAC timestamp jitter (s)")
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    pressure_kind: str | None = Field(None, description="packet kind whose receptions carry received pressure")
+    pressure_source_level: PosFloat = Field(5e4, description="S of the pressure model h = S / D^k")
+    pressure_exponent: PosFloat = Field(1.0, description="k of the pressure model h = S / D^k")
+    pressure_noise_std: NonNegFloat = Field(5.0, description="hydrophone noise std (pressure units)")
 
 
 # --------------------------------------------------------------------------- [[nodes]]
@@ -201,6 +205,7 @@ class MobilitySpec(BaseModel):
         "meandering_jet",
         "meandering_current",  # deprecated alias of "kinematic"
         "waypoints",
+        "noisy_constant_velocity",
     ] = "static"
 
     def params(self) -> dict[str, Any]:

@@ -1,0 +1,159 @@
+"""MSWPF: fusion weights, the unquantized limit of the filter update, and a small network run
+(both link modes, determinism, the truth barrier's bookkeeping)."""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aquasim_py import scenario
+from aquasim_py.estimation import normalize_log_weights
+from aquasim_py.protocols.mswpf.math import (
+    equivalent_std,
+    fusion_weights,
+    sensor_model,
+    weighted_log_likelihood,
+)
+
+
+@settings(max_examples=30, deadline=None)
+@given(mi=st.lists(st.floats(0.0, 3.0), min_size=1, max_size=8), scheme=st.sampled_from(["gw", "ew", "bw"]))
+def test_fusion_weights_sum_to_one(mi: list[float], scheme: str) -> None:
+    a = fusion_weights(mi, scheme)  # type: ignore[arg-type]
+    assert a.sum() == pytest.approx(1.0, abs=1e-12)
+    assert np.all(a >= 0)
+
+
+def test_weight_schemes_order_by_mi() -> None:
+    mi = np.array([0.2, 0.5, 1.3])
+    gw, ew, bw = (fusion_weights(mi, s) for s in ("gw", "ew", "bw"))
+    np.testing.assert_allclose(gw, mi / mi.sum())
+    np.testing.assert_allclose(ew, 1 / 3)
+    np.testing.assert_allclose(bw, (1 / mi) / (1 / mi).sum())
+    assert np.all(np.diff(gw) > 0) and np.all(np.diff(bw) < 0)
+
+
+def _posterior_mean(loglik: np.ndarray, X: np.ndarray) -> np.ndarray:
+    w, _ = normalize_log_weights(loglik)
+    return np.asarray(w @ X)
+
+
+def test_dense_quantizer_without_location_noise_approaches_the_unquantized_update() -> None:
+    """L large, r_x = 0: the weighted quantized likelihood (eq 25) tends to the same weighted
+    product of Gaussian likelihoods of the raw readings. The quantizer then reports the bin of
+    z, i.e. z up to half a bin (delta / 2): with delta = 0.05 and a pressure slope of ~5 /m the
+    posterior mean may move by ~ delta / (2 slope) = 5 mm; 5 cm is allowed. A 4-level
+    quantizer must differ by more (the test can fail)."""
+    rng = np.random.default_rng(0)
+    S, k, r = 5e4, 1.0, 5.0
+    sensors = np.array([[0.0, 0.0, 100.0], [120.0, 0.0, 100.0], [0.0, 120.0, 100.0]])
+    X = np.column_stack([rng.normal(60, 15, 4000), rng.normal(50, 15, 4000), np.full(4000, 50.0)])
+    truth = np.array([[62.0, 47.0, 50.0]])
+    z = sensor_model(truth, sensors, S, k)[0][:, 0] + rng.normal(0, r, 3)
+    h, g = sensor_model(X, sensors, S, k)
+    rm = equivalent_std(r, g, np.zeros(3))
+    alpha = np.array([0.5, 0.3, 0.2])
+    ref = _posterior_mean(alpha @ (-0.5 * ((z[:, None] - h) / r) ** 2), X)
+    dense = np.arange(0.0, 3000.0, 0.05)
+    lv = np.searchsorted(dense, z, side="right")
+    got = _posterior_mean(weighted_log_likelihood(lv, h, rm, dense, alpha), X)
+    assert np.linalg.norm(got - ref) < 0.05
+    coarse = np.array([300.0, 450.0, 600.0])
+    lv = np.searchsorted(coarse, z, side="right")
+    far = _posterior_mean(weighted_log_likelihood(lv, h, rm, coarse, alpha), X)
+    assert np.linalg.norm(far - ref) > 0.5
+
+
+def _small_network(ideal: bool) -> dict[str, Any]:
+    """3 x 3 sensors (spacing 120 m), FC, target crossing the grid: 6 intervals."""
+    return {
+        "simulation": {"duration_s": 12.5, "seed": 3},
+        "environment": {"volume": {"lo": [-100.0, -100.0, 0.0], "hi": [400.0, 400.0, 200.0]}},
+        "channel": {
+            "max_range_m": 1500.0,
+            "bitrate_bps": 4000.0,
+            "reflections": "none",
+            "pressure_kind": "mswpf_emission",
+        },
+        "nodes": [
+            {
+                "name": "sensors",
+                "role": "ordinary",
+                "protocol": "mswpf",
+                "placement": {"kind": "grid", "shape": [3, 3, 1], "lo": [0.0, 0.0, 100.0], "hi": [240.0, 240.0, 100.0]},
+                "sensors": {"position_fix": True, "position_noise_std_m": 2.0},
+                "params": {"fusion_center": 9, "hello_slot_s": 0.5},
+            },
+            {
+                "name": "fc",
+                "role": "sink",
+                "protocol": "mswpf",
+                "placement": {"kind": "explicit", "positions": [[120.0, 120.0, 10.0]]},
+                "params": {
+                    "start_s": 6.0,
+                    "steps": 6,
+                    "n_particles": 300,
+                    "levels": 6,
+                    "x0": [55.0, 65.0, 10.0, 10.0],
+                    "ideal_links": ideal,
+                },
+            },
+            {
+                "name": "target",
+                "role": "target",
+                "protocol": "mswpf",
+                "placement": {"kind": "explicit", "positions": [[60.0, 60.0, 50.0]]},
+                "mobility": {"model": "noisy_constant_velocity", "velocity": [10.0, 10.0, 0.0], "start_s": 6.0},
+                "params": {"start_s": 6.0, "steps": 6},
+            },
+        ],
+        "trace": {"position_interval_s": 1.0},
+    }
+
+
+def _run(d: dict[str, Any]) -> dict[str, Any]:
+    sc = scenario.load_dict(copy.deepcopy(d), None)
+    sim = scenario.build(sc)
+    sim.run(sc.simulation.duration_s)
+    return sim.trace.frames()
+
+
+@pytest.mark.parametrize("ideal", [True, False])
+def test_network_tracks_and_is_deterministic(ideal: bool) -> None:
+    from aquasim_py.protocols.mswpf.metrics import mswpf_metrics
+
+    a, b = _run(_small_network(ideal)), _run(_small_network(ideal))
+    for t in ("mswpf_steps", "estimates", "packets"):
+        assert a[t].to_csv() == b[t].to_csv()
+    steps = a["mswpf_steps"]
+    assert list(steps["step"]) == list(range(6))
+    m = mswpf_metrics(a)
+    assert m["rmse_m"] < 20.0
+    pk = a["packets"]
+    reports = pk[(pk["kind"] == "mswpf_report") & (pk["event"] == "tx")]
+    if ideal:
+        assert len(reports) == 0 and (steps["n_reports"] == steps["n_selected"]).all()
+        assert m["report_loss"] == 0.0
+    else:
+        assert len(reports) > 0
+        # weights of the reports that arrived sum to one
+        for w in steps["weights"]:
+            if w:
+                assert sum(map(float, w.split())) == pytest.approx(1.0, abs=1e-3)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(
+    not hasattr(__import__("aquasim_py"), "run_scenario"), reason="variants loader not on this branch yet"
+)
+def test_shipped_2d_scenario_variants_run() -> None:
+    import aquasim_py
+
+    r = aquasim_py.run_scenario("scenarios/mswpf_2d.toml", variant="ew", overrides=["nodes.1.params.steps=10"])  # type: ignore[attr-defined]
+    assert r.metrics["mswpf.steps"] == 10
+    assert r.scenario.nodes[1].params["weights"] == "ew"
