@@ -697,8 +697,10 @@ def _clock_factory(spec: Any) -> Any:
 def channel_config(sc: Scenario) -> Any:
     """The kernel's ChannelConfig for the scenario's [channel] table."""
     from aquasim_py.channel.acoustic import ChannelConfig
+    from aquasim_py.channel.obstacles import ObstacleConfig
 
     c = sc.channel
+    o = c.obstacles
     return ChannelConfig(
         max_range_m=c.max_range_m,
         bitrate_bps=c.bitrate_bps,
@@ -713,6 +715,16 @@ def channel_config(sc: Scenario) -> Any:
         capture_threshold_db=c.capture_threshold_db,
         jitter_std_s=c.jitter_std_s,
         reflections=c.reflections,
+        obstacles=None
+        if o is None
+        else ObstacleConfig(
+            links=tuple((a, b) for a, b in o.links),
+            probability=o.probability,
+            nodes=None if o.nodes is None else tuple(o.nodes),
+            extra_loss_db=o.extra_loss_db,
+            excess_delay_s=o.excess_delay_s,
+            excess_delay_ratio=o.excess_delay_ratio,
+        ),
     )
 
 

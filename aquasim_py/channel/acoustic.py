@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 
 from ..packet import Packet, Reception
 from . import isogradient
+from .obstacles import ObstacleConfig, ObstacleField
 from .rays import Eigenray, PathKind
 from .raytrace import eigenray
 from .ssp import Constant, Isogradient
@@ -93,6 +94,7 @@ class ChannelConfig:
         then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
+    obstacles: obstructed links' extra loss and excess delay (``channel.obstacles``); None = none.
     """
 
     max_range_m: float = 5000.0
@@ -108,6 +110,7 @@ class ChannelConfig:
     capture_threshold_db: float = 6.0
     jitter_std_s: float = 0.0
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    obstacles: ObstacleConfig | None = None
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -185,6 +188,13 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
+        # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
+        obs = config.obstacles
+        self._obstacles = (
+            ObstacleField(obs, lambda a, b: float(sim.rng("obstacle", a, b).random()))
+            if obs is not None and obs.active
+            else None
+        )
 
     # -- transmit ---------------------------------------------------------------------------------
 
@@ -301,6 +311,8 @@ class AcousticChannel:
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
+                times, snr = self._obstacles.apply(src, cand, times, snr)
             cores = sim._cores
             thr = self.config.snr_threshold_db
             for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
