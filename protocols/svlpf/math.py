@@ -21,7 +21,7 @@ import tempfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -94,7 +94,7 @@ class TrainingCache:
     so the cache changes run time, never results.
     """
 
-    _memo: dict[str, dict[str, Array]] = {}
+    _memo: ClassVar[dict[str, dict[str, Array]]] = {}  # shared by every node of the process
 
     def __init__(self, directory: str | Path | None) -> None:
         self.directory = None if directory is None else Path(directory)
@@ -231,21 +231,28 @@ def rbf_kernel(A: ArrayLike, B: ArrayLike, width: float) -> Array:
 
 
 def lssvr_fit(X: ArrayLike, Y: ArrayLike, *, c: float, width: float) -> LssvrModel:
-    """Solve the KKT system (17) [[0, 1^T], [1, K + I/C]] [b; alpha] = [0; y] (eqs 18-19),
-    for all output columns of Y (J, q) at once (one symmetric factorization)."""
+    """Solve the KKT system (17) [[0, 1^T], [1, H]] [b; alpha] = [0; y], H = K + I/C (eqs 18-19),
+    for all output columns of Y (J, q) at once.
+
+    By block elimination (Suykens' LS-SVM solution, the same [b; alpha] as (17)): with H
+    symmetric positive definite, eta = H^-1 1, nu = H^-1 y, b = 1^T nu / 1^T eta,
+    alpha = nu - eta b; one Cholesky factorization (scipy.linalg.cho_factor), on one BLAS
+    thread (BLAS threads contend badly on shared machines for matrices this small).
+    """
+    from threadpoolctl import threadpool_limits
+
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)
     if Y.ndim == 1:
         Y = Y[:, None]
     J = X.shape[0]
-    A = np.empty((J + 1, J + 1))
-    A[0, 0] = 0.0
-    A[0, 1:] = 1.0
-    A[1:, 0] = 1.0
-    A[1:, 1:] = rbf_kernel(X, X, width) + np.eye(J) / c
-    rhs = np.vstack([np.zeros((1, Y.shape[1])), Y])
-    sol = linalg.solve(A, rhs, assume_a="sym")
-    return LssvrModel(X, sol[1:], sol[0], float(width), X.mean(axis=0))
+    H = rbf_kernel(X, X, width) + np.eye(J) / c
+    with threadpool_limits(1, user_api="blas"):
+        cf = linalg.cho_factor(H, lower=True, check_finite=False)
+        sol = linalg.cho_solve(cf, np.column_stack([np.ones(J), Y]), check_finite=False)
+    eta, nu = sol[:, 0], sol[:, 1:]
+    b = nu.sum(axis=0) / eta.sum()
+    return LssvrModel(X, nu - eta[:, None] * b, b, float(width), X.mean(axis=0))
 
 
 def lssvr_predict(model: LssvrModel, x: ArrayLike) -> Array:
@@ -380,7 +387,11 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):
         x0 = S.mean(axis=0)
     x0 = np.clip(np.where(np.isfinite(x0), x0, S.mean(axis=0)), lo + 1e-6, hi - 1e-6)
-    res = least_squares(lambda x: np.linalg.norm(S - x, axis=1) - R, x0, bounds=(lo, hi), method="trf")
+    def jac(x: Array) -> Array:
+        d = x - S
+        return d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+
+    res = least_squares(lambda x: np.linalg.norm(S - x, axis=1) - R, x0, jac=jac, bounds=(lo, hi), method="trf")
     return np.asarray(res.x, float)
 
 

@@ -41,7 +41,9 @@ def step_errors(tables: Mapping[str, Any]) -> pd.DataFrame:
     sv = tables.get("svlpf")
     if sv is None or len(sv) == 0 or tables.get("positions") is None or tables.get("packets") is None:
         return pd.DataFrame()
-    sv = sv.sort_values("k").reset_index(drop=True)
+    if "algorithm" not in sv.columns:
+        sv = sv.assign(algorithm="svlpf", primary=True)
+    sv = sv.sort_values(["algorithm", "k"], kind="stable").reset_index(drop=True)
     pk = tables["packets"]
     tx = pk[pk["event"] == "tx"].drop_duplicates("uid").set_index("uid")["time"]
     t_true = tx.reindex(sv["req_uid"].to_numpy()).to_numpy(float)
@@ -51,16 +53,29 @@ def step_errors(tables: Mapping[str, Any]) -> pd.DataFrame:
     out[["true_x", "true_y", "true_z"]] = truth
     est = out[["x", "y", "z"]].to_numpy(float)
     out["error"] = np.linalg.norm(est - truth, axis=1)
-    out["eave"] = out["error"].cumsum() / np.arange(1, len(out) + 1)
+    grp = out.groupby("algorithm", sort=False)["error"]
+    out["eave"] = grp.cumsum() / (grp.cumcount() + 1)
     return out
 
 
 def svlpf_metrics(tables: Mapping[str, Any]) -> dict[str, float]:
-    """accumulated_error_m (eq 32 at the last frame), eave_kNN_m at the frames of Tables 2-3,
-    mean / final error, frames, mean selected / flagged sensors, mean regression iterations."""
+    """Of the primary estimator: accumulated_error_m (eq 32 at the last frame), eave_kNN_m at
+    the frames of Tables 2-3, mean / final error, frames, mean selected / flagged sensors, mean
+    regression iterations; of every estimator run (``also``): ``<algorithm>.<metric>``."""
     e = step_errors(tables)
     if len(e) == 0:
         return {"frames": 0.0}
+    prim = e[e["primary"].astype(str).isin(["True", "true", "1"])]
+    out = _one(prim if len(prim) else e)
+    if e["algorithm"].nunique() > 1:
+        for algo, g in e.groupby("algorithm", sort=True):
+            for k, v in _one(g).items():
+                if k.startswith(("accumulated", "eave", "mean_error")):
+                    out[f"{algo}.{k}"] = v
+    return out
+
+
+def _one(e: pd.DataFrame) -> dict[str, float]:
     out: dict[str, float] = {
         "accumulated_error_m": float(e["eave"].iloc[-1]),
         "mean_error_m": float(e["error"].mean()),

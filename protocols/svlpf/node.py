@@ -52,6 +52,7 @@ REPORT = "svlpf_report"
 HELLO = "svlpf_hello"
 
 Algorithm = Literal["svlpf", "toa_pf", "lssvr_pf", "consensus"]
+ALGORITHMS = ("svlpf", "toa_pf", "lssvr_pf", "consensus")
 
 
 class SvlpfParams(BaseModel):
@@ -60,6 +61,10 @@ class SvlpfParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     algorithm: Algorithm = Field("svlpf", description="fusion estimator: svlpf, toa_pf, lssvr_pf, consensus")
+    also: list[Algorithm] = Field(
+        default_factory=list,
+        description="estimators run beside it on the same reports (same numbers as alone; cheap Monte Carlo)",
+    )
     # target
     period_s: float = Field(1.0, gt=0, description="T: time between localization requests (s)")
     start_s: float = Field(1.0, ge=0, description="first request (s, target's clock)")
@@ -132,9 +137,12 @@ class SvlpfNode(Node):
         )
         self._svms: dict[int, sv.SvmModel] = {}
         self._lssvr: dict[tuple[int, ...], sv.LssvrModel] = {}
-        self._X: np.ndarray | None = None  # particles (Np, 6): position, velocity
-        self._logw: np.ndarray | None = None
-        self._t_last = 0.0
+        # one estimator per algorithm, each with its own stream from one draw of the node's own
+        base = int(self.rng.integers(2**63))
+        algos = [p.algorithm] + [a for a in dict.fromkeys(p.also) if a != p.algorithm]
+        self._estimators = [
+            _Estimator(a, np.random.default_rng([base, ALGORITHMS.index(a)]), a == p.algorithm) for a in algos
+        ]
 
     def run(self) -> Generator[Any, Any, None]:
         if self.role is Role.TARGET:
@@ -276,8 +284,8 @@ class SvlpfNode(Node):
         return m
 
     def _step(self, first: Mapping[str, Any], reports: list[tuple[int, Mapping[str, Any]]]) -> None:
-        """One time frame k from the reports (sensor id, payload): node selection, observation,
-        filter, log."""
+        """One time frame k from the reports (sensor id, payload): node selection (shared),
+        then every estimator (the primary ``algorithm`` and the ``also`` ones), one log row each."""
         p: SvlpfParams = self.params
         src = [i for i, _ in reports]
         R = np.array([r["r"] for _, r in reports], float)
@@ -291,21 +299,54 @@ class SvlpfNode(Node):
             sel[np.argsort(-f, kind="stable")[: p.min_selected]] = True
         idx = np.flatnonzero(sel)
         S, Rs = P[idx], R[idx]
+        ids = tuple(src[j] for j in idx)
+        for est in self._estimators:
+            row = est.step(self, float(first["t_req"]), S, Rs, snr[idx], ids)
+            self.log(
+                "svlpf",
+                k=int(first["k"]),
+                req_uid=int(first["uid"]),
+                t_req_local=float(first["t_req"]),
+                n_reports=len(R),
+                n_selected=len(idx),
+                selected=" ".join(map(str, ids)),
+                **row,
+            )
+
+
+class _Estimator:
+    """One fusion estimator (Algorithm 2 and its baselines) with its own particle set and its
+    own random stream (keyed by the algorithm), so that running it alone or beside others
+    gives the same numbers."""
+
+    def __init__(self, algorithm: str, rng: np.random.Generator, primary: bool) -> None:
+        self.algorithm = algorithm
+        self.rng = rng
+        self.primary = primary
+        self.X: np.ndarray | None = None  # particles (Np, 6): position, velocity
+        self.logw: np.ndarray | None = None
+        self.t_last = 0.0
+
+    def step(
+        self, node: SvlpfNode, t_req: float, S: np.ndarray, Rs: np.ndarray, snr: np.ndarray, ids: tuple[int, ...]
+    ) -> dict[str, Any]:
+        p: SvlpfParams = node.params
         n_flagged, iterations, converged = 0, 0, True
         z = np.full(3, np.nan)
-        algo = p.algorithm
+        algo = self.algorithm
         if algo == "consensus":
             est = sv.consensus_estimate(
-                S, Rs, self._lo, self._hi, group_size=p.consensus_group, iterations=p.consensus_iters
+                S, Rs, node._lo, node._hi, group_size=p.consensus_group, iterations=p.consensus_iters
             )
         else:
-            self._predict(float(first["t_req"]))
+            self.predict(p, node._lo, node._hi, t_req)
+            assert self.X is not None
             if algo == "toa_pf":
-                loglik = sv.range_loglik(self._X, S, Rs, p.sigma_range_m)  # type: ignore[arg-type]
+                loglik = sv.range_loglik(self.X, S, Rs, p.sigma_range_m)  # eq 29
             else:
-                model = self._lssvr_model(tuple(src[j] for j in idx), S)
+                model = node._lssvr_model(ids, S)
                 if algo == "svlpf":
-                    loss = p.source_level_db - (snr[idx] + p.noise_band_db)  # TIL - RIL (eq 23)
+                    loss = p.source_level_db - (snr + p.noise_band_db)  # TIL - RIL (eq 23)
                     flagged = sv.diagnose(loss, Rs, p_hat=p.p_hat, beta_db_per_km=p.beta_db_per_km)
                     n_flagged = int(flagged.sum())
                     delta = sv.delta_weights(Rs, model.mean_input, flagged)
@@ -314,54 +355,43 @@ class SvlpfNode(Node):
                     )
                     z, iterations, converged = res.z, res.iterations, res.converged
                 else:
-                    z = sv.lssvr_predict(model, Rs)
-                loglik = sv.observation_loglik(self._X, z, p.sigma_obs_m)  # type: ignore[arg-type]
-            est = self._update(loglik)
-        self.log(
-            "svlpf",
-            k=int(first["k"]),
-            req_uid=int(first["uid"]),
-            t_req_local=float(first["t_req"]),
-            algorithm=algo,
-            x=float(est[0]),
-            y=float(est[1]),
-            z=float(est[2]),
-            obs_x=float(z[0]),
-            obs_y=float(z[1]),
-            obs_z=float(z[2]),
-            n_reports=len(R),
-            n_selected=len(idx),
-            n_flagged=n_flagged,
-            iterations=iterations,
-            converged=converged,
-            selected=" ".join(str(src[j]) for j in idx),
-        )
+                    z = sv.lssvr_predict(model, Rs)  # eq 20
+                loglik = sv.observation_loglik(self.X, z, p.sigma_obs_m)  # eq 31
+            est = self.update(loglik)
+        return {
+            "algorithm": algo,
+            "primary": self.primary,
+            "x": float(est[0]),
+            "y": float(est[1]),
+            "z": float(est[2]),
+            "obs_x": float(z[0]),
+            "obs_y": float(z[1]),
+            "obs_z": float(z[2]),
+            "n_flagged": n_flagged,
+            "iterations": iterations,
+            "converged": converged,
+        }
 
-    # -- particle filter (Algorithm 2) ------------------------------------------------------------
-
-    def _predict(self, t_req: float) -> None:
-        """Draw the particles of frame k from the CV model (eq 4 / Section 4); the first frame
-        draws them uniformly over the monitored region."""
-        p: SvlpfParams = self.params
+    def predict(self, p: SvlpfParams, lo: np.ndarray, hi: np.ndarray, t_req: float) -> None:
+        """Draw the particles of frame k from the CV model (eq 4, Section 4: unit position
+        noise per period); the first frame draws them uniformly over the monitored region."""
         rng = self.rng
         n = p.n_particles
-        if self._X is None:
-            pos = rng.uniform(self._lo, self._hi, size=(n, 3))
+        if self.X is None:
+            pos = rng.uniform(lo, hi, size=(n, 3))
             vel = rng.uniform(-p.init_speed_mps, p.init_speed_mps, size=(n, 3))
-            self._X = np.hstack([pos, vel])
-            self._logw = np.full(n, -np.log(n))
+            self.X = np.hstack([pos, vel])
+            self.logw = np.full(n, -np.log(n))
         else:
-            dt = max(t_req - self._t_last, 0.0)
-            steps = dt / p.period_s
-            Q = np.diag([p.q_pos_m**2] * 3 + [p.q_vel_mps**2] * 3) * steps
-            self._X = pf.propagate(self._X, ConstantVelocityModel(dim=3, dt=dt).transition, Q, rng)
-        self._t_last = t_req
+            dt = max(t_req - self.t_last, 0.0)
+            Q = np.diag([p.q_pos_m**2] * 3 + [p.q_vel_mps**2] * 3) * (dt / p.period_s)
+            self.X = pf.propagate(self.X, ConstantVelocityModel(dim=3, dt=dt).transition, Q, rng)
+        self.t_last = t_req
 
-    def _update(self, loglik: np.ndarray) -> np.ndarray:
+    def update(self, loglik: np.ndarray) -> np.ndarray:
         """Weights (eqs 29 / 31), estimate (eq 12), systematic resampling (Algorithm 2, step 13)."""
-        assert self._X is not None and self._logw is not None
-        self._logw = pf.update_log_weights(self._logw, loglik)
-        w = np.exp(self._logw)
-        est = pf.weighted_mean(self._X[:, :3], w)
-        self._X, self._logw = pf.resample(self._X, self._logw, self.rng)
+        assert self.X is not None and self.logw is not None
+        self.logw = pf.update_log_weights(self.logw, loglik)
+        est = pf.weighted_mean(self.X[:, :3], np.exp(self.logw))
+        self.X, self.logw = pf.resample(self.X, self.logw, self.rng)
         return est
