@@ -327,6 +327,8 @@ class RegressionResult:
     z: Array  # the observation Z_k (3,)
     iterations: int  # nu + 1 at termination
     converged: bool  # eq 27 met (else max_iter reached)
+    dist_b: Array  # |Z^(nu+1) - b| per iteration (m)
+    steps: Array  # |Z^(nu+1) - Z^(nu)| per iteration (m)
 
 
 def iterative_regression(
@@ -352,14 +354,17 @@ def iterative_regression(
     S = np.asarray(sensors, float)
     dl = np.asarray(delta, float)
     z = lssvr_predict(model, R)
+    dist_b: list[float] = []
+    steps: list[float] = []
     for it in range(1, max_iter + 1):
         x = dl * R + (1.0 - dl) * np.linalg.norm(z[None, :] - S, axis=1)
         z_new = lssvr_predict(model, x)
-        stop = np.linalg.norm(z_new - model.b) >= eps_b and np.linalg.norm(z_new - z) <= eps_step
+        dist_b.append(float(np.linalg.norm(z_new - model.b)))
+        steps.append(float(np.linalg.norm(z_new - z)))
         z = z_new
-        if stop:
-            return RegressionResult(z, it, True)
-    return RegressionResult(z, max_iter, False)
+        if dist_b[-1] >= eps_b and steps[-1] <= eps_step:
+            return RegressionResult(z, it, True, np.array(dist_b), np.array(steps))
+    return RegressionResult(z, max_iter, False, np.array(dist_b), np.array(steps))
 
 
 # ------------------------------------------------------------------------- PF likelihoods
@@ -387,6 +392,7 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):
         x0 = S.mean(axis=0)
     x0 = np.clip(np.where(np.isfinite(x0), x0, S.mean(axis=0)), lo + 1e-6, hi - 1e-6)
+
     def jac(x: Array) -> Array:
         d = x - S
         return d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
