@@ -125,7 +125,7 @@ class TrainingCache:
                     path.parent.mkdir(parents=True, exist_ok=True)
                     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp.npz")
                     with os.fdopen(fd, "wb") as fh:
-                        np.savez(fh, **hit)
+                        np.savez(fh, **hit)  # type: ignore[arg-type]  # numpy's stub types **kwds oddly
                     os.replace(tmp, path)
                 except OSError:
                     pass  # a read-only cache directory only costs time
@@ -299,8 +299,8 @@ def lssvr_training_set(
 # ------------------------------------------------------------------------- diagnosis, eqs 23-27
 def propagation_loss_db(r: ArrayLike, beta_db_per_km: float) -> Array:
     """Eq 24: PL = 20 log10 r + beta r 1e-3 (r in m, beta in dB/km)."""
-    r = np.maximum(np.asarray(r, float), 1e-3)
-    return 20.0 * np.log10(r) + beta_db_per_km * r * 1e-3
+    d: Array = np.maximum(np.asarray(r, float), 1e-3)
+    return 20.0 * np.log10(d) + beta_db_per_km * 1e-3 * d
 
 
 def diagnose(loss_db: ArrayLike, R: ArrayLike, *, p_hat: float, beta_db_per_km: float) -> NDArray[np.bool_]:

@@ -23,16 +23,22 @@ def _run(path: str, *sets: str, seed: int = 3):
     return frames, metrics.summarize(frames, sc.protocols())
 
 
-def test_every_frame_is_estimated_by_every_algorithm_and_alone_equals_beside():
+@pytest.mark.slow
+def test_every_frame_is_estimated_by_every_algorithm():
     frames, m = _run("scenarios/svlpf.toml", 'nodes.0.params.also=["toa_pf", "lssvr_pf", "consensus"]')
     e = step_errors(frames)
     assert sorted(e["algorithm"].unique()) == ["consensus", "lssvr_pf", "svlpf", "toa_pf"]
     assert (e.groupby("algorithm")["k"].apply(list) == [[1, 2, 3, 4, 5]] * 4).all()
     assert m["svlpf.frames"] == 5 and np.isfinite(m["svlpf.accumulated_error_m"])
-    # an estimator run alone gives the numbers it gives beside the others (own streams)
+
+
+def test_an_estimator_alone_gives_what_it_gives_beside_others():
+    beside, m = _run("scenarios/svlpf.toml", 'nodes.0.params.algorithm="consensus"', 'nodes.0.params.also=["toa_pf"]')
     alone, m2 = _run("scenarios/svlpf.toml", 'nodes.0.params.algorithm="toa_pf"')
     a = step_errors(alone)
+    e = step_errors(beside)
     b = e[e["algorithm"] == "toa_pf"].reset_index(drop=True)
+    assert len(a) == 5
     np.testing.assert_array_equal(a[["x", "y", "z"]].to_numpy(), b[["x", "y", "z"]].to_numpy())
     assert m2["svlpf.accumulated_error_m"] == m["svlpf.toa_pf.accumulated_error_m"]
 
