@@ -107,7 +107,8 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def cmd_tables(args: argparse.Namespace) -> None:
-    s = summary(load_runs(args.out))
+    df = load_runs(args.out)
+    s = summary(df)
     for config, title in (
         ("gaussian", "Table 2 (universal noise)"),
         ("excessive", "Table 3 (excessive noise)"),
@@ -126,8 +127,25 @@ def cmd_tables(args: argparse.Namespace) -> None:
             print(f"{NAMES[algo]:<22}" + "".join(f"{a.loc[k, 'mean']:>7.2f}+-{a.loc[k, 'ci95']:<4.2f}" for k in STEPS))
             if config in PAPER:
                 print(f"{'  paper':<22}" + "".join(f"{v:>13.2f}" for v in PAPER[config][algo]))
+        paired(df[(df["config"] == config) & (df["k"] == 100)])
     if args.csv:
         s.to_csv(Path(args.out) / "tables.csv", index=False)
+
+
+def paired(d: pd.DataFrame) -> None:
+    """Per-seed differences of eq 32 at k = 100 against SVL-PF: mean +- 95 % CI (paired t)."""
+    from scipy import stats
+
+    w = d.pivot_table(index="seed", columns="algorithm", values="eave")
+    if "svlpf" not in w.columns or len(w) < 2:
+        return
+    parts = []
+    for algo in ("consensus", "lssvr_pf", "toa_pf"):
+        if algo in w.columns:
+            diff = (w[algo] - w["svlpf"]).dropna()
+            h = stats.t.ppf(0.975, len(diff) - 1) * diff.std() / np.sqrt(len(diff))
+            parts.append(f"{NAMES[algo]} {diff.mean():+.2f}+-{h:.2f}")
+    print("paired difference to SVL-PF at k=100 (m): " + ", ".join(parts))
 
 
 def cmd_figures(args: argparse.Namespace) -> None:
