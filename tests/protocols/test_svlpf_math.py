@@ -203,3 +203,17 @@ def test_training_rng_depends_only_on_seed_and_key():
 @pytest.mark.parametrize("r", [1.0, 10.0, 1000.0])
 def test_propagation_loss_eq24(r):
     assert sv.propagation_loss_db(r, 2.0) == pytest.approx(20 * np.log10(r) + 2.0 * r / 1000)
+
+
+def test_fusion_defaults_match_the_channel_defaults():
+    """TIL - RIL is read from the SNR with the receiver's known noise level: the defaults must be
+    the channel's (10 kHz, 5 kHz band, shipping 0.5, no wind; Thorp absorption at 10 kHz)."""
+    from aquasim_py.channel import loss
+    from aquasim_py.channel.acoustic import ChannelConfig
+    from aquasim_py.protocols.svlpf import SvlpfParams
+
+    c, p = ChannelConfig(), SvlpfParams()
+    noise = loss.noise_psd_db(c.frequency_khz, c.shipping, c.wind_mps) + 10 * np.log10(c.bandwidth_khz * 1e3)
+    assert p.noise_band_db == pytest.approx(float(noise), abs=0.005)  # given to 2 decimals
+    assert p.beta_db_per_km == pytest.approx(float(loss.thorp_absorption_db_per_km(c.frequency_khz)), abs=5e-4)
+    assert p.source_level_db == c.source_level_db
