@@ -349,7 +349,13 @@ class Simulation:
         # the channel's view of the kernel: this Simulation (NetworkView), the packets table
         # (PacketLog) and, attached node by node, each _NodeCore (RadioPort); see aquasim_py.radio
         self.channel = AcousticChannel(
-            self.env, self, self.trace.table("packets"), self.ssp, self.channel_config, loss_model=loss_model
+            self.env,
+            self,
+            self.trace.table("packets"),
+            self.ssp,
+            self.channel_config,
+            loss_model=loss_model,
+            streams=self.rng,
         )
         self.nodes: list[Node] = []
         self.groups: list[Group] = []

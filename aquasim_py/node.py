@@ -103,6 +103,12 @@ class NodeEnv:
         return simpy.AnyOf(self.__env, list(events))
 
 
+class _NoParams(BaseModel):
+    """Protocol parameters of the base node: none."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
 class Node:
     """Base class of every protocol: subclass it and override :meth:`run`.
 
@@ -113,10 +119,9 @@ class Node:
 
     name: ClassVar[str] = "node"
 
-    class Params(BaseModel):
-        """Protocol parameters (none for the base node)."""
-
-        model_config = ConfigDict(extra="forbid")
+    #: the protocol's parameters model (pydantic): a nested ``class Params(BaseModel)`` or an
+    #: assignment ``Params = MyParams`` in a subclass; none for the base node
+    Params: ClassVar[type[BaseModel]] = _NoParams
 
     #: receptions buffered by the modem while the protocol is not listening; the oldest are
     #: discarded beyond this (None = unbounded)

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
+from .obstacles import ObstacleConfig, ObstacleField
 from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
@@ -98,6 +99,7 @@ class ChannelConfig:
         pressure (``channel.pressure``, eq 6 of MSWPF) plus N(0, pressure_noise_std^2) drawn from
         the receiver's ("node", id, "pressure") stream; None = off.
     pressure_source_level, pressure_exponent: S and k of h = S / D^k.
+    obstacles: obstructed links' extra loss and excess delay (``channel.obstacles``); None = none.
     """
 
     max_range_m: float = 5000.0
@@ -117,6 +119,7 @@ class ChannelConfig:
     pressure_source_level: float = 5e4
     pressure_exponent: float = 1.0
     pressure_noise_std: float = 5.0
+    obstacles: ObstacleConfig | None = None
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -221,8 +224,11 @@ class AcousticChannel:
         ssp: SoundSpeedProfile,
         config: ChannelConfig,
         loss_model: LossModel | None = None,
+        streams: Callable[..., np.random.Generator] | None = None,
     ) -> None:
         self._net = network
+        # the run's keyed random streams (Simulation.rng), for link-level draws (obstacles)
+        self._streams = streams
         self._env = env
         self.ssp = ssp
         self.config = config
@@ -239,6 +245,14 @@ class AcousticChannel:
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
         self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
+
+        # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
+        obs = config.obstacles
+        self._obstacles: ObstacleField | None = None
+        if obs is not None and obs.active:
+            if streams is None:
+                raise ValueError("AcousticChannel: obstacles need the run's keyed random streams (streams=)")
+            self._obstacles = ObstacleField(obs, lambda a, b: float(streams("obstacle", a, b).random()))
 
     # -- nodes ------------------------------------------------------------------------------------
 
@@ -385,6 +399,8 @@ class AcousticChannel:
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
+                times, snr = self._obstacles.apply(src, cand, times, snr)
             thr = self.config.snr_threshold_db
             for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
                 if T != T:  # NaN: no eigenray (shadow zone)

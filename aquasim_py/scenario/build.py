@@ -217,6 +217,21 @@ def channel_config(sc: Scenario) -> Any:
         pressure_source_level=c.pressure_source_level,
         pressure_exponent=c.pressure_exponent,
         pressure_noise_std=c.pressure_noise_std,
+        obstacles=None if c.obstacles is None else _obstacles(c.obstacles),
+    )
+
+
+def _obstacles(o: Any) -> Any:
+    """The channel's ObstacleConfig for a [channel.obstacles] table."""
+    from aquasim_py.channel.obstacles import ObstacleConfig
+
+    return ObstacleConfig(
+        links=tuple((a, b) for a, b in o.links),
+        probability=o.probability,
+        nodes=None if o.nodes is None else tuple(o.nodes),
+        extra_loss_db=o.extra_loss_db,
+        excess_delay_s=o.excess_delay_s,
+        excess_delay_ratio=o.excess_delay_ratio,
     )
 
 

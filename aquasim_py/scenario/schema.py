@@ -20,6 +20,7 @@ __all__ = [
     "EnvironmentSpec",
     "MetricsSpec",
     "NodeGroupSpec",
+    "ObstacleSpec",
     "OutputSpec",
     "Scenario",
     "SimulationSpec",
@@ -142,6 +143,22 @@ class NoiseSpec(Strict):
     wind_mps: NonNegFloat = Field(0.0, description="wind speed (m/s)")
 
 
+class ObstacleSpec(Strict):
+    """Obstructed links (aquasim_py.channel.obstacles): explicit id pairs and/or a per-link
+    probability (each link decided from its own random stream)."""
+
+    links: list[Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=2, max_length=2)]] = Field(
+        default_factory=list, description="node-id pairs that are always obstructed"
+    )
+    probability: Annotated[float, Field(ge=0.0, le=1.0)] = Field(0.0, description="chance that another link is")
+    nodes: list[Annotated[int, Field(ge=0)]] | None = Field(
+        None, description="the probability applies only to links with an end at these ids (default all)"
+    )
+    extra_loss_db: NonNegFloat = Field(0.0, description="extra propagation loss of an obstructed link (dB)")
+    excess_delay_s: NonNegFloat = Field(0.0, description="fixed excess delay of an obstructed link (s)")
+    excess_delay_ratio: NonNegFloat = Field(0.0, description="excess delay as a fraction of the time of flight")
+
+
 class ChannelSpec(Strict):
     """Defaults equal those of aquasim_py.channel.acoustic.ChannelConfig (a test checks it)."""
 
@@ -164,6 +181,7 @@ class ChannelSpec(Strict):
     pressure_source_level: PosFloat = Field(5e4, description="S of the pressure model h = S / D^k")
     pressure_exponent: PosFloat = Field(1.0, description="k of the pressure model h = S / D^k")
     pressure_noise_std: NonNegFloat = Field(5.0, description="hydrophone noise std (pressure units)")
+    obstacles: ObstacleSpec | None = Field(None, description="obstructed links; none by default")
 
 
 # --------------------------------------------------------------------------- [[nodes]]

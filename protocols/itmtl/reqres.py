@@ -40,7 +40,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pandas as pd
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
 from aquasim_py.node import Node, Role, SensorUnavailable
@@ -52,8 +52,10 @@ RES = "sync_res"
 REFERENCE_ROLES = (Role.BUOY, Role.ANCHOR)
 
 
-class ReqResParams(Node.Params):
+class ReqResParams(BaseModel):
     """Parameters shared by ITMTL and the baselines (times in local seconds)."""
+
+    model_config = ConfigDict(extra="forbid")
 
     round_period_s: float = Field(30.0, gt=0, description="time between an ordinary node's Req broadcasts (s)")
     first_round_s: float = Field(10.0, ge=0, description="first Req at a uniform random time in [0, this) (s)")

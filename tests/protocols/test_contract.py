@@ -50,6 +50,7 @@ CASES: dict[str, tuple[str, list[str]]] = {
     "mobi_sync": ("itmtl.toml", _swap("mobi_sync")),
     "ramezani": ("ramezani_localization.toml", ["simulation.duration_s=30.0"]),
     "mswpf": ("mswpf_2d.toml", ["simulation.duration_s=50.0"]),  # tracking starts at 45 s
+    "svlpf": ("svlpf_gaussian.toml", ["simulation.duration_s=6.0"]),
     "stvf": ("stvf_quick.toml", ["simulation.duration_s=4.0"]),
     "slmp": (
         "stvf_quick.toml",
