@@ -97,7 +97,23 @@ def _write_manifest(d: Path, files: list[str]) -> None:
 
 
 def _files_under(d: Path) -> list[str]:
-    return sorted(p.relative_to(d).as_posix() for p in d.rglob("*") if p.is_file() and p.name != STAGING_MARKER)
+    return sorted(
+        p.relative_to(d).as_posix()
+        for p in d.rglob("*")
+        if p.is_file() and p.name != STAGING_MARKER and p != d / MANIFEST
+    )
+
+
+def _write_manifests(tmp: Path) -> list[str]:
+    """A manifest in every directory of the staged tree, deepest first (so that a variant's
+    ``DIR/NAME/`` is an output directory of its own, as a ``--variant`` run writes it); returns
+    the files of the top one."""
+    dirs = sorted((p for p in tmp.rglob("*") if p.is_dir()), key=lambda p: len(p.parts), reverse=True)
+    for d in dirs:
+        _write_manifest(d, _files_under(d))
+    files = _files_under(tmp)
+    _write_manifest(tmp, files)
+    return files
 
 
 # --------------------------------------------------------------------------- stale staging
@@ -235,8 +251,7 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
             if into:
                 _merge(tmp, target)
             else:
-                new = _files_under(tmp)
-                _write_manifest(tmp, new)
+                _write_manifests(tmp)
                 (tmp / STAGING_MARKER).unlink()
                 os.rename(tmp, target)
     finally:
@@ -246,7 +261,7 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
 def _merge(tmp: Path, target: Path) -> None:
     """Move the staged files of ``tmp`` into the existing ``target``: remove the old manifest's
     files that are not written again, replace the others, keep everything else."""
-    new = _files_under(tmp)
+    new = _write_manifests(tmp)
     old = _read_manifest(target) or []
     for name in sorted(set(old) - set(new)):
         p = target / name
@@ -257,7 +272,7 @@ def _merge(tmp: Path, target: Path) -> None:
         dst = target / name
         dst.parent.mkdir(parents=True, exist_ok=True)
         os.replace(tmp / name, dst)
-    _write_manifest(target, new)
+    os.replace(tmp / MANIFEST, target / MANIFEST)
 
 
 def _prune_empty(d: Path, top: Path) -> None:

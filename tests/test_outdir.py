@@ -142,6 +142,28 @@ def test_variant_run_under_an_all_variants_directory_and_sweep_refusal(tmp_path,
     assert listing(user) == ["keep.txt"]
 
 
+VARIANTS = """
+[variants.a]
+[variants.b]
+"nodes.0.params.period_s" = 6.0
+"""
+
+
+def test_variant_directories_are_outputs_of_their_own(tmp_path, capsys):
+    sc = scenario(tmp_path, duration=5.0, extra=VARIANTS)
+    out = tmp_path / "all"
+    assert run(capsys, sc, "--out", out, "--quiet")[0] == 0
+    (out / "a" / "plot.png").write_text("user's")
+    # DIR/NAME of an all-variants run is an output directory: --variant may rewrite it
+    rc, err = run(capsys, sc, "--variant", "a", "--out", out / "a", "--quiet")
+    assert rc == 0, err
+    assert (out / "a" / "plot.png").read_text() == "user's"
+    # and the all-variants run again: the user's file inside survives
+    assert run(capsys, sc, "--out", out, "--quiet")[0] == 0
+    assert (out / "a" / "plot.png").read_text() == "user's" and (out / "b" / "summary.json").is_file()
+    assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
+
+
 def test_python_api_follows_the_same_rules(tmp_path):
     import aquasim_py
     from aquasim_py.scenario import ScenarioError
@@ -277,6 +299,7 @@ def run_quick(sc: Path, out: Path) -> int:
     return cli.main([str(sc), "--out", str(out), "--quiet", "--set", "simulation.duration_s=5"])
 
 
+@pytest.mark.slow  # ~3 process start-ups; the handler and the worker clean-up are also covered above
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc as on Linux")
 def test_sigterm_to_a_sweep(tmp_path):
     sc = scenario(tmp_path, duration=1e7, extra=SWEEP)
