@@ -254,6 +254,8 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
                 _write_manifests(tmp)
                 (tmp / STAGING_MARKER).unlink()
                 os.rename(tmp, target)
+    except OSError as e:  # e.g. a directory of the user's where an output file goes
+        raise ScenarioError(file, key, f"cannot write to {target}: {e.strerror or e}") from None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -263,9 +265,10 @@ def _merge(tmp: Path, target: Path) -> None:
     files that are not written again, replace the others, keep everything else."""
     new = _write_manifests(tmp)
     old = _read_manifest(target) or []
+    top = target.resolve()
     for name in sorted(set(old) - set(new)):
         p = target / name
-        if p.is_file() and not p.is_symlink():
+        if p.is_file() and not p.is_symlink() and top in p.resolve().parents:
             p.unlink()
             _prune_empty(p.parent, target)
     for name in new:

@@ -180,15 +180,19 @@ def test_python_api_follows_the_same_rules(tmp_path):
 
 
 def test_tampered_manifest_deletes_nothing_outside(tmp_path):
-    out, outside = tmp_path / "o", tmp_path / "precious.txt"
+    out, outside, ext = tmp_path / "o", tmp_path / "precious.txt", tmp_path / "ext"
     out.mkdir()
+    ext.mkdir()
     outside.write_text("keep")
-    (out / MANIFEST).write_text(json.dumps({"files": ["../precious.txt", "/etc/passwd", "a.csv"]}))
+    (ext / "also.txt").write_text("keep")
+    (out / "link").symlink_to(ext)
+    files = ["../precious.txt", "/etc/passwd", "link/also.txt", "a.csv"]
+    (out / MANIFEST).write_text(json.dumps({"files": files}))
     (out / "a.csv").write_text("old")
     with staged_output(out, None, "out") as tmp:
         (tmp / "b.csv").write_text("new")
-    assert outside.read_text() == "keep"
-    assert listing(out) == [MANIFEST, "b.csv"]
+    assert outside.read_text() == "keep" and (ext / "also.txt").read_text() == "keep"
+    assert listing(out) == [MANIFEST, "b.csv", "link"]
 
 
 @pytest.mark.parametrize("bad", ["../x", "a/b", "..", ".hidden", "-x", "", "a\\b", "x\x00"])
