@@ -334,3 +334,22 @@ def test_clean_stale_keeps_live_and_foreign(tmp_path):
     (foreign / "data").write_text("x")
     assert clean_stale(tmp_path) == []
     assert listing(tmp_path) == [".a.tmp-live", ".b.tmp-x"]
+
+
+@pytest.mark.parametrize(("sig", "rc"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signal_in_process_exit_status_and_no_leftovers(tmp_path, capsys, monkeypatch, sig, rc):
+    from aquasim_py import kernel
+
+    def interrupted(self, until, progress=None):
+        os.kill(os.getpid(), sig)
+        time.sleep(5.0)  # the handler raises here
+        raise AssertionError("signal not handled")
+
+    monkeypatch.setattr(kernel.Simulation, "run", interrupted)
+    sc = scenario(tmp_path)
+    out = tmp_path / "new" / "res"
+    got, err = run(capsys, sc, "--out", out, "--quiet")
+    assert got == rc
+    assert err.splitlines() == [f"error: interrupted by {sig.name} (no output written)"]
+    assert listing(tmp_path) == ["scen.toml"]
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the handlers are put back
