@@ -11,9 +11,10 @@ Example (a notebook)::
     res.tables["estimates"].groupby("node").error.mean()
     res.write("out/itmtl-wsc")          # exactly what `aquasim-py ... --variant wsc` writes
 
-Outputs are staged (:func:`staged_output`): written to a hidden temporary directory beside the
-target and renamed into place only when complete, so a failed run leaves nothing behind and an
-existing directory is replaced only once the new one is ready.
+Outputs are staged (:func:`staged_output`, :mod:`aquasim_py.outdir`): written to a hidden
+temporary directory and moved into place only when complete, so a failed run leaves nothing
+behind; an existing directory is written into only when it is an aquasim-py output (or with
+``overwrite=True``), and then only the files the tool wrote there are removed or replaced.
 """
 
 from __future__ import annotations
@@ -21,19 +22,16 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import sys
-import tempfile
 import time
-import uuid
-from collections.abc import Callable, Iterator, Mapping, Sequence
-from contextlib import contextmanager, suppress
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from aquasim_py import __version__
 from aquasim_py import scenario as _scenario
+from aquasim_py.outdir import staged_output
 from aquasim_py.scenario import Scenario, ScenarioError
 from aquasim_py.scenario.load import Overrides, variant_error
 
@@ -115,12 +113,14 @@ class RunResult:
         wanted = self.scenario.trace.tables or []
         return [n for n in wanted if n not in self.tables]
 
-    def write(self, directory: str | Path) -> Path:
+    def write(self, directory: str | Path, *, overwrite: bool = False) -> Path:
         """Write the outputs of a plain run (the selected trace tables and ``summary.json``)
-        to ``directory``, staged: all or nothing. Returns the directory."""
+        to ``directory``, staged: all or nothing. A non-empty directory that is not an
+        aquasim-py output is refused unless ``overwrite`` (which replaces only the files
+        written here). Returns the directory."""
         directory = Path(directory)
         check_output_format(self.scenario)
-        with staged_output(directory, self.scenario.path, "out") as tmp:
+        with staged_output(directory, self.scenario.path, "out", overwrite=overwrite) as tmp:
             self.write_into(tmp, final=directory)
         return directory
 
@@ -176,6 +176,7 @@ def run_scenario(
     seed: int | None = None,
     overrides: Overrides = (),
     out: str | Path | None = None,
+    overwrite: bool = False,
     progress: Progress = None,
 ) -> RunResult:
     """Run one scenario and return its tables, metrics and resolved scenario.
@@ -185,7 +186,8 @@ def run_scenario(
     ``overrides`` are given). ``variant``: one of the file's ``[variants.NAME]`` (None: the file
     as written). ``seed`` replaces ``[simulation] seed``. ``overrides``: ``"key.path=value"``
     strings (as ``--set``), ``(key path, value)`` pairs or a mapping key path -> value; applied
-    after the variant. ``out``: also write the outputs there (staged, as the CLI does).
+    after the variant. ``out``: also write the outputs there (staged, as the CLI does;
+    ``overwrite``: as :meth:`RunResult.write`).
     ``progress``: True for a progress bar on stderr, False for none, a callable
     ``(t_s, until_s)``; None shows a bar only when stderr is a terminal.
 
@@ -194,7 +196,7 @@ def run_scenario(
     sc = _as_scenario(scenario_or_path, variant, seed, overrides)
     if out is not None:
         check_output_format(sc)
-        with staged_output(out, sc.path, "out") as tmp:
+        with staged_output(out, sc.path, "out", overwrite=overwrite) as tmp:
             res = _execute(sc, progress)
             res.write_into(tmp, final=out)
         return res
@@ -248,6 +250,7 @@ def run_variants(
     seed: int | None = None,
     overrides: Overrides = (),
     out: str | Path | None = None,
+    overwrite: bool = False,
     progress: Progress = None,
 ) -> dict[str, RunResult]:
     """Run every variant of a scenario (or those named in ``variants``) on the same network and
@@ -271,7 +274,7 @@ def run_variants(
     out = Path(out)
     for sc in resolved.values():
         check_output_format(sc)
-    with staged_output(out, base.path, "out") as tmp:
+    with staged_output(out, base.path, "out", overwrite=overwrite) as tmp:
         results = run_resolved_into(resolved, tmp, out, progress)
     return results
 
@@ -345,64 +348,6 @@ def write_comparison(results: Mapping[str, RunResult], path: str | Path) -> None
 
 
 # --------------------------------------------------------------------------- output
-@contextmanager
-def staged_output(target: str | Path, file: Path | None, key: str) -> Iterator[Path]:
-    """Yield a fresh temporary directory beside ``target``; rename it to ``target`` on success.
-
-    Fails with :class:`ScenarioError` (naming ``key``) before yielding if the location cannot
-    be written. On any exception the temporary directory, and any parent directory created
-    here, are removed; an existing ``target`` is replaced only after the new one is complete.
-    """
-    target = Path(target)
-    parent = target.parent
-    created: list[Path] = []
-
-    def _unmake() -> None:
-        for d in reversed(created):
-            with suppress(OSError):
-                d.rmdir()
-
-    try:
-        missing = []
-        d = parent
-        while not d.exists():
-            missing.append(d)
-            if d.parent == d:
-                break
-            d = d.parent
-        for d in reversed(missing):
-            d.mkdir()
-            created.append(d)
-        if target.exists() and not target.is_dir():
-            raise ScenarioError(file, key, f"{target} exists and is not a directory")
-        tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=parent))
-        # mkdtemp makes it private (0700); the final directory gets the usual permissions
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)
-    except ScenarioError:
-        _unmake()
-        raise
-    except OSError as e:
-        _unmake()
-        raise ScenarioError(file, key, f"cannot write to {target}: {e.strerror or e}") from None
-    ok = False
-    try:
-        yield tmp
-        ok = True
-    finally:
-        if not ok:
-            shutil.rmtree(tmp, ignore_errors=True)
-            _unmake()
-    if target.exists():
-        old = parent / f".{target.name}.old-{uuid.uuid4().hex[:8]}"
-        os.rename(target, old)
-        os.rename(tmp, target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.rename(tmp, target)
-
-
 def check_output_format(sc: Scenario) -> None:
     """Parquet traces need pyarrow: say so before running, not after."""
     if sc.trace.format == "parquet":

@@ -19,11 +19,17 @@ or on a Dask cluster.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import ctypes
 import itertools
 import json
 import math
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
@@ -176,7 +182,7 @@ def run_jobs(
         else:
             # Worker processes may be forked: the CLI's progress display runs no thread for
             # that reason (a lock held by another thread at fork time would stay held).
-            with ProcessPoolExecutor(max_workers=n) as pool:
+            with ProcessPoolExecutor(max_workers=n, initializer=_worker_init, initargs=(os.getpid(),)) as pool:
                 futs = {pool.submit(run_job, start[_variant_of(job)], path, job): job for job in jobs}
                 try:
                     for fut in as_completed(futs):
@@ -184,6 +190,7 @@ def run_jobs(
                 except BaseException:
                     for f in futs:
                         f.cancel()
+                    _end_workers(pool)  # an interrupted sweep does not wait for runs in flight
                     raise
     rows = [r for r in results if r is not None]
     # a drop reason absent from a run's trace means none of those drops happened in it
@@ -192,6 +199,49 @@ def run_jobs(
         for k in counts:
             r.setdefault(k, 0)
     return rows
+
+
+def _worker_init(parent: int) -> None:
+    """Start-up of a local worker process: it dies with the sweep's parent process.
+
+    Interruptions go to the parent (a terminal's Ctrl-C reaches the whole process group), which
+    ends its workers itself. On Linux the kernel kills the worker when the parent dies, even by
+    SIGKILL (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread polls the parent's pid.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler, inherited by fork
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            _watch_parent(parent)
+    else:
+        _watch_parent(parent)
+    if os.getppid() != parent:  # the parent died before the request above took effect
+        os._exit(1)
+
+
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _watch_parent(parent: int) -> None:
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="aquasim-parent-watch", daemon=True).start()
+
+
+def _end_workers(pool: ProcessPoolExecutor) -> None:
+    """Kill the pool's worker processes (their runs are abandoned) so that leaving the pool's
+    ``with`` block does not wait for the runs in flight."""
+    procs = getattr(pool, "_processes", None) or {}  # CPython keeps its workers here
+    for p in list(procs.values()):
+        with contextlib.suppress(Exception):
+            p.kill()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _run_dask(

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from array import array
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -332,6 +333,7 @@ class Trace:
     def table(self, name: str) -> Table:
         t = self.tables.get(name)
         if t is None:
+            check_table_name(name)
             t = self.tables[name] = Table(name, SCHEMAS.get(name, ()))
         return t
 
@@ -347,8 +349,25 @@ class Trace:
         return write_frames(self.frames(), directory, fmt)
 
 
+#: what a table name may be: it becomes a file name inside the output directory
+TABLE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
+
+
+def check_table_name(name: object) -> None:
+    """Raise ValueError unless ``name`` is a valid trace table name (:data:`TABLE_NAME`: letters,
+    digits, ``_``, ``.``, ``-``, not starting with ``.`` or ``-``), so that no table can be
+    written outside the output directory or as a hidden file."""
+    if not isinstance(name, str) or not TABLE_NAME.fullmatch(name):
+        raise ValueError(
+            f"invalid trace table name {name!r}: use letters, digits, '_', '.' and '-' (not first), no path separators"
+        )
+
+
 def write_frames(frames: Mapping[str, pd.DataFrame], directory: str | os.PathLike[str], fmt: str = "csv") -> list[Path]:
-    """Write DataFrames as ``<name>.csv`` (or ``.parquet``, which needs pyarrow)."""
+    """Write DataFrames as ``<name>.csv`` (or ``.parquet``, which needs pyarrow); every name
+    is checked (:func:`check_table_name`) before anything is written."""
+    for name in frames:
+        check_table_name(name)
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     paths = []

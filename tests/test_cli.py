@@ -278,10 +278,12 @@ def test_quiet_prints_nothing(scen, tmp_path, capsys):
     assert rc == 0 and out == "" and err == ""
 
 
-def test_existing_output_is_replaced_whole(scen, tmp_path, capsys):
+def test_existing_output_is_replaced(scen, tmp_path, capsys):
+    """The files an earlier run wrote (its manifest) go; a foreign directory: see test_outdir."""
     out = tmp_path / "res"
     out.mkdir()
     (out / "stale.csv").write_text("old")
+    (out / ".aquasim-output.json").write_text('{"files": ["stale.csv"]}')
     assert run(capsys, scen, "--out", out, "--quiet")[0] == 0
     assert not (out / "stale.csv").exists() and (out / "summary.json").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res", "scen.toml"]
@@ -304,7 +306,12 @@ def test_trace_table_selection(scen, tmp_path, capsys):
     out = tmp_path / "res"
     rc, _, _ = run(capsys, scen, "--out", out, "--quiet", "--set", 'trace.tables=["packets", "ranges"]')
     assert rc == 0
-    assert sorted(p.name for p in out.iterdir()) == ["packets.csv", "ranges.csv", "summary.json"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".aquasim-output.json",
+        "packets.csv",
+        "ranges.csv",
+        "summary.json",
+    ]
 
 
 def test_version_and_help(capsys):

@@ -86,7 +86,7 @@ def test_write_is_what_the_cli_writes(scen, tmp_path, capsys):
     mine = res.write(tmp_path / "py")
     assert mine == tmp_path / "py" and res.out == mine
     assert cli.main([str(scen), "--variant", "more", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
-    assert sorted(p.name for p in mine.iterdir()) == TABLES
+    assert sorted(p.name for p in mine.iterdir()) == [".aquasim-output.json", *TABLES]
     for name in TABLES[:-1]:
         assert (mine / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
     summary = json.loads((mine / "summary.json").read_text())
@@ -101,7 +101,7 @@ def test_run_variants(scen, tmp_path):
     out = tmp_path / "all"
     results = aquasim_py.run_variants(scen, out=out, overrides={"simulation.duration_s": 10})
     assert list(results) == ["asis", "slow", "more"]
-    assert sorted(p.name for p in out.iterdir()) == ["asis", "more", "slow", "variants.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [".aquasim-output.json", "asis", "more", "slow", "variants.csv"]
     one = aquasim_py.run_scenario(scen, variant="slow", overrides={"simulation.duration_s": 10})
     same_tables(results["slow"], one)
     table = aquasim_py.runner.compare(results)

@@ -189,7 +189,7 @@ def test_every_variant_from_one_command_and_one_by_one(scen, tmp_path, capsys):
     out = tmp_path / "all"
     rc, stdout, err = run(capsys, scen, "--out", out)
     assert rc == 0, err
-    assert sorted(p.name for p in out.iterdir()) == ["asis", "more", "slow", "variants.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [".aquasim-output.json", "asis", "more", "slow", "variants.csv"]
     # one comparison table: a row per variant
     assert "variants (seed 3" in stdout and all(v in stdout for v in ("asis", "slow", "more"))
     assert stdout.count("metrics (seed") == 0  # no per-run tables
@@ -197,7 +197,7 @@ def test_every_variant_from_one_command_and_one_by_one(scen, tmp_path, capsys):
         rows = list(csv.DictReader(fh))
     assert [r["variant"] for r in rows] == ["asis", "slow", "more"]
     for name, row in zip(["asis", "slow", "more"], rows):
-        assert sorted(p.name for p in (out / name).iterdir()) == TABLES
+        assert sorted(p.name for p in (out / name).iterdir()) == [".aquasim-output.json", *TABLES]
         summary = json.loads((out / name / "summary.json").read_text())
         assert summary["variant"] == name and summary["seed"] == 3
         assert summary["scenario"]["output"]["directory"] == str(out / name)
@@ -209,7 +209,7 @@ def test_every_variant_from_one_command_and_one_by_one(scen, tmp_path, capsys):
     one = tmp_path / "one"
     rc, stdout, _ = run(capsys, scen, "--variant", "slow", "--out", one)
     assert rc == 0 and "var/slow: metrics (seed 3" in stdout and "range error per anchor" in stdout
-    assert sorted(p.name for p in one.iterdir()) == TABLES
+    assert sorted(p.name for p in one.iterdir()) == [".aquasim-output.json", *TABLES]
     for name in TABLES[:-1]:
         assert (one / name).read_bytes() == (out / "slow" / name).read_bytes(), name
     a = json.loads((one / "summary.json").read_text())

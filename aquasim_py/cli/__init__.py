@@ -5,18 +5,25 @@ User mistakes (bad scenario, bad variant, bad override, unwritable output) print
 ``error: FILE: KEY.PATH: problem`` on stderr and exit with status 2, before anything is
 written. Outputs are staged in a hidden temporary directory next to the target and renamed
 into place only when complete, so an interrupted or failed run leaves no half-written
-directory (and an existing one untouched until the new one is ready).
+directory (and an existing one untouched until the new one is ready); see
+:mod:`aquasim_py.outdir` for what may be written where.
+
+SIGTERM (what ``timeout``, systemd and SLURM send) is handled as SIGINT: the run stops, the
+staging directory is removed, one line ``error: interrupted by SIGTERM (...)`` is printed and
+the exit status is 128 + the signal number (143 for SIGTERM, 130 for SIGINT).
 """
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
-from aquasim_py.cli.common import EXIT_USAGE, UsageError
+from aquasim_py.cli.common import EXIT_USAGE, Interrupted, UsageError
 from aquasim_py.cli.common import fmt as _fmt  # noqa: F401  (how the tables print a metric)
 from aquasim_py.scenario import ScenarioError
 
@@ -37,13 +44,35 @@ def _one_line_warnings() -> Iterator[None]:
         yield
 
 
+@contextmanager
+def _interruptible() -> Iterator[None]:
+    """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread; once one has arrived
+    further ones are ignored, so the clean-up on the way out is not itself interrupted."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    sigs = (signal.SIGINT, signal.SIGTERM)
+
+    def handler(signum: int, frame: Any) -> None:
+        for s in sigs:
+            signal.signal(s, signal.SIG_IGN)
+        raise Interrupted(signum)
+
+    old = {s: signal.signal(s, handler) for s in sigs}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
     from aquasim_py.cli import report, run, sweep
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        with _one_line_warnings():
+        with _interruptible(), _one_line_warnings():
             if argv and argv[0] == "sweep":
                 return sweep.command(argv[1:])
             if argv and argv[0] == "report":
@@ -54,6 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     except SystemExit as e:  # argparse's --help / --version
         return int(e.code) if isinstance(e.code, int) else (0 if e.code is None else EXIT_USAGE)
-    except KeyboardInterrupt:
-        print("error: interrupted (no output written)", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:  # Interrupted, or a KeyboardInterrupt raised before the handler
+        signum = e.signum if isinstance(e, Interrupted) else int(signal.SIGINT)
+        detail = (e.detail if isinstance(e, Interrupted) else None) or "no output written"
+        print(f"error: interrupted by {signal.Signals(signum).name} ({detail})", file=sys.stderr)
+        return 128 + signum

@@ -19,6 +19,15 @@ class UsageError(Exception):
     """A command-line mistake that is not about the scenario file."""
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM reached the command. ``detail``: what was kept (set on the way out)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+        self.detail: str | None = None
+
+
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, not usage + message
         raise UsageError(f"{message} (see {self.prog} --help)")
@@ -48,6 +57,12 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file")
     p.add_argument(
         "--out", metavar="DIR", help="output directory (default: [output] directory, else out/<scenario name>)"
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="write into a non-empty directory that is not an aquasim-py output (only the files "
+        "written are replaced; nothing else there is touched)",
     )
     p.add_argument("--seed", type=seed, metavar="N", help="override [simulation] seed")
     p.add_argument(

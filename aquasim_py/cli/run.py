@@ -83,7 +83,7 @@ def command(argv: Sequence[str]) -> int:
         out, key = common.output_dir(sc, args.out)
     sc.output.directory = str(out)  # the resolved scenario says where its outputs went
     check_output_format(sc)
-    with staged_output(out, sc.path, key) as tmp:
+    with staged_output(out, sc.path, key, overwrite=args.overwrite) as tmp:
         res = run_scenario(sc, progress=progress)
         res.write_into(tmp, final=out)
     _warn_missing(res)
@@ -104,7 +104,7 @@ def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> i
     out, key = common.output_dir(base, args.out)
     for sc in resolved.values():
         check_output_format(sc)
-    with staged_output(out, base.path, key) as tmp:
+    with staged_output(out, base.path, key, overwrite=args.overwrite) as tmp:
         results = run_resolved_into(resolved, tmp, out, progress)
     for res in results.values():
         _warn_missing(res)

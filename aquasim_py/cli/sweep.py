@@ -65,7 +65,25 @@ def command(argv: Sequence[str]) -> int:
         except ImportError:
             raise common.UsageError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from None
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
-    with staged_output(out, sc.path, key) as tmp:
+    try:
+        return _run(sc, args, jobs, workers, out, key)
+    except common.Interrupted as e:  # SIGINT / SIGTERM: say what became of the finished runs
+        e.detail = f"{_finished[0]} of {len(jobs)} sweep runs had finished; no rows kept, no output written"
+        raise
+
+
+_finished = [0]  # runs of the current sweep finished so far (for the interruption message)
+
+
+def _count(done: int, total: int) -> None:
+    _finished[0] = done
+
+
+def _run(sc: Any, args: argparse.Namespace, jobs: list[Any], workers: int, out: Any, key: str) -> int:
+    from aquasim_py import sweep
+
+    _count(0, len(jobs))
+    with staged_output(out, sc.path, key, overwrite=args.overwrite) as tmp:
         started = time.perf_counter()
         if common._progress_wanted(args.quiet):
             from rich.progress import (
@@ -93,13 +111,14 @@ def command(argv: Sequence[str]) -> int:
                 prog.refresh()
 
                 def tick(done: int, total: int) -> None:
+                    _count(done, total)
                     prog.start_task(task)
                     prog.update(task, completed=done)
                     prog.refresh()
 
                 rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler, progress=tick)
         else:
-            rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler)
+            rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler, progress=_count)
         wall = time.perf_counter() - started
         cols = sweep.columns(rows, jobs)
         sweep.rows_to_csv(rows, cols, tmp / "sweep.csv")
