@@ -33,7 +33,15 @@ from typing import Any
 
 from aquasim_py.scenario import ScenarioError
 
-__all__ = ["MANIFEST", "STAGING_MARKER", "OutputRefused", "clean_stale", "is_own_output", "staged_output"]
+__all__ = [
+    "MANIFEST",
+    "STAGING_MARKER",
+    "OutputRefused",
+    "clean_stale",
+    "is_own_output",
+    "record_files",
+    "staged_output",
+]
 
 #: the manifest of an output directory: the files aquasim-py wrote there
 MANIFEST = ".aquasim-output.json"
@@ -94,6 +102,24 @@ def _write_manifest(d: Path, files: list[str]) -> None:
 
     body = {"tool": "aquasim-py", "version": __version__, "files": sorted(files)}
     (d / MANIFEST).write_text(json.dumps(body, indent=2) + "\n")
+
+
+def record_files(d: Path, names: list[str]) -> None:
+    """Add files written into the output directory ``d`` after its run (a report's plots) to
+    its manifest, and to the manifests above it that list ``d``'s files (a variant directory
+    inside an all-variants run), so a later run replaces them like the rest."""
+    d = Path(d)
+    own = _read_manifest(d) if (d / MANIFEST).is_file() else []
+    _write_manifest(d, sorted({*(own or []), *names}))
+    child, prefix = d, ""
+    while True:
+        parent = child.parent
+        prefix = f"{child.name}/{prefix}"
+        listed = _read_manifest(parent) if parent != child else None
+        if not listed or not any(f.startswith(prefix) for f in listed):
+            return
+        _write_manifest(parent, sorted({*listed, *(prefix + n for n in names)}))
+        child = parent
 
 
 def _files_under(d: Path) -> list[str]:

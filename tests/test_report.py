@@ -102,3 +102,28 @@ def test_report_of_a_directory_that_is_no_output_is_one_line(
     assert cli.main(["report", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and "neither a run" in err[0]
+
+
+def test_report_into_a_users_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = tmp_path / "b"
+    scen = tmp_path / "sw.toml"
+    scen.write_text(SWEEP.split("[sweep]")[0])
+    assert cli.main([str(scen), "--quiet", "--out", str(run)]) == 0
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "map.png").write_text("my own file")
+    assert cli.main(["report", str(run), "--out", str(mine)]) == 2
+    assert (mine / "map.png").read_text() == "my own file"
+    assert capsys.readouterr().err.strip().startswith("error: --out ")
+
+
+def test_report_files_join_the_run_manifest(tmp_path: Path) -> None:
+    """A later run into the same directory replaces the plots like the rest of its output."""
+    import json
+
+    scen = tmp_path / "sw.toml"
+    scen.write_text(SWEEP.split("[sweep]")[0])
+    run = tmp_path / "r"
+    assert cli.main([str(scen), "--quiet", "--out", str(run), "--report"]) == 0
+    listed = json.loads((run / ".aquasim-output.json").read_text())["files"]
+    assert "report.html" in listed and "map.png" in listed

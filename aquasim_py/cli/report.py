@@ -29,18 +29,27 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _report_into(directory: Path, out: Path) -> Path:
+    """Write the report of ``directory`` into ``out`` and list its files in ``out``'s manifest."""
+    from aquasim_py.outdir import record_files
+    from aquasim_py.report import write_report
+
+    html = write_report(directory, out)
+    record_files(out, sorted(p.name for p in out.iterdir() if p.suffix == ".png" or p == html))
+    return html
+
+
 def reports_for(out: Path) -> list[Path]:
     """Report every run under ``out``: the run itself, or each variant directory of a run with
     variants (``out/NAME/summary.json``); returns the report.html paths."""
-    from aquasim_py.report import write_report
-
     if (out / "summary.json").is_file() or (out / "sweep.csv").is_file():
-        return [write_report(out)]
-    return [write_report(d) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
+        return [_report_into(out, out)]
+    return [_report_into(d, d) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
 
 
 def command(argv: Sequence[str]) -> int:
-    from aquasim_py.report import ReportError, write_report
+    from aquasim_py.outdir import OutputRefused, is_own_output
+    from aquasim_py.report import ReportError
 
     args = parser().parse_args(argv)
     directory = Path(args.directory)
@@ -52,7 +61,11 @@ def command(argv: Sequence[str]) -> int:
             if not paths:
                 raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
         else:
-            paths = [write_report(directory, Path(args.out))]
+            dest = Path(args.out)
+            if dest.exists() and not is_own_output(dest):  # never write over a user's files
+                raise OutputRefused(None, "--out", f"{dest}: not empty and not an aquasim-py output directory")
+            dest.mkdir(parents=True, exist_ok=True)
+            paths = [_report_into(directory, dest)]
     except ReportError as e:
         raise common.UsageError(str(e)) from None
     for p in paths:
