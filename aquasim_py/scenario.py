@@ -713,6 +713,8 @@ def channel_config(sc: Scenario) -> Any:
         capture_threshold_db=c.capture_threshold_db,
         jitter_std_s=c.jitter_std_s,
         reflections=c.reflections,
+        sound_speed_std_mps=c.sound_speed_std_mps,
+        sound_speed_corr_s=c.sound_speed_corr_s,
     )
 
 

@@ -158,6 +158,12 @@ class ChannelSpec(Strict):
     capture_threshold_db: NonNegFloat = 6.0
     jitter_std_s: NonNegFloat = Field(0.0, description="std of the MAC timestamp jitter (s)")
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    sound_speed_std_mps: NonNegFloat = Field(
+        0.0, description="std of the path-mean sound speed around the profile (m/s); 0 = none"
+    )
+    sound_speed_corr_s: NonNegFloat = Field(
+        0.0, description="per-link correlation time of that deviation (s); 0 = independent per packet"
+    )
 
 
 # --------------------------------------------------------------------------- [[nodes]]

@@ -45,6 +45,7 @@ from . import isogradient
 from .rays import Eigenray, PathKind
 from .raytrace import eigenray
 from .ssp import Constant, Isogradient
+from .uncertainty import SoundSpeedUncertainty
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..kernel import Simulation, _NodeCore
@@ -93,6 +94,9 @@ class ChannelConfig:
         then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
+    sound_speed_std_mps, sound_speed_corr_s: sound-speed uncertainty (channel/uncertainty.py):
+        std (m/s) of the path-mean speed around the profile, and its per-link correlation time
+        (s; 0 = independent per packet). std 0 leaves the channel exactly as without it.
     """
 
     max_range_m: float = 5000.0
@@ -108,6 +112,8 @@ class ChannelConfig:
     capture_threshold_db: float = 6.0
     jitter_std_s: float = 0.0
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    sound_speed_std_mps: float = 0.0
+    sound_speed_corr_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -120,6 +126,8 @@ class ChannelConfig:
             raise ValueError(f"ChannelConfig.reflections must be none/fallback/all, got {self.reflections!r}")
         if not self.jitter_std_s >= 0.0:
             raise ValueError(f"ChannelConfig.jitter_std_s must be >= 0, got {self.jitter_std_s!r}")
+        if not (self.sound_speed_std_mps >= 0.0 and self.sound_speed_corr_s >= 0.0):
+            raise ValueError("ChannelConfig.sound_speed_std_mps and sound_speed_corr_s must be >= 0")
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,
@@ -185,6 +193,14 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
+        # sound-speed uncertainty hook: its own keyed stream, so no other draw moves
+        self._sound_speed = (
+            SoundSpeedUncertainty(
+                config.sound_speed_std_mps, config.sound_speed_corr_s, sim.rng("channel", "sound_speed")
+            )
+            if config.sound_speed_std_mps > 0
+            else None
+        )
 
     # -- transmit ---------------------------------------------------------------------------------
 
@@ -286,7 +302,7 @@ class AcousticChannel:
         """
         sim = self._sim
         n = len(sim.nodes)
-        static = not sim.is_moving().any()
+        static = not sim.is_moving().any() and self._sound_speed is None
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:
@@ -301,6 +317,8 @@ class AcousticChannel:
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            if self._sound_speed is not None:  # path-mean speed taken at the mid depth
+                times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + pos[cand, 2]) / 2))
             cores = sim._cores
             thr = self.config.snr_threshold_db
             for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):

@@ -14,7 +14,12 @@ __all__ = ["localization_metrics"]
 
 
 def localization_metrics(
-    tables: Mapping[str, Any], protocol: str, *, converge_within: int = 5, t_min: float | None = None
+    tables: Mapping[str, Any],
+    protocol: str,
+    *,
+    converge_within: int = 5,
+    t_min: float | None = None,
+    period_s: float | None = None,
 ) -> dict[str, float]:
     """STVF Section 5 metrics from the trace tables of one run.
 
@@ -24,7 +29,8 @@ def localization_metrics(
     periods of (unknown nodes localized in the period) / (unknown nodes); coverage_ever: share
     localized at least once; converge_within_5: share of localizations whose iteration count
     is <= ``converge_within`` (Fig. 6); mean_iterations; localizations.
-    Rows of every estimate of the protocol count, promoted references included."""
+    Rows of every estimate of the protocol count, promoted references included. Periods are
+    ``period_s`` long (default: the ``period_s`` column the protocols log, else 1 s)."""
     est = tables.get("estimates")
     nodes = tables.get("nodes")
     out: dict[str, float] = {}
@@ -44,7 +50,9 @@ def localization_metrics(
     out["share_below_avg"] = float((per_node < avg).mean())
     out["mean_error_m"] = float(np.sqrt(err2).mean())
     out["rmse_m"] = float(np.sqrt(err2.mean()))
-    periods = np.floor(e["time"].to_numpy() + 1e-9)
+    if period_s is None:
+        period_s = float(e["period_s"].median()) if "period_s" in e.columns else 1.0
+    periods = np.floor(e["time"].to_numpy() / period_s + 1e-9)
     per_period = pd.Series(e["node"].to_numpy()).groupby(periods).nunique()
     n_periods = int(np.ptp(periods)) + 1 if len(periods) else 1
     out["coverage"] = float(per_period.sum() / (n_periods * n_unknown))
