@@ -161,7 +161,9 @@ class SlmpNode(PeriodicBeaconNode):
         pred = self.predictor.predict(now)
         method = "predicted"
         xy: np.ndarray | None = pred
-        if pred is None or (len(r) and prediction_residual(pred, refs, r) > self.threshold):
+        miss = prediction_residual(pred, refs, r) if pred is not None and len(r) else float("nan")
+        attempted = pred is None or miss > self.threshold
+        if attempted:
             fix = self.least_squares(refs, r)
             if fix is not None:
                 xy, method = fix, "least_squares"
@@ -182,6 +184,8 @@ class SlmpNode(PeriodicBeaconNode):
             is_reference=self.is_reference,
             method=method,
             n_refs=len(r),
+            miss_m=miss,
+            attempted=attempted,
             period_s=p.period_s,
         )
 
