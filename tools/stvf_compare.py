@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> None:
         k, v = item.split("=", 1)
         scenario.apply_override(raw_base, k, scenario.parse_value(v))
     extra = {"stvf": a.set_stvf, "slmp": a.set_slmp}
-    jobs = []
+    jobs: list[tuple[str, dict[str, Any], list, int, str, float | None]] = []
     for dens in a.densities or [None]:
         for variant, ov in _variant_overrides(raw, dens, extra).items():
             if a.variants and variant not in a.variants:

