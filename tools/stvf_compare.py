@@ -140,13 +140,21 @@ def main(argv: list[str] | None = None) -> None:
             jobs.extend((str(path), raw_base, ov, seed, variant, dens) for seed in _seeds(a.seeds))
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict[str, Any]] = []
+
+    def keep(row: dict[str, Any]) -> None:
+        # runs.csv grows as runs finish, so an interrupted sweep keeps what it did
+        rows.append(row)
+        pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
+
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
-            rows = list(ex.map(run_one, jobs))
+            for row in ex.map(run_one, jobs):
+                keep(row)
     else:
-        rows = [run_one(j) for j in jobs]
+        for job in jobs:
+            keep(run_one(job))
     runs = pd.DataFrame(rows)
-    runs.to_csv(out / "runs.csv", index=False)
     s = summary(runs)
     s.to_csv(out / "summary.csv", index=False)
     with pd.option_context("display.width", 200, "display.max_columns", 30):
