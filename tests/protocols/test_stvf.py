@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import aquasim_py
 from aquasim_py import scenario
 from aquasim_py.registry import get
 
@@ -153,3 +154,13 @@ def test_coverage_uses_the_configured_period():
     assert localization_metrics({"nodes": nodes, "estimates": est}, "stvf", period_s=1.0)["coverage"] == pytest.approx(
         4 / (3 * 2)
     )
+
+
+@pytest.mark.skipif(not hasattr(aquasim_py, "run_scenario"), reason="needs the [variants] loader")
+def test_quick_variants_report_generic_localization_metrics():
+    """stvf_quick.toml declares stvf, slmp and multilateration_bound; each reports the generic
+    localization.* metrics after the 20-s warm-up."""
+    for name in ("stvf", "slmp", "multilateration_bound"):
+        res = aquasim_py.run_scenario(QUICK, variant=name, overrides=["simulation.duration_s=24.0"])
+        assert res.metrics["localization.coverage"] > 0.5, name
+        assert 0.0 < res.metrics["localization.rmse_m"] < 80.0, name
