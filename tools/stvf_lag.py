@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -100,6 +101,7 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
         out["ls3"][k - 1] = fix(refs[sel3], ranges[sel3]) - truth[k]
         if mu is None or lp is None:
             mu, lp = vf.initial_prior(out["ls6"][k - 1] + truth[k], 10.0)
+        assert mu is not None and lp is not None
         mu_p, lp_p = vf.predict(mu, lp, prior.transition)
         res = vf.variational_update(z_ms[sel] * scale / 1e3, refs[sel], mu_p, lp_p, prior, filt_rng)
         mu, lp = res.mu, res.mu_precision
@@ -111,7 +113,7 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
     return {**out, "its": its, "prop": prop, "unit": unit}
 
 
-def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[str, float | str]:
+def summarize(name: str, runs: list[dict[str, np.ndarray]], burn: int) -> dict[str, Any]:
     def stats(key: str) -> tuple[float, float]:
         err = np.concatenate([r[key][burn:] for r in runs])
         unit = np.concatenate([r["unit"][burn:] for r in runs])

@@ -47,6 +47,7 @@ from .obstacles import ObstacleConfig, ObstacleField
 from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
+from .uncertainty import SoundSpeedUncertainty
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ssp import SoundSpeedProfile
@@ -100,6 +101,9 @@ class ChannelConfig:
         the receiver's ("node", id, "pressure") stream; None = off.
     pressure_source_level, pressure_exponent: S and k of h = S / D^k.
     obstacles: obstructed links' extra loss and excess delay (``channel.obstacles``); None = none.
+    sound_speed_std_mps, sound_speed_corr_s: sound-speed uncertainty (channel/uncertainty.py):
+        std (m/s) of the path-mean speed around the profile, and its per-link correlation time
+        (s; 0 = independent per packet). std 0 leaves the channel exactly as without it.
     """
 
     max_range_m: float = 5000.0
@@ -120,6 +124,8 @@ class ChannelConfig:
     pressure_exponent: float = 1.0
     pressure_noise_std: float = 5.0
     obstacles: ObstacleConfig | None = None
+    sound_speed_std_mps: float = 0.0
+    sound_speed_corr_s: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -132,6 +138,8 @@ class ChannelConfig:
             raise ValueError(f"ChannelConfig.reflections must be none/fallback/all, got {self.reflections!r}")
         if not self.jitter_std_s >= 0.0:
             raise ValueError(f"ChannelConfig.jitter_std_s must be >= 0, got {self.jitter_std_s!r}")
+        if not (self.sound_speed_std_mps >= 0.0 and self.sound_speed_corr_s >= 0.0):
+            raise ValueError("ChannelConfig.sound_speed_std_mps and sound_speed_corr_s must be >= 0")
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,
@@ -253,6 +261,15 @@ class AcousticChannel:
             if streams is None:
                 raise ValueError("AcousticChannel: obstacles need the run's keyed random streams (streams=)")
             self._obstacles = ObstacleField(obs, lambda a, b: float(streams("obstacle", a, b).random()))
+
+        # sound-speed uncertainty hook: its own keyed stream, so no other draw moves
+        self._sound_speed: SoundSpeedUncertainty | None = None
+        if config.sound_speed_std_mps > 0:
+            if streams is None:
+                raise ValueError("AcousticChannel: sound-speed uncertainty needs the run's keyed random streams")
+            self._sound_speed = SoundSpeedUncertainty(
+                config.sound_speed_std_mps, config.sound_speed_corr_s, streams("channel", "sound_speed")
+            )
 
     # -- nodes ------------------------------------------------------------------------------------
 
@@ -384,7 +401,7 @@ class AcousticChannel:
         net = self._net
         modems = self._modems
         n = len(modems)
-        static = not net.is_moving().any()
+        static = not net.is_moving().any() and self._sound_speed is None
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:
@@ -399,6 +416,8 @@ class AcousticChannel:
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            if self._sound_speed is not None:  # path-mean speed taken at the mid depth
+                times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + pos[cand, 2]) / 2))
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
             thr = self.config.snr_threshold_db

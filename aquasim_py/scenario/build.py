@@ -218,6 +218,8 @@ def channel_config(sc: Scenario) -> Any:
         pressure_exponent=c.pressure_exponent,
         pressure_noise_std=c.pressure_noise_std,
         obstacles=None if c.obstacles is None else _obstacles(c.obstacles),
+        sound_speed_std_mps=c.sound_speed_std_mps,
+        sound_speed_corr_s=c.sound_speed_corr_s,
     )
 
 

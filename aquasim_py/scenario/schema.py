@@ -182,6 +182,12 @@ class ChannelSpec(Strict):
     pressure_exponent: PosFloat = Field(1.0, description="k of the pressure model h = S / D^k")
     pressure_noise_std: NonNegFloat = Field(5.0, description="hydrophone noise std (pressure units)")
     obstacles: ObstacleSpec | None = Field(None, description="obstructed links; none by default")
+    sound_speed_std_mps: NonNegFloat = Field(
+        0.0, description="std of the path-mean sound speed around the profile (m/s); 0 = none"
+    )
+    sound_speed_corr_s: NonNegFloat = Field(
+        0.0, description="per-link correlation time of that deviation (s); 0 = independent per packet"
+    )
 
 
 # --------------------------------------------------------------------------- [[nodes]]

@@ -1,4 +1,5 @@
-"""Pure maths of SLMP, the baseline of the STVF paper (no SimPy).
+"""Pure maths of SLMP, the baseline of the STVF paper (no SimPy), shared by ``slmp`` and
+``multilateration_bound``.
 
 SLMP: Z. Zhou, Z. Peng, J.-H. Cui, Z. Shi, A. Bagtzoglou, "Scalable localization with
 mobility prediction for underwater sensor networks", IEEE Trans. Mobile Computing 10(3),
@@ -28,6 +29,7 @@ __all__ = [
     "fit_linear_predictor",
     "is_stable",
     "predict_velocities",
+    "prediction_residual",
     "slmp_confidence",
 ]
 
@@ -160,5 +162,13 @@ def slmp_confidence(ref_confidence: ArrayLike, position: ArrayLike, refs: ArrayL
     denom = r.sum()
     if denom <= 0:
         return 0.0
-    eta = float(np.mean(ref_confidence)) * (1.0 - np.abs(rho - r).sum() / denom)
+    eta = float(np.mean(np.asarray(ref_confidence, float))) * (1.0 - np.abs(rho - r).sum() / denom)
     return float(np.clip(eta, 0.0, 1.0))
+
+
+def prediction_residual(position: ArrayLike, refs: ArrayLike, ranges: ArrayLike) -> float:
+    """RMS range residual (m) of a position against measured ranges to references:
+    sqrt(mean_i (||x - a_i|| - r_i)^2). SLMP's test of whether a predicted position still
+    agrees with what the node hears (a prediction off by d gives about d / sqrt(2))."""
+    rho = np.linalg.norm(np.asarray(position, float) - np.asarray(refs, float), axis=-1)
+    return float(np.sqrt(np.mean((rho - np.asarray(ranges, float)) ** 2)))

@@ -1,21 +1,34 @@
-"""SLMP (Zhou, Peng, Cui, Shi, Bagtzoglou, IEEE TMC 2011 / INFOCOM 2008) as the STVF paper
-runs it for comparison (Hu et al., Sensors 2018, Sec. 5.3).
+"""SLMP as designed: Z. Zhou, Z. Peng, J.-H. Cui, Z. Shi, A. Bagtzoglou, "Scalable localization
+with mobility prediction for underwater sensor networks", IEEE Trans. Mobile Computing 10(3),
+2011 (INFOCOM 2008; UConn tech. report UbiNet-TR07-01), with the parameters the STVF paper
+(Hu et al., Sensors 2018, Sec. 5.3) ran it with. docs/stvf.md lists each choice the paper
+leaves open.
 
-- Beacons (role ``anchor``) broadcast position, depth, confidence 1 and their predicted
-  velocity every period; the first ``training_s`` (100 s) only train the mobility predictors.
-- Unknown nodes (role ``ordinary``) keep each reference's last beacon for ``validity_s``
-  (60 s, the prediction window): a beacon heard at t0 constrains the node's own position at
-  t0, so a stale one is used with the node's predicted displacement since t0 added to the
-  reference position. With >= ``min_refs`` (3, after projection on the depth plane)
-  references: multilateration and a confidence (:func:`~aquasim_py.protocols.slmp.math.slmp_confidence`);
-  above ``delta`` the node becomes a reference. Otherwise, with >= ``self_min_refs`` references
-  in view ("more than one", STVF Sec. 5.3.1) and a previous estimate, the node self-estimates
-  from its previous location and its predicted velocity.
-- Mobility prediction: :class:`~aquasim_py.protocols.slmp.math.MobilityPredictor` (window 60 s, overlap
-  20 %, order 15, refit when the one-step error exceeds 5 % of the range).
+SLMP is hierarchical (the paper's abstract): *anchor node localization* and *ordinary node
+localization*; every node predicts its future mobility pattern from its past known locations
+and estimates its location from that prediction, so that localization (and its messages) is
+needed only when the prediction goes wrong.
+
+- Anchors (role ``anchor``) localize against the surface buoys (here: the kernel's position
+  fix, ``Node.known_position()``, whose noise is the group's ``position_noise_std_m``) and
+  learn their mobility pattern (:class:`~aquasim_py.protocols.slmp.math.MobilityPredictor`).
+  What they advertise is their *predicted* position; the pattern is re-advertised (the fix
+  replaces the prediction) only when the prediction misses the buoy fix by more than the
+  threshold ``error_ratio`` x ``range_m`` (5 % of the range).
+- Ordinary nodes (role ``ordinary``) wait ``training_s`` (the anchors' training), then
+  predict their position from their own mobility pattern each period. They check the
+  prediction against the references they hear: if the RMS range residual of the prediction
+  exceeds the threshold (or there is no prediction yet), they **re-localize** with plain
+  linear least squares on the references heard this period (>= ``min_refs``) and feed the fix
+  to their predictor; otherwise the prediction stands (and is recorded as a known location).
+- Every localized node reports a position each period (its fix or its prediction) with a
+  confidence (:func:`~aquasim_py.protocols.slmp.math.slmp_confidence` against the references
+  heard); at or above ``delta`` it is a reference and broadcasts that position and confidence
+  from the next period start (beacons go out in the first half of a period, localization ends
+  it).
 
 The ranging model is STVF's: one-way delays from MAC stamps (synchronized clocks), error std
-``noise_ratio`` x delay, ranges at the nominal ``speed_mps``.
+``noise_ratio`` x delay, ranges at the nominal ``speed_mps``. Nothing here reads ground truth.
 """
 
 from __future__ import annotations
@@ -34,15 +47,15 @@ from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
 from ..stvf.metrics import localization_metrics
-from .math import MobilityPredictor, slmp_confidence
+from .math import MobilityPredictor, prediction_residual, slmp_confidence
 
-__all__ = ["SlmpNode"]
+__all__ = ["SlmpNode", "SlmpParams"]
 
 KIND = "slmp_beacon"
 
 
 class SlmpParams(BaseModel):
-    """SLMP parameters (STVF Sec. 5.3 defaults)."""
+    """SLMP parameters (STVF Sec. 5.3 defaults; SLMP's own where STVF is silent)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -50,23 +63,22 @@ class SlmpParams(BaseModel):
     listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
     send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
     bits: int = Field(160, ge=1, description="beacon packet size (bits)")
-    training_s: float = Field(100.0, ge=0, description="beacon training before unknown nodes localize (s)")
+    training_s: float = Field(100.0, ge=0, description="anchor training before ordinary nodes localize (s)")
     window_s: float = Field(60.0, gt=0, description="prediction window (s)")
     overlap: float = Field(0.2, ge=0, lt=1, description="overlap of neighbouring windows (fraction)")
     order: int = Field(15, ge=1, description="prediction step: order of the linear predictor")
     range_m: float = Field(80.0, gt=0, description="communication range (m), for the error threshold")
     error_ratio: float = Field(0.05, gt=0, description="prediction error threshold / range")
-    validity_s: float = Field(60.0, ge=0, description="how long a reference's beacon stays usable (s)")
     delta: float = Field(0.9, ge=0, le=1, description="confidence threshold for references")
-    min_refs: int = Field(3, ge=3, description="references needed for multilateration (2-D)")
-    self_min_refs: int = Field(2, ge=0, description="references in view needed to self-estimate")
+    min_refs: int = Field(3, ge=3, description="references needed for least squares (2-D after projection)")
     speed_mps: float = Field(1500.0, gt=0, description="nominal sound speed (m/s)")
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay")
 
 
 @register
 class SlmpNode(PeriodicBeaconNode):
-    """An SLMP node: beacons (anchor) broadcast; unknown nodes (ordinary) localize."""
+    """An SLMP node: anchors advertise their predicted positions; ordinary nodes predict and
+    re-localize when the prediction misses."""
 
     name = "slmp"
     Params = SlmpParams
@@ -75,109 +87,128 @@ class SlmpNode(PeriodicBeaconNode):
     def setup(self) -> None:
         p: SlmpParams = self.params
         self.is_beacon = self.role in (Role.ANCHOR, Role.BUOY)
+        self.threshold = p.error_ratio * p.range_m
         self.predictor = MobilityPredictor(
             p.period_s,
             window=int(round(p.window_s / p.period_s)),
             overlap=p.overlap,
             order=p.order,
-            threshold=p.error_ratio * p.range_m,
+            threshold=self.threshold,
         )
         self.confidence = 1.0 if self.is_beacon else 0.0
         self.is_reference = self.is_beacon
-        self.last: tuple[float, np.ndarray] | None = None  # (local time, xy) of the last estimate
-        self.table: dict[int, tuple[float, np.ndarray, float, float]] = {}  # src -> (t0, xy, r, eta)
+        self.relocalizations = 0
+
+    # -- references ---------------------------------------------------------------------------
 
     def beacon_payload(self) -> dict[str, Any] | None:
         now = self.local_time()
         if self.is_beacon:
-            pos = self.known_position()
-            self.predictor.add(now, pos[:2])
+            fix = np.asarray(self.known_position(), float)
+            pred = self.predictor.predict(now)
+            # the advertised position is the mobility pattern's prediction while it stays
+            # within the threshold of the buoy fix; a miss re-advertises (the fix)
+            miss = pred is None or float(np.linalg.norm(pred - fix[:2])) > self.threshold
+            xy = fix[:2] if pred is None or miss else pred
+            self.predictor.add(now, fix[:2])
             vel = self.predictor.velocity()
-            return {
-                "xy": (float(pos[0]), float(pos[1])),
-                "depth": float(pos[2]),
-                "eta": 1.0,
-                "vel": (float(vel[0]), float(vel[1])),
-            }
-        if self.is_reference and self.last is not None:
-            vel = self.predictor.velocity()
-            xy = self.last[1] + vel * (now - self.last[0])
             return {
                 "xy": (float(xy[0]), float(xy[1])),
+                "depth": float(fix[2]),
+                "eta": 1.0,
+                "vel": (float(vel[0]), float(vel[1])),
+                "update": bool(miss),
+            }
+        if self.is_reference and self.predictor.times:
+            own = self.predictor.predict(now)
+            assert own is not None
+            vel = self.predictor.velocity()
+            return {
+                "xy": (float(own[0]), float(own[1])),
                 "depth": self.depth(),
                 "eta": self.confidence,
                 "vel": (float(vel[0]), float(vel[1])),
+                "update": False,
             }
         return None
 
     def ready(self, elapsed_s: float) -> bool:
-        """Unknown nodes localize only after the beacons' mobility training."""
+        """Ordinary nodes localize only after the anchors' mobility training."""
         return elapsed_s >= self.params.training_s
+
+    # -- ordinary node localization -------------------------------------------------------------
+
+    def ranges(self, heard: list[Any], depth: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(reference xy (n, 2), horizontal ranges (n,) m, confidences (n,)) of this period."""
+        p: SlmpParams = self.params
+        if not heard:
+            return np.empty((0, 2)), np.empty(0), np.empty(0)
+        pay = [r.packet.payload for r in heard]
+        z = np.array([r.rx_local - r.packet.tx_local for r in heard])
+        if p.noise_ratio > 0:
+            z = z * (1.0 + p.noise_ratio * self.rng.standard_normal(z.size))
+        dz = np.array([q["depth"] for q in pay]) - depth
+        zh = project_delay(z, dz, p.speed_mps, z_scale=1.0)
+        refs = np.array([q["xy"] for q in pay], float)
+        eta = np.array([q["eta"] for q in pay], float)
+        return refs, np.asarray(zh, float) * p.speed_mps, eta
 
     def localize(self, heard: list[Any]) -> None:
         p: SlmpParams = self.params
         now = self.local_time()
         depth = self.depth()
-        for rec in heard:
-            q = rec.packet.payload
-            z = rec.rx_local - rec.packet.tx_local
-            if p.noise_ratio > 0:
-                z *= 1.0 + p.noise_ratio * float(self.rng.standard_normal())
-            zh = float(project_delay(z, q["depth"] - depth, p.speed_mps, z_scale=1.0))
-            self.table[rec.packet.src] = (rec.rx_local, np.asarray(q["xy"], float), zh * p.speed_mps, q["eta"])
-        self.table = {s: e for s, e in self.table.items() if now - e[0] <= p.validity_s}
-        vel = self.predictor.velocity() if self.predictor.times else None
-        # Fresh beacons (this period) first; stale ones (within the validity window, newest
-        # first) only to make up the number multilateration needs.
-        entries = sorted(self.table.values(), key=lambda e: -e[0])
-        fresh = [e for e in entries if now - e[0] <= p.period_s]
-        stale = [e for e in entries if now - e[0] > p.period_s] if vel is not None else []
-        use = fresh + stale[: max(0, p.min_refs - len(fresh))]
-        refs, ranges, etas = [], [], []
-        for t0, xy, r, eta in use:
-            if now - t0 > p.period_s:
-                xy = xy + vel * (now - t0)  # own displacement since the beacon was heard
-            refs.append(xy)
-            ranges.append(r)
-            etas.append(eta)
-        method = ""
-        xy_est = None
-        conf = 0.0
-        if len(refs) >= p.min_refs:
-            try:
-                xy_est = multilaterate(np.array(refs), np.array(ranges), refine=5)
-                # A node hears only nodes within range: a fix farther than that from a
-                # reference is a failed one (ill-conditioned geometry), not an estimate.
-                if np.all(np.linalg.norm(np.array(refs) - xy_est, axis=1) <= p.range_m):
-                    conf = slmp_confidence(etas, xy_est, np.array(refs), np.array(ranges))
-                    method = "multilateration"
-                else:
-                    xy_est = None
-            except (DegenerateGeometryError, InsufficientMeasurementsError, np.linalg.LinAlgError):
-                xy_est = None
-        if xy_est is None and len(refs) >= p.self_min_refs and self.last is not None:
-            xy_est = self.last[1] + self.predictor.velocity() * (now - self.last[0])
-            method = "self"
-            conf = 0.0
-        if xy_est is None:
-            self.is_reference = False
-            return
-        if method == "multilateration" and conf >= p.delta:
-            # the mobility pattern is learnt from trusted fixes only
-            self.predictor.add(now, xy_est)
+        refs, r, eta = self.ranges(heard, depth)
+        pred = self.predictor.predict(now)
+        method = "predicted"
+        xy: np.ndarray | None = pred
+        miss = prediction_residual(pred, refs, r) if pred is not None and len(r) else float("nan")
+        attempted = pred is None or miss > self.threshold
+        if attempted:
+            fix = self.least_squares(refs, r)
+            if fix is not None:
+                xy, method = fix, "least_squares"
+                self.relocalizations += 1
+        if xy is None:
+            return  # never localized yet and too few references
+        if method == "least_squares" or (method == "predicted" and len(r)):
+            # a fix, or a prediction the references confirmed: a known location of the pattern
+            self.predictor.add(now, xy)
+        conf = slmp_confidence(eta, xy, refs, r) if len(r) >= p.min_refs else 0.0
         self.confidence = conf
-        self.is_reference = method == "multilateration" and conf >= p.delta
-        self.last = (now, np.asarray(xy_est, float))
+        self.is_reference = conf >= p.delta
         self.log_estimate(
-            xy_est[0],
-            xy_est[1],
+            xy[0],
+            xy[1],
             depth,
             confidence=conf,
             is_reference=self.is_reference,
             method=method,
-            n_refs=len(refs),
+            n_refs=len(r),
+            miss_m=miss,
+            attempted=attempted,
+            period_s=p.period_s,
         )
+
+    def least_squares(self, refs: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+        """Plain linear least squares (SLMP's multilateration) on this period's references; a
+        fix farther than ``range_m`` from a reference it heard is a failed one."""
+        p: SlmpParams = self.params
+        if len(r) < p.min_refs:
+            return None
+        try:
+            xy = multilaterate(refs, r)
+        except (DegenerateGeometryError, InsufficientMeasurementsError, np.linalg.LinAlgError):
+            return None
+        if not np.all(np.linalg.norm(refs - xy, axis=1) <= p.range_m):
+            return None
+        return xy
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
-        return localization_metrics(tables, cls.name)
+        out = localization_metrics(tables, cls.name)
+        est = tables.get("estimates")
+        if est is not None and len(est) and "method" in est.columns:
+            e = est[est["protocol"] == cls.name]
+            if len(e):
+                out["relocalization_share"] = float((e["method"] == "least_squares").mean())
+        return out

@@ -16,14 +16,20 @@ __all__ = ["localization_metrics"]
 
 
 def localization_metrics(
-    tables: Mapping[str, Any], protocol: str, *, converge_within: int = 5, t_min: float | None = None
+    tables: Mapping[str, Any],
+    protocol: str,
+    *,
+    converge_within: int = 5,
+    t_min: float | None = None,
+    period_s: float | None = None,
 ) -> dict[str, float]:
     """STVF Section 5 metrics from the trace tables of one run.
 
     avg_rmse_m: mean over unknown nodes of each node's RMSE over its estimates (Sec. 5.2.3);
     share_below_avg: share of those nodes whose RMSE is below that mean; mean_error_m: mean
     distance error over all estimates ("localization accuracy", Sec. 5.1); rmse_m: RMSE over
-    all estimates; coverage: mean over 1-s periods (first to last estimate) of (unknown nodes
+    all estimates; coverage: mean over ``period_s`` periods (first to last estimate; default: the ``period_s`` column
+    the protocols log, else 1 s) of (unknown nodes
     localized in the period) / (unknown nodes), the paper's time-averaged coverage;
     coverage_ever: share localized at least once; converge_within_5: share of localizations
     whose iteration count is <= ``converge_within`` (Fig. 6); mean_iterations; localizations.
@@ -50,7 +56,9 @@ def localization_metrics(
     out["share_below_avg"] = float((per_node < avg).mean())
     out["mean_error_m"] = generic.mean_error(e, nodes, **sel)
     out["rmse_m"] = generic.rmse(e, nodes, **sel)
-    periods = np.floor(e["time"].to_numpy() + 1e-9)
+    if period_s is None:
+        period_s = float(e["period_s"].median()) if "period_s" in e.columns else 1.0
+    periods = np.floor(e["time"].to_numpy() / period_s + 1e-9)
     per_period = pd.Series(e["node"].to_numpy()).groupby(periods).nunique()
     n_periods = int(np.ptp(periods)) + 1 if len(periods) else 1
     out["coverage"] = float(per_period.sum() / (n_periods * n_unknown))

@@ -49,7 +49,7 @@ class StvfParams(BaseModel):
     period_s: float = Field(1.0, gt=0, description="localization period (s)")
     listen_s: float = Field(0.9, gt=0, description="time after the period start to collect beacons (s)")
     n_ref: int = Field(3, ge=1, description="Nr: measurements used (and needed) per localization")
-    n_samples: int = Field(200, ge=2, description="Ns = Nv: importance samples")
+    n_samples: int = Field(100, ge=2, description="Ns = Nv: importance samples (Table 1)")
     delta: float = Field(0.9, ge=0, le=1, description="confidence threshold for promotion")
     c1: float = Field(0.7, ge=0, description="gamma weight of the reference confidence")
     c2: float = Field(0.2, ge=0, description="gamma weight of the normalized delay")
@@ -204,6 +204,7 @@ class StvfNode(PeriodicBeaconNode):
             converged=out.converged,
             n_heard=len(heard),
             fresh=fresh,
+            period_s=p.period_s,
         )
 
     def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray:

@@ -62,6 +62,16 @@ CASES: dict[str, tuple[str, list[str]]] = {
             "nodes.1.params={training_s=1.0}",
         ],
     ),
+    "multilateration_bound": (
+        "stvf_quick.toml",
+        [
+            "simulation.duration_s=4.0",
+            'nodes.0.protocol="multilateration_bound"',
+            'nodes.1.protocol="multilateration_bound"',
+            "nodes.0.params={training_s=1.0}",
+            "nodes.1.params={training_s=1.0}",
+        ],
+    ),
 }
 
 # documented columns (DESIGN.md, README "Trace tables"); protocols may add their own

@@ -1,6 +1,7 @@
 """SLMP baseline: the pure maths against closed forms / scipy, and the protocol on the quick
 scenario."""
 
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -64,29 +65,96 @@ def test_slmp_confidence_hand_computed():
     assert sm.slmp_confidence([1.0, 0.9, 0.95], pos, refs, ranges) == pytest.approx(want)
 
 
+def _load(overrides):
+    """The quick scenario without its [variants] tables (read before and after the variants loader)."""
+    raw = tomllib.loads(QUICK.read_text())
+    raw.pop("variants", None)
+    return scenario.load_dict(raw, QUICK, overrides=list(overrides))
+
+
 def _run(overrides):
-    sc = scenario.load(QUICK, overrides=list(overrides))
+    sc = _load(overrides)
     sim = scenario.build(sc)
     sim.run(sc.simulation.duration_s)
     return sim.trace.frames()
 
 
-def test_slmp_quick_run():
-    frames = _run(
-        [
-            "nodes[0].protocol=slmp",
-            "nodes[1].protocol=slmp",
-            "nodes[1].params.training_s=5.0",
-            "simulation.duration_s=20.0",
-        ]
-    )
+# a 20-node network at density ~18 (range 80 m on 150 m x 150 m), SLMP training 5 s
+_SMALL = [
+    "nodes[0].protocol=slmp",
+    "nodes[1].protocol=slmp",
+    "nodes[0].count=4",
+    "nodes[1].count=16",
+    "environment.volume.hi=[150.0, 150.0, 30.0]",
+    "nodes[0].params={training_s=3.0}",
+    "nodes[1].params={training_s=3.0}",
+    "simulation.duration_s=18.0",
+    "metrics.warmup_s=0.0",
+]
+
+
+def test_bound_quick_run():
+    """multilateration_bound (the former ``slmp``): every period, all references."""
+    frames = _run([s.replace("=slmp", "=multilateration_bound") for s in _SMALL] + ["simulation.duration_s=10.0"])
     e = frames["estimates"]
-    assert len(e) and (e["time"] >= 5.0).all()  # nothing during the training
+    assert len(e) and (e["time"] >= 3.0).all()  # nothing during the training
     assert set(e["method"]) <= {"multilateration", "self"}
-    m = get("slmp").metrics(frames)
+    m = get("multilateration_bound").metrics(frames)
     assert m["coverage_ever"] > 0.9
     err = np.hypot(e.x - e.true_x, e.y - e.true_y)
     assert np.median(err) < 10.0
     # references only from trusted multilateration fixes
     refs = e[e["is_reference"]]
     assert (refs["confidence"] >= 0.9).all() and (refs["method"] == "multilateration").all()
+
+
+def _slmp(error_ratio):
+    return _run([*_SMALL, f"nodes[1].params.error_ratio={error_ratio}", f"nodes[0].params.error_ratio={error_ratio}"])
+
+
+@pytest.fixture(scope="module")
+def slmp_runs():
+    return {k: _slmp(k) for k in (0.02, 0.05, 0.25)}
+
+
+def test_slmp_relocalizes_only_on_a_miss(slmp_runs):
+    """A least-squares fix happens only without a prediction or when the prediction's RMS range
+    residual exceeds error_ratio x range; otherwise the node reports its prediction."""
+    for ratio, frames in slmp_runs.items():
+        e = frames["estimates"]
+        thr = ratio * 80.0
+        ls = e[e["method"] == "least_squares"]
+        assert len(ls)
+        assert (ls["miss_m"].isna() | (ls["miss_m"] > thr)).all()
+        # a re-localization is attempted exactly on a miss (it may fail: fewer than 3
+        # references, or a fix out of range of one of them; the prediction then stands)
+        att = e["attempted"].astype(bool)
+        checked = e["miss_m"].notna()
+        assert (att[checked] == (e["miss_m"][checked] > thr)).all()
+        # unchecked (no prediction yet, or no reference heard): only a node's first fix
+        first = ~e["node"].duplicated()
+        assert (att[~checked] == first[~checked]).all()
+        assert ls["attempted"].astype(bool).all()
+        assert set(e["method"]) <= {"least_squares", "predicted"}
+
+
+def test_slmp_localizations_fall_as_threshold_rises(slmp_runs):
+    counts = [int((f["estimates"]["method"] == "least_squares").sum()) for _, f in sorted(slmp_runs.items())]
+    assert counts[0] > counts[1] > counts[2], counts
+    # every node keeps reporting (its prediction) between localizations
+    e = slmp_runs[0.25]["estimates"]
+    assert (e["method"] == "predicted").mean() > 0.5
+
+
+def test_slmp_references_only_above_delta(slmp_runs):
+    e = slmp_runs[0.05]["estimates"]
+    assert (e["is_reference"] == (e["confidence"] >= 0.9)).all()
+    err = np.hypot(e.x - e.true_x, e.y - e.true_y)
+    assert np.median(err) < 10.0  # well inside the 80 m range
+
+
+def test_prediction_residual_hand_computed():
+    refs = np.array([[0.0, 0.0], [10.0, 0.0]])
+    # at (3, 4): distances 5 and sqrt(65); ranges 6 and sqrt(65) + 2 -> residuals -1, -2
+    got = sm.prediction_residual([3.0, 4.0], refs, [6.0, np.sqrt(65) + 2.0])
+    assert got == pytest.approx(np.sqrt((1 + 4) / 2))

@@ -1,12 +1,14 @@
 """STVF protocol on the quick scenario: runs, localizes, promotes only above delta, is
 deterministic, reads no ground truth; the Section-5 metrics on a hand-made table."""
 
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+import aquasim_py
 from aquasim_py import scenario
 from aquasim_py.registry import get
 
@@ -15,7 +17,11 @@ QUICK = ROOT / "scenarios" / "stvf_quick.toml"
 
 
 def _run(overrides=()):
-    sc = scenario.load(QUICK, overrides=list(overrides))
+    # the quick scenario without its [variants] tables (works before and after the variants
+    # loader), 20 s unless the caller says otherwise
+    raw = tomllib.loads(QUICK.read_text())
+    raw.pop("variants", None)
+    sc = scenario.load_dict(raw, QUICK, overrides=["simulation.duration_s=20.0", *overrides])
     sim = scenario.build(sc)
     sim.run(sc.simulation.duration_s)
     return sim.trace.frames()
@@ -55,13 +61,14 @@ def test_static_noise_free_network_converges_near_truth():
             "nodes[0].mobility.model=static",
             "nodes[1].mobility.model=static",
             "nodes[1].params.noise_ratio=0.0",
+            "channel.sound_speed_std_mps=0.0",
             "simulation.duration_s=20.0",
         ]
     )
     e = frames["estimates"]
     late = e[e.time > 12]
     err = np.hypot(late.x - late.true_x, late.y - late.true_y)
-    # exact delays, static nodes: only the Monte Carlo error of 200 samples remains
+    # exact delays, static nodes: only the Monte Carlo error of 100 samples remains
     assert np.median(err) < 2.0
 
 
@@ -101,3 +108,59 @@ def test_localization_metrics_hand_computed():
     assert m["coverage"] == pytest.approx(4 / (2 * 3))
     assert m["coverage_ever"] == pytest.approx(2 / 3)
     assert m["mean_error_m"] == pytest.approx((3 + 4 + 1 + 1) / 4)
+
+
+def test_defaults_follow_table_1():
+    p = get("stvf").Params()
+    assert (p.n_samples, p.n_ref, p.delta, p.period_s) == (100, 3, 0.9, 1.0)
+
+
+def test_promoted_node_beacons_in_the_next_period():
+    """A node promoted at the end of period k (localization at 0.9 s) sends its first beacon in
+    period k + 1, within the send window (0.5 s) after that period starts."""
+    frames = _run(['trace.tables=["nodes", "estimates", "packets"]', "simulation.duration_s=8.0"])
+    e, pk = frames["estimates"], frames["packets"]
+    tx = pk[pk.event == "tx"]
+    first = e[e["is_reference"]].groupby("node")["time"].min()
+    assert len(first)
+    for node, t in first.items():
+        later = tx[(tx.node == node) & (tx.time > t)]["time"]
+        if t + 1.1 < 8.0:
+            assert len(later) and later.min() - t < 0.1 + 0.5 + 1e-6, (node, t)
+
+
+def test_coverage_uses_the_configured_period():
+    """Four estimates of one node at 0.9, 1.9, 2.9, 3.9 s: with a 2-s period that is every
+    period (coverage 1); scored as 1-s periods (3 periods from 1 to 3) it is 4 / (3 x 2)."""
+    from aquasim_py.protocols.stvf.metrics import localization_metrics
+
+    nodes = pd.DataFrame({"node": [0, 1, 2], "role": ["anchor", "ordinary", "ordinary"], "protocol": ["stvf"] * 3})
+    t = [1.8, 3.8, 1.9, 3.9]
+    est = pd.DataFrame(
+        {
+            "time": t,
+            "node": [1, 1, 2, 2],
+            "protocol": ["stvf"] * 4,
+            "x": [0.0] * 4,
+            "y": [0.0] * 4,
+            "z": [0.0] * 4,
+            "true_x": [0.0] * 4,
+            "true_y": [0.0] * 4,
+            "true_z": [0.0] * 4,
+            "period_s": [2.0] * 4,
+        }
+    )
+    assert localization_metrics({"nodes": nodes, "estimates": est}, "stvf")["coverage"] == pytest.approx(1.0)
+    assert localization_metrics({"nodes": nodes, "estimates": est}, "stvf", period_s=1.0)["coverage"] == pytest.approx(
+        4 / (3 * 2)
+    )
+
+
+@pytest.mark.skipif(not hasattr(aquasim_py, "run_scenario"), reason="needs the [variants] loader")
+def test_quick_variants_report_generic_localization_metrics():
+    """stvf_quick.toml declares stvf, slmp and multilateration_bound; each reports the generic
+    localization.* metrics after the 20-s warm-up."""
+    for name in ("stvf", "slmp", "multilateration_bound"):
+        res = aquasim_py.run_scenario(QUICK, variant=name, overrides=["simulation.duration_s=24.0"])
+        assert res.metrics["localization.coverage"] > 0.5, name
+        assert 0.0 < res.metrics["localization.rmse_m"] < 80.0, name
