@@ -32,6 +32,7 @@ every protocol family's metrics (docs/metrics.md gives the full rules):
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
@@ -342,8 +343,12 @@ def summarize(
                 raise
             errors[name] = f"{type(e).__name__}: {e}".strip()
             continue
-        for k, v in values.items():
-            out[f"{name}.{k}"] = v
+        for k, val in values.items():
+            if errors is not None and isinstance(val, (float, np.floating)) and math.isinf(val):
+                # an infinite metric has no documented meaning: undefined (NaN), and said why
+                errors[f"{name}.{k}"] = f"non-finite value {float(val)}"
+                val = math.nan
+            out[f"{name}.{k}"] = val
     return out
 
 

@@ -269,3 +269,21 @@ def test_path_loss_is_finite_for_colocated_nodes() -> None:
     # inside the 1 m reference the loss is that at 1 m (0 dB); beyond it unchanged
     assert a[:3].tolist() == [0.0, 0.0, 0.0]
     assert a[3] == pytest.approx(15.0 * math.log10(2.0) + 1e-3 * float(loss.thorp_absorption_db_per_km(10.0)))
+
+
+def test_infinite_protocol_metric_becomes_nan_with_its_reason() -> None:
+    import pandas as pd
+
+    from aquasim_py import metrics
+
+    class Fake:
+        name = "fake"
+
+        @classmethod
+        def metrics(cls, tables: object) -> dict[str, float]:
+            return {"ratio": math.inf, "ok": 1.0}
+
+    errors: dict[str, str] = {}
+    m = metrics.summarize({"packets": pd.DataFrame(columns=["event"])}, [Fake], errors=errors)
+    assert math.isnan(m["fake.ratio"]) and m["fake.ok"] == 1.0
+    assert errors == {"fake.ratio": "non-finite value inf"}
