@@ -31,7 +31,9 @@ every protocol family's metrics (docs/metrics.md gives the full rules):
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+import functools
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -277,8 +279,14 @@ def summarize(
     percentiles: Sequence[float] = (50.0, 95.0),
     warmup_s: float = 0.0,
     unknown_roles: Iterable[str] = UNKNOWN_ROLES,
+    errors: dict[str, str] | None = None,
 ) -> dict[str, float]:
     """Every metric of a run, as a flat {name: number} dict (the CLI table, summary.json, sweep.csv).
+
+    ``errors``: when given, a metric family that raises (a protocol's ``metrics()``, e.g. a
+    singular Fisher information in a bound; or the generic localization / sync metrics) is
+    recorded there as ``{family: "ExceptionType: message"}`` and the other metrics are still
+    computed; when None, the exception propagates.
 
     ``protocols``: the Node subclasses of the run; each one's ``metrics(tables)`` is added with
     its name as prefix. ``None``: the protocols named in the ``nodes`` table, through the registry.
@@ -295,17 +303,28 @@ def summarize(
     if nodes is not None and len(nodes) == 0:
         nodes = None
     roles = tuple(unknown_roles)
-    if est is not None and len(est):
-        out["localization.estimates"] = len(select_rows(est, nodes, roles=roles))
-        out["localization.rmse_m"] = rmse(est, nodes, roles=roles)
-        out["localization.final_rmse_m"] = rmse(est, nodes, roles=roles, final=True)
-        out["localization.nmse"] = nmse(est, nodes, roles=roles)
-        if nodes is not None:
-            out["localization.coverage"] = coverage(est, evaluated_nodes(nodes, roles))
-    clk = tables.get("clocks")
-    if clk is not None and len(clk):
-        for k, val in sync_error_stats(clk, percentiles, nodes=nodes, roles=roles).items():
-            out[f"sync.{k}"] = val
+
+    def localization() -> dict[str, float]:
+        loc: dict[str, float] = {}
+        if est is not None and len(est):
+            loc["estimates"] = len(select_rows(est, nodes, roles=roles))  # an int (a count)
+            loc["rmse_m"] = rmse(est, nodes, roles=roles)
+            loc["final_rmse_m"] = rmse(est, nodes, roles=roles, final=True)
+            loc["nmse"] = nmse(est, nodes, roles=roles)
+            if nodes is not None:
+                loc["coverage"] = coverage(est, evaluated_nodes(nodes, roles))
+        return loc
+
+    def sync() -> dict[str, float]:
+        clk = tables.get("clocks")
+        if clk is None or not len(clk):
+            return {}
+        return sync_error_stats(clk, percentiles, nodes=nodes, roles=roles)
+
+    families: list[tuple[str, Callable[[], Mapping[str, float] | None]]] = [
+        ("localization", localization),
+        ("sync", sync),
+    ]
     if protocols is None:
         protocols = _protocols_from_nodes(nodes)
     seen: set[str] = set()
@@ -315,8 +334,21 @@ def summarize(
         if name in seen or fn is None:
             continue
         seen.add(name)
-        for k, v in (fn(tables) or {}).items():
-            out[f"{name}.{k}"] = v
+        families.append((name, functools.partial(fn, tables)))
+    for name, compute in families:
+        try:
+            values: dict[str, Any] = dict(compute() or {})
+        except Exception as e:  # one failed family must not lose the run (issue 20 item 5)
+            if errors is None:
+                raise
+            errors[name] = f"{type(e).__name__}: {e}".strip()
+            continue
+        for k, val in values.items():
+            if errors is not None and isinstance(val, (float, np.floating)) and math.isinf(val):
+                # an infinite metric has no documented meaning: undefined (NaN), and said why
+                errors[f"{name}.{k}"] = f"non-finite value {float(val)}"
+                val = math.nan
+            out[f"{name}.{k}"] = val
     return out
 
 

@@ -71,6 +71,8 @@ class RunResult:
     wall_time_s: float
     variant: str | None = None
     out: Path | None = field(default=None)  # where write() last put the outputs
+    #: metric family -> "ExceptionType: message" for families whose computation failed
+    metric_errors: dict[str, str] = field(default_factory=dict)
 
     @property
     def seed(self) -> int:
@@ -92,6 +94,7 @@ class RunResult:
                 "variant": self.variant,
                 "wall_time_s": self.wall_time_s,
                 "metrics": self.metrics,
+                **({"metric_errors": self.metric_errors} if self.metric_errors else {}),
                 "scenario": sc.to_dict(),
             }
         )
@@ -102,7 +105,11 @@ class RunResult:
         for cls in self.scenario.protocols():
             report = getattr(cls, "report", None)
             if callable(report):
-                r = report(self.tables)
+                try:
+                    r = report(self.tables)
+                except Exception as e:  # a failed report must not lose the run's outputs
+                    name = getattr(cls, "name", cls.__name__)
+                    r = f"{name}: report failed ({type(e).__name__}: {e})"
                 if r is not None and r != "":
                     out.append(r)
         return out
@@ -233,14 +240,18 @@ def _execute(sc: Scenario, progress: Progress) -> RunResult:
         sim.run(duration)
     wall = time.perf_counter() - started
     frames = sim.trace.frames()
+    errors: dict[str, str] = {}
     m = metrics.summarize(
         frames,
         sc.protocols(),
         percentiles=sc.metrics.percentiles,
         warmup_s=sc.metrics.warmup_s,
         unknown_roles=sc.metrics.unknown_roles,
+        errors=errors,
     )
-    return RunResult(scenario=sc, tables=dict(frames), metrics=dict(m), wall_time_s=wall, variant=variant)
+    return RunResult(
+        scenario=sc, tables=dict(frames), metrics=dict(m), wall_time_s=wall, variant=variant, metric_errors=errors
+    )
 
 
 def run_variants(

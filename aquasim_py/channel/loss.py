@@ -75,13 +75,17 @@ def path_loss_db(
     ``length_m`` is the travelled (ray) length, l0_m the reference length; alpha is Thorp's
     coefficient at ``f_khz`` unless ``absorption_db_per_km`` is given (the paper's Fig. 5 uses
     1 dB/km). As in eq 35 the absorption acts over l - l0, so A(l0, f) = 0 dB.
+
+    Lengths below l0 are taken as l0 (A = 0 dB): the source level is defined at l0, inside it
+    the far-field law does not hold, and co-located nodes (l = 0) would otherwise get an
+    infinite SNR (docs/metrics.md).
     """
     alpha = (
         thorp_absorption_db_per_km(f_khz)
         if absorption_db_per_km is None
         else np.asarray(absorption_db_per_km, dtype=float)
     )
-    length = np.asarray(length_m, dtype=float)
+    length = np.maximum(np.asarray(length_m, dtype=float), l0_m)
     return spreading_loss_db(length, k, l0_m) + (length - l0_m) * 1e-3 * alpha
 
 

@@ -32,14 +32,16 @@ __all__ = ["EXIT_USAGE", "UsageError", "main"]
 
 @contextmanager
 def _one_line_warnings() -> Iterator[None]:
-    """Scenario deprecations (e.g. an old mobility model name) as one ``warning:`` line each."""
-    from aquasim_py.scenario import ScenarioDeprecationWarning
+    """Scenario deprecations (e.g. an old mobility model name) and implausible values as one
+    ``warning:`` line each."""
+    from aquasim_py.scenario import ScenarioDeprecationWarning, ScenarioWarning
 
     def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
         print(f"warning: {message}", file=sys.stderr)
 
     with warnings.catch_warnings():
         warnings.simplefilter("default", ScenarioDeprecationWarning)
+        warnings.simplefilter("default", ScenarioWarning)  # implausible values: once per message
         warnings.showwarning = show
         yield
 

@@ -163,3 +163,8 @@ def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: in
 def _warn_missing(res: RunResult) -> None:
     for name in res.missing_tables:
         print(f"warning: trace table {name!r} was not produced by this run", file=sys.stderr)
+    for family, problem in res.metric_errors.items():
+        print(
+            f"warning: {res.name}: metrics {family!r} failed ({problem}); see metric_errors in summary.json",
+            file=sys.stderr,
+        )

@@ -36,14 +36,18 @@ from aquasim_py.scenario.load import (
     parse_value,
     resolve,
 )
+from aquasim_py.scenario.validate import LIMITS, PLAUSIBLE, ScenarioWarning
 
 __all__ = [
     "DEPRECATED_MOBILITY",
+    "LIMITS",
     "MOBILITY_CLASSES",
+    "PLAUSIBLE",
     "VARIANT_KEY",
     "Scenario",
     "ScenarioDeprecationWarning",
     "ScenarioError",
+    "ScenarioWarning",
     "apply_override",
     "build",
     "channel_config",

@@ -30,7 +30,7 @@ from pydantic import PrivateAttr, ValidationError
 from aquasim_py import registry
 from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_validation, show, toml_type
 from aquasim_py.scenario.schema import Scenario as _ScenarioModel
-from aquasim_py.scenario.validate import check
+from aquasim_py.scenario.validate import check, check_sweep_size
 
 __all__ = [
     "VARIANT_KEY",
@@ -448,6 +448,7 @@ def _check_sweep(
     if sc.sweep is None:
         return
     grid = sc.sweep.grid
+    check_sweep_size(file, sc.sweep.runs, {k: len(v) for k, v in grid.items()})
     swept: list[str | None] = [None]
     if VARIANT_KEY in grid:
         swept = []
