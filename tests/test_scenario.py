@@ -130,7 +130,12 @@ def test_channel_defaults_match_the_kernel():
 
     spec = ChannelSpec()
     cfg = ChannelConfig()
+    # kernel fields the scenario schema does not offer yet (the kernel default applies)
+    not_in_schema = {"snr_estimate_std_db"}
     for f in dataclasses.fields(cfg):
+        if f.name in not_in_schema:
+            assert not hasattr(spec, f.name), f"{f.name} is in the schema now: drop it from not_in_schema"
+            continue
         mine = getattr(spec.noise, f.name) if f.name in ("shipping", "wind_mps") else getattr(spec, f.name)
         assert mine == getattr(cfg, f.name), f.name
 

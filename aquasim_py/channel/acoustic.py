@@ -94,6 +94,11 @@ class ChannelConfig:
         then acts as "destructive").
     jitter_std_s: std of Gaussian MAC timestamp jitter (s), on top of the clock's own.
     reflections: passed to ``eigenray`` ("none", "fallback", "all").
+    snr_estimate_std_db: std (dB) of the Gaussian error of the receiver's SNR estimate, the
+        ``Reception.snr_db`` a node gets (0 = the exact SNR); drawn by the kernel from the
+        receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
+        decisions use the true SNR. Without noise a node could invert the loss model for its
+        exact range.
     """
 
     max_range_m: float = 5000.0
@@ -109,6 +114,7 @@ class ChannelConfig:
     capture_threshold_db: float = 6.0
     jitter_std_s: float = 0.0
     reflections: Literal["none", "fallback", "all"] = "fallback"
+    snr_estimate_std_db: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -121,6 +127,8 @@ class ChannelConfig:
             raise ValueError(f"ChannelConfig.reflections must be none/fallback/all, got {self.reflections!r}")
         if not self.jitter_std_s >= 0.0:
             raise ValueError(f"ChannelConfig.jitter_std_s must be >= 0, got {self.jitter_std_s!r}")
+        if not (math.isfinite(self.snr_estimate_std_db) and self.snr_estimate_std_db >= 0.0):
+            raise ValueError(f"ChannelConfig.snr_estimate_std_db must be >= 0, got {self.snr_estimate_std_db!r}")
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,
