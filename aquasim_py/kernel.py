@@ -77,6 +77,7 @@ class _NodeCore:
     __slots__ = (
         "_rng_sensor",
         "_rng_snr",
+        "_snr_noise",
         "_snr_std",
         "affine",
         "channel",
@@ -132,6 +133,7 @@ class _NodeCore:
         # made on first use, so no other stream's draws change
         self._snr_std = float(sim.channel_config.snr_estimate_std_db)
         self._rng_snr: np.random.Generator | None = None
+        self._snr_noise: list[float] = []  # standard normals drawn ahead, in blocks (consumed from the end)
         self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
         cap = getattr(group.node_cls, "inbox_capacity", None)
         self.inbox: deque[Reception] = deque(maxlen=cap)
@@ -187,11 +189,15 @@ class _NodeCore:
             pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
         snr = rec.snr_db
         if self._snr_std > 0.0 and snr == snr:  # NaN (no loss model) stays NaN
-            rng = self._rng_snr
-            if rng is None:
-                rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
-            snr += float(rng.normal(0.0, self._snr_std))
-        if pkt is not rec.packet or snr != rec.snr_db:
+            noise = self._snr_noise
+            if not noise:
+                # blocks of draws: one numpy call per 256 receptions, not one per reception
+                rng = self._rng_snr
+                if rng is None:
+                    rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
+                noise.extend(rng.standard_normal(256)[::-1].tolist())
+            rec = Reception(pkt, rec.rx_local, snr + self._snr_std * noise.pop())
+        elif pkt is not rec.packet:
             rec = Reception(pkt, rec.rx_local, snr)
         kind = pkt.kind
         waiters = self.waiters
