@@ -10,12 +10,15 @@ from typing import Any, ClassVar
 import numpy as np
 import pytest
 import simpy
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node, NodeEnv
+from aquasim_py.packet import copy_payload
 
 C = Constant(1500.0)
 P0, P1, P2 = [0.0, 0.0, 20.0], [1500.0, 0.0, 20.0], [0.0, 1500.0, 20.0]  # 1 s from node 0
@@ -227,3 +230,45 @@ def test_snr_estimate_std_validated() -> None:
 def test_node_env_is_a_node_env() -> None:
     sim = _probe_sim()
     assert isinstance(sim.nodes[0].env, NodeEnv)
+
+
+_leaves = st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=5)
+_payloads = st.recursive(
+    _leaves,
+    lambda kids: (
+        st.lists(kids, max_size=4)
+        | st.dictionaries(st.text(max_size=3), kids, max_size=4)
+        | st.tuples(kids, kids)
+        | st.lists(st.floats(allow_nan=False), max_size=4).map(np.array)
+    ),
+    max_leaves=8,
+)
+
+
+def _containers(obj: Any) -> list[Any]:
+    """Every mutable container (dict, list, array) inside ``obj``, depth first."""
+    if isinstance(obj, dict):
+        return [obj, *(c for v in obj.values() for c in _containers(v))]
+    if isinstance(obj, (list, tuple)):
+        inner = [c for v in obj for c in _containers(v)]
+        return [obj, *inner] if isinstance(obj, list) else inner
+    return [obj] if isinstance(obj, np.ndarray) else []
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and np.array_equal(a, b)
+    if isinstance(a, dict):
+        return type(b) is dict and a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return type(a) is type(b) and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and a == b
+
+
+@given(_payloads)
+@settings(max_examples=50, deadline=None)
+def test_copy_payload_is_an_equal_copy_sharing_no_mutable_part(p: Any) -> None:
+    q = copy_payload(p)
+    assert _same(p, q)
+    mine = {id(c) for c in _containers(p)}
+    assert not mine & {id(c) for c in _containers(q)}
