@@ -28,8 +28,8 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
-from .node import Node, Role, Sensors, SensorUnavailable
-from .packet import Reception
+from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
+from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import Trace, TraceConfig
 
 __all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig"]
@@ -76,6 +76,9 @@ class _NodeCore:
 
     __slots__ = (
         "_rng_sensor",
+        "_rng_snr",
+        "_snr_noise",
+        "_snr_std",
         "affine",
         "channel",
         "clock",
@@ -125,7 +128,12 @@ class _NodeCore:
         self.sensors = sensors
         self.has_velocity = sensors.has_velocity(group.role)
         self.has_position = sensors.has_position(group.role)
-        self.rng_protocol = sim.rng("node", index, "protocol")
+        self.rng_protocol = sim.sealed_rng("node", index, "protocol")
+        # std (dB) of the receiver's SNR estimate; its stream ("node", id, "snr_estimate") is
+        # made on first use, so no other stream's draws change
+        self._snr_std = float(sim.channel_config.snr_estimate_std_db)
+        self._rng_snr: np.random.Generator | None = None
+        self._snr_noise: list[float] = []  # standard normals drawn ahead, in blocks (consumed from the end)
         self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
         cap = getattr(group.node_cls, "inbox_capacity", None)
         self.inbox: deque[Reception] = deque(maxlen=cap)
@@ -173,10 +181,29 @@ class _NodeCore:
     def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         if dst is not None and not 0 <= dst < len(self.sim.nodes):
             raise ValueError(f"node {self.index}: no node with id {dst}")
-        return self.channel.transmit(self.index, dst, str(kind), payload, int(bits))
+        # the packet carries a snapshot: the sender's later changes to its object reach no one
+        return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
 
     def deliver(self, rec: Reception) -> None:
-        kind = rec.packet.kind
+        # What the node gets: its own copy of the payload (receivers cannot write into each
+        # other's packets) and the modem's SNR estimate; the channel traced the true SNR.
+        pkt = rec.packet
+        payload = copy_payload(pkt.payload)
+        if payload is not pkt.payload:
+            pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
+        snr = rec.snr_db
+        if self._snr_std > 0.0 and snr == snr:  # NaN (no loss model) stays NaN
+            noise = self._snr_noise
+            if not noise:
+                # blocks of draws: one numpy call per 256 receptions, not one per reception
+                rng = self._rng_snr
+                if rng is None:
+                    rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
+                noise.extend(rng.standard_normal(256)[::-1].tolist())
+            rec = Reception(pkt, rec.rx_local, snr + self._snr_std * noise.pop(), rec.pressure)
+        elif pkt is not rec.packet:
+            rec = Reception(pkt, rec.rx_local, snr, rec.pressure)
+        kind = pkt.kind
         waiters = self.waiters
         for i, (ev, kinds) in enumerate(waiters):
             if kinds is None or kind in kinds:
@@ -185,9 +212,9 @@ class _NodeCore:
                 return
         self.inbox.append(rec)
 
-    def recv(
-        self, timeout: float | None, kinds: str | Iterable[str] | None, to_true_delay: Callable[[float], float]
-    ) -> simpy.Event:
+    def recv(self, timeout: float | None, kinds: str | Iterable[str] | None, view: NodeEnv) -> simpy.Event:
+        """The node's receive event (its ``env`` is the node's ``view``); the expiry timer is
+        the kernel's own, in true time."""
         ks: frozenset[str] | None
         if kinds is None:
             ks = None
@@ -195,7 +222,7 @@ class _NodeCore:
             ks = frozenset((kinds,))
         else:
             ks = frozenset(kinds)
-        ev = self.env.event()
+        ev = view.event()
         inbox = self.inbox
         if inbox:
             if ks is None:
@@ -207,7 +234,7 @@ class _NodeCore:
         entry = (ev, ks)
         self.waiters.append(entry)
         if timeout is not None:
-            delay = to_true_delay(timeout)
+            delay = self.true_delay(timeout)
 
             def expire(_: simpy.Event) -> None:
                 # The reception may have won the race in the meantime: then do nothing.
@@ -344,6 +371,7 @@ class Simulation:
         self.env = simpy.Environment()
         self.ssp: SoundSpeedProfile = ssp if ssp is not None else Constant(1500.0)
         self.volume = volume
+        self.out_of_band: dict[str, Any] = {}  # Node.out_of_band: shared by the run's nodes
         self.channel_config = channel if channel is not None else ChannelConfig()
         self.trace = Trace(trace)
         # the channel's view of the kernel: this Simulation (NetworkView), the packets table
@@ -382,6 +410,21 @@ class Simulation:
             self._seedseq.entropy, spawn_key=tuple(self._seedseq.spawn_key) + tuple(_key_words(key))
         )
         return np.random.Generator(np.random.PCG64(ss))
+
+    def sealed_rng(self, *key: Any) -> np.random.Generator:
+        """The stream :meth:`rng` gives for ``key``, in a Generator that does not lead back to
+        the run seed (the one handed to protocol code as ``Node.rng``).
+
+        Same state, so the same draws; but its ``bit_generator.seed_seq`` is a SeedSequence
+        whose entropy is a SHA-256 digest of (run entropy, key), a one-way function: neither
+        it nor its ``spawn()`` children give the run seed, from which every other stream
+        (every node's true clock, for one) could be rebuilt.
+        """
+        inner = self.rng(*key).bit_generator
+        digest = hashlib.sha256(repr((self._seedseq.entropy, self._seedseq.spawn_key, _key_words(key))).encode())
+        bg = np.random.PCG64(np.random.SeedSequence(int.from_bytes(digest.digest(), "little")))
+        bg.state = inner.state  # type: ignore[assignment]  # a PCG64 state dict, by construction
+        return np.random.Generator(bg)
 
     # -- building ---------------------------------------------------------------------------------
 
@@ -476,7 +519,7 @@ class Simulation:
             gen = node.run()
             if not isinstance(gen, GeneratorType):  # what inspect.isgenerator tests, keeping the type
                 raise TypeError(f"{node_cls.__name__}.run() must be a generator (use yield)")
-            self.env.process(gen)
+            simpy.Process(node.env, gen)  # type: ignore[arg-type]  # its env: the node's view
         return new
 
     # -- ground truth -----------------------------------------------------------------------------

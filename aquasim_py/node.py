@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 import simpy
 from pydantic import BaseModel, ConfigDict
+from simpy.events import NORMAL, EventPriority
 
 __all__ = ["BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors"]
 
@@ -69,10 +70,15 @@ class Sensors:
 
 
 class NodeEnv:
-    """The SimPy environment as a node may use it: events and processes, but no true clock.
+    """The SimPy environment as one node may use it: events and processes, but no true clock.
 
     ``timeout(delay)`` takes a duration on the node's local clock. There is no ``now``: use
-    ``Node.local_time()``.
+    ``Node.local_time()``. Every event a node gets back (its timeouts, ``recv``, ``broadcast``,
+    its processes and conditions) has this view as its ``env``, not the simulation's
+    ``simpy.Environment``, so no public attribute of an event leads to true time. SimPy itself
+    schedules through :meth:`schedule`, which also reads delays as local seconds (so even
+    ``simpy.Timeout(node.env, d)`` is a local-clock timer and ``Timeout._delay`` holds the
+    local duration the node asked for).
     """
 
     __slots__ = ("__env", "__to_true_delay")
@@ -86,21 +92,52 @@ class NodeEnv:
             raise AttributeError("a node has no access to true time: use Node.local_time()")
         raise AttributeError(name)
 
+    # -- what SimPy's events and processes ask of their ``env`` --------------------------------
+
+    def schedule(self, event: simpy.Event, priority: EventPriority = NORMAL, delay: float | None = None) -> None:
+        """Schedule ``event`` after ``delay`` local seconds (SimPy's hook).
+
+        SimPy passes a delay only for timeouts; ``succeed``/``fail`` pass none: those are
+        scheduled now, without a trip through the clock model.
+        """
+        self.__env.schedule(event, priority, 0 if delay is None else self.__to_true_delay(delay))
+
+    @property
+    def active_process(self) -> simpy.Process | None:
+        """The process running now (a node's own process while node code runs)."""
+        return self.__env.active_process
+
+    @property
+    def _active_proc(self) -> simpy.Process | None:
+        return self.__env._active_proc
+
+    @_active_proc.setter
+    def _active_proc(self, proc: simpy.Process | None) -> None:
+        # set by simpy.Process._resume on its env: it must reach the real environment
+        self.__env._active_proc = proc
+
+    # -- the node's API ---------------------------------------------------------------------------
+
     def timeout(self, delay: float, value: Any = None) -> simpy.Timeout:
         """Event after ``delay`` seconds of the node's local clock."""
-        return self.__env.timeout(self.__to_true_delay(delay), value)
+        return simpy.Timeout(self, delay, value)  # type: ignore[arg-type]
 
     def event(self) -> simpy.Event:
-        return self.__env.event()
+        return simpy.Event(self)  # type: ignore[arg-type]
 
     def process(self, generator: Generator[Any, Any, Any]) -> simpy.Process:
-        return self.__env.process(generator)
+        return simpy.Process(self, generator)  # type: ignore[arg-type]
 
     def all_of(self, events: Iterable[simpy.Event]) -> simpy.AllOf:
-        return simpy.AllOf(self.__env, list(events))
+        return simpy.AllOf(self, list(events))  # type: ignore[arg-type]
 
     def any_of(self, events: Iterable[simpy.Event]) -> simpy.AnyOf:
-        return simpy.AnyOf(self.__env, list(events))
+        return simpy.AnyOf(self, list(events))  # type: ignore[arg-type]
+
+    def adopt(self, event: simpy.Event) -> simpy.Event:
+        """Hand a kernel/channel event to the node: its ``env`` becomes this view (kernel use)."""
+        event.env = self  # type: ignore[assignment]
+        return event
 
 
 class _NoParams(BaseModel):
@@ -135,6 +172,11 @@ class Node:
         self.params = core.params
         self.rng: np.random.Generator = core.rng_protocol
         self.env = NodeEnv(core.env, self._local_delay)
+        #: one dict shared by every node of the run and by nothing else: the sanctioned place
+        #: for out-of-band links that a protocol models on purpose (e.g. MSWPF's ``ideal_links``,
+        #: the paper's instantaneous fusion); it holds only what protocols put there. Anything
+        #: physical goes through the channel.
+        self.out_of_band: dict[str, Any] = core.sim.out_of_band
         self.setup()
 
     # -- hooks ----------------------------------------------------------------------------------
@@ -165,22 +207,21 @@ class Node:
 
     def sleep(self, dt_local: float) -> simpy.Timeout:
         """Event after ``dt_local`` seconds of the node's local clock."""
-        k = self.__k
-        return k.env.timeout(k.true_delay(dt_local))
+        return self.env.timeout(dt_local)
 
     # -- modem ----------------------------------------------------------------------------------
 
     def broadcast(self, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
         """Transmit to everyone in range. The event fires when the last bit has left; its value
         is the local MAC transmit stamp (first bit). A busy modem queues the packet."""
-        return self.__k.transmit(None, kind, payload, bits)
+        return self.env.adopt(self.__k.transmit(None, kind, payload, bits))
 
     def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
         """Transmit to node ``dst`` (others in range hear it, and it collides at them, but only
         ``dst`` delivers it). Event as for :meth:`broadcast`."""
         if dst is None:
             raise ValueError("send() needs a destination id; use broadcast() for everyone")
-        return self.__k.transmit(int(dst), kind, payload, bits)
+        return self.env.adopt(self.__k.transmit(int(dst), kind, payload, bits))
 
     def recv(self, timeout: float | None = None, kinds: str | Iterable[str] | None = None) -> simpy.Event:
         """Event whose value is the next :class:`~aquasim_py.packet.Reception` (of one of
@@ -189,7 +230,7 @@ class Node:
         The timeout is handled here, on the same event: do not build ``recv() | timeout`` yourself
         (a get that loses such a race stays queued and eats the next packet).
         """
-        return self.__k.recv(timeout, kinds, self._local_delay)
+        return self.__k.recv(timeout, kinds, self.env)
 
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""

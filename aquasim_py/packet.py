@@ -1,12 +1,52 @@
-"""Packets on the acoustic channel and what a receiving node gets back."""
+"""Packets on the acoustic channel and what a receiving node gets back.
+
+Payloads are copied, never shared: a packet carries a snapshot taken when the sender calls
+``broadcast``/``send`` (:func:`snapshot_payload`), and each receiver gets its own copy of that
+snapshot (:func:`copy_payload`). So a sender changing its object after sending reaches no
+receiver, and receivers cannot write into each other's packets (either would be an instant,
+distance-free side channel). Cost: both are a deep copy, O(payload size) per send and per
+reception; immutable leaves (None, numbers, strings, bytes, numpy scalars) are shared, not
+copied, so the usual payloads (small dicts of numbers, short lists, 3-vectors) cost a few
+microseconds. Built-in containers (dict, list, tuple, set) and numpy arrays are copied by hand
+(fast path); anything else goes through :func:`copy.deepcopy`.
+"""
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["Packet", "Reception"]
+import numpy as np
+
+__all__ = ["Packet", "Reception", "copy_payload", "snapshot_payload"]
+
+_ATOMS = (type(None), bool, int, float, complex, str, bytes)
+
+
+def copy_payload(obj: Any) -> Any:
+    """A deep copy of ``obj`` that shares only immutable leaves (returns ``obj`` itself if it
+    is one); numpy arrays are copied (writable), containers rebuilt with their type."""
+    t = type(obj)
+    if t in _ATOMS or isinstance(obj, np.generic):
+        return obj
+    if t is dict:
+        return {k: copy_payload(v) for k, v in obj.items()}
+    if t is list:
+        return [copy_payload(v) for v in obj]
+    if t is tuple:
+        return tuple([copy_payload(v) for v in obj])
+    if t is np.ndarray and obj.dtype != object:
+        return obj.copy()
+    if t is set or t is frozenset:
+        return t(copy_payload(v) for v in obj)
+    return copy.deepcopy(obj)
+
+
+#: The send-time snapshot is the same deep copy (kept as its own name: the two call sites
+#: guard different things, see the module docstring).
+snapshot_payload = copy_payload
 
 
 @dataclass(frozen=True, slots=True)

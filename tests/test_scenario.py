@@ -131,6 +131,9 @@ def test_channel_defaults_match_the_kernel():
     spec = ChannelSpec()
     cfg = ChannelConfig()
     for f in dataclasses.fields(cfg):
+        if f.name == "obstacles":  # a table in the schema, a dataclass in the kernel; both None
+            assert spec.obstacles is None and cfg.obstacles is None
+            continue
         mine = getattr(spec.noise, f.name) if f.name in ("shipping", "wind_mps") else getattr(spec, f.name)
         assert mine == getattr(cfg, f.name), f.name
 

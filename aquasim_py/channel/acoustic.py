@@ -104,6 +104,11 @@ class ChannelConfig:
     sound_speed_std_mps, sound_speed_corr_s: sound-speed uncertainty (channel/uncertainty.py):
         std (m/s) of the path-mean speed around the profile, and its per-link correlation time
         (s; 0 = independent per packet). std 0 leaves the channel exactly as without it.
+    snr_estimate_std_db: std (dB) of the Gaussian error of the receiver's SNR estimate, the
+        ``Reception.snr_db`` a node gets (0 = the exact SNR); drawn by the kernel from the
+        receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
+        decisions use the true SNR. Without noise a node could invert the loss model for its
+        exact range.
     """
 
     max_range_m: float = 5000.0
@@ -126,6 +131,7 @@ class ChannelConfig:
     obstacles: ObstacleConfig | None = None
     sound_speed_std_mps: float = 0.0
     sound_speed_corr_s: float = 0.0
+    snr_estimate_std_db: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -140,6 +146,8 @@ class ChannelConfig:
             raise ValueError(f"ChannelConfig.jitter_std_s must be >= 0, got {self.jitter_std_s!r}")
         if not (self.sound_speed_std_mps >= 0.0 and self.sound_speed_corr_s >= 0.0):
             raise ValueError("ChannelConfig.sound_speed_std_mps and sound_speed_corr_s must be >= 0")
+        if not (math.isfinite(self.snr_estimate_std_db) and self.snr_estimate_std_db >= 0.0):
+            raise ValueError(f"ChannelConfig.snr_estimate_std_db must be >= 0, got {self.snr_estimate_std_db!r}")
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,

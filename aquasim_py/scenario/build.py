@@ -220,6 +220,7 @@ def channel_config(sc: Scenario) -> Any:
         obstacles=None if c.obstacles is None else _obstacles(c.obstacles),
         sound_speed_std_mps=c.sound_speed_std_mps,
         sound_speed_corr_s=c.sound_speed_corr_s,
+        snr_estimate_std_db=c.snr_estimate_std_db,
     )
 
 

@@ -188,6 +188,9 @@ class ChannelSpec(Strict):
     sound_speed_corr_s: NonNegFloat = Field(
         0.0, description="per-link correlation time of that deviation (s); 0 = independent per packet"
     )
+    snr_estimate_std_db: NonNegFloat = Field(
+        1.0, description="std of the receiver's SNR estimate error (dB) in Reception.snr_db; 0 = exact"
+    )
 
 
 # --------------------------------------------------------------------------- [[nodes]]

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
 from collections.abc import Generator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -82,10 +81,6 @@ class _Wire:
 
     sensors: dict[int, Any] = field(default_factory=dict)
     fc: Any = None
-
-
-#: one wire per run, keyed by the run's SimPy environment (identity only; never read)
-_WIRES: weakref.WeakKeyDictionary[Any, _Wire] = weakref.WeakKeyDictionary()
 
 
 @register
@@ -148,10 +143,9 @@ class MswpfNode(Node):
             yield from self._sensor()
 
     def _wire(self) -> _Wire:
-        env = self.env.event().env  # the run's Environment, as an identity key only
-        w = _WIRES.get(env)
-        if w is None:
-            w = _WIRES[env] = _Wire()
+        """The run's ideal links: one wire in the nodes' shared out-of-band store."""
+        w = self.out_of_band.setdefault("mswpf_wire", _Wire())
+        assert isinstance(w, _Wire)
         return w
 
     # -- target -----------------------------------------------------------------------------------

@@ -94,7 +94,7 @@ class TrainingCache:
     so the cache changes run time, never results.
     """
 
-    _memo: ClassVar[dict[str, dict[str, Array]]] = {}  # shared by every node of the process
+    _memo: ClassVar[dict[str, dict[str, Array]]] = {}  # contract: deterministic cache (keyed by inputs)
 
     def __init__(self, directory: str | Path | None) -> None:
         self.directory = None if directory is None else Path(directory)

@@ -128,8 +128,8 @@ class SvlpfNode(Node):
 
     def setup(self) -> None:
         p: SvlpfParams = self.params
-        self._lo = np.asarray(p.region_lo, float)
-        self._hi = np.asarray(p.region_hi, float)
+        self.region_lo = np.asarray(p.region_lo, float)
+        self.region_hi = np.asarray(p.region_hi, float)
         self._cache = sv.TrainingCache(
             None
             if p.cache == "memory"
@@ -229,8 +229,8 @@ class SvlpfNode(Node):
             p: SvlpfParams = self.params
             parts = {
                 "sensor": spos,
-                "lo": self._lo,
-                "hi": self._hi,
+                "lo": self.region_lo,
+                "hi": self.region_hi,
                 "theta": p.theta_m,
                 "range": p.efficient_range_m,
                 "n": p.svm_samples,
@@ -242,13 +242,15 @@ class SvlpfNode(Node):
 
             def train() -> dict[str, np.ndarray]:
                 rng = sv.training_rng(p.train_seed, key)
-                d, y = sv.svm_training_set(spos, self._lo, self._hi, p.svm_samples, p.theta_m, p.efficient_range_m, rng)
+                d, y = sv.svm_training_set(
+                    spos, self.region_lo, self.region_hi, p.svm_samples, p.theta_m, p.efficient_range_m, rng
+                )
                 return sv.svm_train(d, y, c=p.svm_c, gamma=p.svm_gamma, scale=p.theta_m).arrays()
 
             m = self._svms[sid] = sv.SvmModel.from_arrays(self._cache.get(key, train))
         return m
 
-    def _lssvr_model(self, ids: tuple[int, ...], S: np.ndarray) -> sv.LssvrModel:
+    def lssvr_model(self, ids: tuple[int, ...], S: np.ndarray) -> sv.LssvrModel:
         """The LSSVR of the selected subset (trained on first use, cached)."""
         m = self._lssvr.get(ids)
         if m is None:
@@ -256,8 +258,8 @@ class SvlpfNode(Node):
             rng_m = p.efficient_range_m + p.lssvr_range_margin_m
             parts = {
                 "sensors": S,
-                "lo": self._lo,
-                "hi": self._hi,
+                "lo": self.region_lo,
+                "hi": self.region_hi,
                 "n": p.lssvr_samples,
                 "c": p.lssvr_c,
                 "width": p.lssvr_width_m,
@@ -271,8 +273,8 @@ class SvlpfNode(Node):
                 rng = sv.training_rng(p.train_seed, key)
                 X, Y = sv.lssvr_training_set(
                     S,
-                    self._lo,
-                    self._hi,
+                    self.region_lo,
+                    self.region_hi,
                     p.lssvr_samples,
                     rng,
                     noise_ratio=p.lssvr_train_noise_ratio,
@@ -336,15 +338,15 @@ class _Estimator:
         algo = self.algorithm
         if algo == "consensus":
             est = sv.consensus_estimate(
-                S, Rs, node._lo, node._hi, group_size=p.consensus_group, iterations=p.consensus_iters
+                S, Rs, node.region_lo, node.region_hi, group_size=p.consensus_group, iterations=p.consensus_iters
             )
         else:
-            self.predict(p, node._lo, node._hi, t_req)
+            self.predict(p, node.region_lo, node.region_hi, t_req)
             assert self.X is not None
             if algo == "toa_pf":
                 loglik = sv.range_loglik(self.X, S, Rs, p.sigma_range_m)  # eq 29
             else:
-                model = node._lssvr_model(ids, S)
+                model = node.lssvr_model(ids, S)
                 if algo == "svlpf":
                     loss = p.source_level_db - (snr + p.noise_band_db)  # TIL - RIL (eq 23)
                     flagged = sv.diagnose(loss, Rs, p_hat=p.p_hat, beta_db_per_km=p.beta_db_per_km)

@@ -12,10 +12,18 @@ Each built-in protocol runs a tiny scenario (a shipped scenario, shortened) and 
   ...) are fine: the kernel answers them with noisy, local views.
 
 A protocol added to the registry without a tiny scenario here fails ``test_every_protocol_has_a_case``.
+
+Python has no privacy, so the rest of the contract is read from the source: a lint over the
+shipped protocols (``protocols/**/*.py``) rejects the ways around the node API that a profile
+hook cannot see: reading another object's underscore attributes (``x._y`` with ``x`` not
+``self``/``cls``/``super()``), the introspection modules (``inspect``, ``gc``, ``ctypes``,
+``sys._getframe``), and shared mutable class state (a class-level list/dict/set that code
+mutates: one node's object, seen by all, is a channel that needs no packet).
 """
 
 from __future__ import annotations
 
+import ast
 import filecmp
 import sys
 from pathlib import Path
@@ -180,3 +188,138 @@ def test_truth_watch_catches_a_leaky_protocol() -> None:
     sim.add_group(_LeakyNode, 1, mobility=_LeakyNode.mobility)
     leaks = _watch(lambda: sim.run(until=2.0), (__file__,))
     assert any("mobility.py" in leak for leak in leaks), leaks
+
+
+# --------------------------------------------------------------------------- source lint
+
+_MUTATORS = frozenset(
+    [
+        "append",
+        "extend",
+        "insert",
+        "pop",
+        "remove",
+        "clear",
+        "update",
+        "add",
+        "setdefault",
+        "discard",
+        "popitem",
+        "sort",
+        "reverse",
+        "appendleft",
+        "extendleft",
+        "popleft",
+    ]
+)
+_MUTABLE_CALLS = frozenset({"list", "dict", "set", "deque", "defaultdict", "OrderedDict", "Counter"})
+_BANNED_MODULES = frozenset({"inspect", "gc", "ctypes"})
+
+
+def _is_mutable_literal(v: ast.expr | None) -> bool:
+    if isinstance(v, (ast.List, ast.Dict, ast.Set, ast.ListComp, ast.DictComp, ast.SetComp)):
+        return True
+    if isinstance(v, ast.Call):
+        f = v.func
+        name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+        return name in _MUTABLE_CALLS
+    return False
+
+
+def lint_protocol_source(src: str, fname: str = "<src>") -> list[str]:
+    """Contract violations in one protocol source file, one line each (empty = clean)."""
+    tree = ast.parse(src)
+    out: list[str] = []
+    class_state: dict[str, int] = {}  # class-level mutable attribute -> line
+    rebound: set[str] = set()  # attributes assigned on self (instance state shadowing a default)
+    mutated: dict[str, int] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ClassDef):
+            for stmt in node.body:
+                if isinstance(stmt, ast.Assign) and _is_mutable_literal(stmt.value):
+                    targets = [t.id for t in stmt.targets if isinstance(t, ast.Name)]
+                elif isinstance(stmt, ast.AnnAssign) and _is_mutable_literal(stmt.value):
+                    targets = [stmt.target.id] if isinstance(stmt.target, ast.Name) else []
+                else:
+                    continue
+                for t in targets:
+                    class_state[t] = stmt.lineno
+        elif isinstance(node, ast.Attribute):
+            v = node.value
+            if node.attr.startswith("_") and not (
+                (isinstance(v, ast.Name) and v.id in ("self", "cls"))
+                or (isinstance(v, ast.Call) and isinstance(v.func, ast.Name) and v.func.id == "super")
+            ):
+                out.append(f"{fname}:{node.lineno}: reads another object's private attribute: {ast.unparse(node)}")
+            if isinstance(node.ctx, ast.Store) and isinstance(v, ast.Name) and v.id == "self":
+                rebound.add(node.attr)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            mods = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+            out.extend(
+                f"{fname}:{node.lineno}: imports {m} (introspection is out of contract)"
+                for m in mods
+                if m.split(".")[0] in _BANNED_MODULES
+            )
+        # mutations of x.NAME: x.NAME.append(...), x.NAME[k] = v, del x.NAME[k], x.NAME += ...
+        target: ast.expr | None = None
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in _MUTATORS:
+            target = node.func.value
+        elif isinstance(node, ast.Subscript) and isinstance(node.ctx, (ast.Store, ast.Del)):
+            target = node.value
+        elif isinstance(node, ast.AugAssign):
+            target = node.target
+        if isinstance(target, ast.Attribute):
+            mutated.setdefault(target.attr, target.lineno)
+    lines = src.splitlines()
+    for name, line in sorted(class_state.items()):
+        # a content-addressed memo of a deterministic computation (keys hash every input, so a
+        # hit equals a recomputation) carries nothing between nodes; it is declared as such
+        declared_cache = "contract: deterministic cache" in lines[line - 1]
+        if name in mutated and name not in rebound and not declared_cache:
+            out.append(
+                f"{fname}:{line}: class attribute {name} is mutable shared state (mutated at line {mutated[name]})"
+            )
+    return out
+
+
+def test_shipped_protocols_pass_the_source_lint() -> None:
+    files = sorted(Path(PROTOCOLS_DIR).rglob("*.py"))
+    assert len(files) > 10
+    problems = [p for f in files for p in lint_protocol_source(f.read_text(), str(f.relative_to(ROOT)))]
+    assert not problems, "\n".join(problems)
+
+
+_BAD = """
+import gc
+import sys
+from inspect import currentframe
+
+
+class Spy(Node):
+    seen = []
+    table: ClassVar[dict] = {}
+    fine = []  # rebound per instance below: not shared
+
+    def setup(self):
+        self.fine = []
+
+    def run(self):
+        t = self.sleep(1.0)._delay
+        f = sys._getframe(1)
+        self.seen.append(t)
+        Spy.table[self.id] = f
+        self.fine.append(1)
+        super().__init__
+        yield t
+"""
+
+
+def test_source_lint_catches_each_kind_of_violation() -> None:
+    """The lint is not vacuous: every kind of violation planted in ``_BAD`` is reported."""
+    problems = lint_protocol_source(_BAD)
+    text = "\n".join(problems)
+    assert "imports gc" in text and "imports inspect" in text
+    assert "._delay" in text and "sys._getframe" in text
+    assert "class attribute seen" in text and "class attribute table" in text
+    assert "fine" not in text and "super()" not in text
+    assert len(problems) == 6, text
