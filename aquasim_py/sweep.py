@@ -258,7 +258,7 @@ def _run_local(
     # memory), and an interruption has little queued work to cancel.
     todo = iter(enumerate(jobs))
     pending: dict[Future[dict[str, Any]], int] = {}
-    with ProcessPoolExecutor(max_workers=n) as pool:
+    with ProcessPoolExecutor(max_workers=n, initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
         try:
             while True:
                 while len(pending) < 2 * n:
@@ -275,6 +275,37 @@ def _run_local(
         except BaseException:
             pool.shutdown(wait=False, cancel_futures=True)
             raise
+
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker when the sweep's process dies (e.g. SIGKILL).
+
+    A ProcessPoolExecutor worker holds both ends of its job queue, so it never sees its parent
+    go and would wait forever, holding the parent's stdout open. On Linux the kernel sends it
+    SIGKILL when the parent dies (``PR_SET_PDEATHSIG``); elsewhere a daemon thread polls."""
+    import signal
+    import sys
+
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os._exit(1)
+        return
+    import threading
+    import time
+
+    def _watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(1.0)
+        os._exit(1)
+
+    threading.Thread(target=_watch, daemon=True).start()
 
 
 def _run_dask(
