@@ -273,7 +273,11 @@ def _run_local(
                 for fut in sorted(finished, key=pending.__getitem__):
                     done(pending.pop(fut), fut.result())
         except BaseException:
+            # Ctrl-C, or a dead worker: the runs in flight are lost anyway; stop them now
+            # rather than wait for them (a run can take minutes)
             pool.shutdown(wait=False, cancel_futures=True)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
             raise
 
 
@@ -282,9 +286,13 @@ def _die_with_parent(parent: int) -> None:
 
     A ProcessPoolExecutor worker holds both ends of its job queue, so it never sees its parent
     go and would wait forever, holding the parent's stdout open. On Linux the kernel sends it
-    SIGKILL when the parent dies (``PR_SET_PDEATHSIG``); elsewhere a daemon thread polls."""
+    SIGKILL when the parent dies (``PR_SET_PDEATHSIG``); elsewhere a daemon thread polls.
+    Ctrl-C is the parent's business: the workers ignore SIGINT (no traceback from each), and
+    the parent stops them."""
     import signal
     import sys
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     if sys.platform.startswith("linux"):
         import ctypes

@@ -163,8 +163,11 @@ def test_dask_rows_equal_local_rows(scen):
     jobs = sweep.plan(sc)
     local = sweep.run_jobs(sc, jobs, workers=1)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster:
-        remote = sweep.run_jobs(sc, jobs, scheduler=cluster.scheduler_address)
+        journal: list[dict] = []
+        remote = sweep.run_jobs(sc, jobs, scheduler=cluster.scheduler_address, on_row=journal.append)
     assert json.dumps(local) == json.dumps(remote)
+    # the Dask path feeds the same row journal, one row per run as it finishes
+    assert sorted(r["key"] for r in journal) == sorted(j.key for j in jobs)
 
 
 def test_csv_cells_round_trip_floats(tmp_path):
