@@ -15,24 +15,30 @@ Every run goes through :func:`aquasim_py.run_scenario`. Rows come back in job or
 the number of workers or their finishing order, and each run depends only on its own
 (scenario, overrides, seed), so a sweep gives the same rows serially, on 2 local processes,
 or on a Dask cluster.
+
+Sweeps survive interruption. Every run has a key (:func:`run_key`, a hash of its resolved
+scenario, swept values and seed). Each finished run's row is appended to the journal
+``DIR/rows.jsonl`` (one JSON object per line, flushed and fsynced) as it arrives, in finishing
+order; ``sweep.csv`` is rewritten from the journal in plan order (:func:`finish`), so it is the
+same whatever the interruption. :func:`read_journal` drops a partially written last line (a
+process killed mid-write), and a resumed sweep runs only the keys without a successful row. A
+run whose protocol raises gives a row with its ``error`` and no metrics; the others go on.
 """
 
 from __future__ import annotations
 
-import contextlib
 import csv
-import ctypes
+import gc
+import hashlib
 import itertools
 import json
 import math
 import os
-import signal
-import sys
-import threading
+import shutil
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -42,17 +48,25 @@ from aquasim_py import scenario as _scenario
 from aquasim_py.scenario import VARIANT_KEY
 
 __all__ = [
+    "JOURNAL",
     "DaskMissingError",
     "Job",
+    "Journal",
     "bases",
     "check_points",
     "columns",
+    "finish",
     "plan",
+    "read_journal",
     "rows_to_csv",
     "run_job",
     "run_jobs",
+    "run_key",
     "run_seed",
 ]
+
+JOURNAL = "rows.jsonl"  # the append-only row journal inside a sweep's directory
+RUNS = "runs"  # per-run trace tables (--keep-traces): DIR/runs/<key>/
 
 Progress = Callable[[int, int], None]
 
@@ -63,12 +77,13 @@ class DaskMissingError(ImportError):
 
 @dataclass(frozen=True)
 class Job:
-    """One run of a sweep: its position in the output, swept values and seed."""
+    """One run of a sweep: its position in the output, swept values, seed and key."""
 
     index: int
     point: tuple[tuple[str, Any], ...]  # (key path, value) per grid key, in grid order
     run: int
     seed: int
+    key: str = ""  # run_key(resolved scenario, point, seed); set by plan()
 
 
 def run_seed(base_seed: int, run: int) -> int:
@@ -82,7 +97,7 @@ def run_seed(base_seed: int, run: int) -> int:
 
 
 def plan(sc: _scenario.Scenario) -> list[Job]:
-    """Every job of the scenario's sweep, in output order."""
+    """Every job of the scenario's sweep, in output order, each with its :func:`run_key`."""
     if sc.sweep is None:
         raise _scenario.ScenarioError(sc.path, "sweep", "the scenario has no [sweep] table")
     keys = list(sc.sweep.grid)
@@ -91,7 +106,23 @@ def plan(sc: _scenario.Scenario) -> list[Job]:
     for combo in itertools.product(*values):
         for r in range(sc.sweep.runs):
             jobs.append(Job(len(jobs), tuple(zip(keys, combo)), r, run_seed(sc.simulation.seed, r)))
-    return jobs
+    start = bases(sc, jobs)
+    return [replace(j, key=run_key(start[_variant_of(j)], j.point, j.seed)) for j in jobs]
+
+
+def run_key(base: dict[str, Any], point: Sequence[tuple[str, Any]], seed: int) -> str:
+    """A run's stable identity: the first 16 hex digits of the SHA-256 of the canonical JSON
+    (sorted keys, no spaces) of its resolved scenario ``base`` (without ``[output]``: where
+    results go does not change them), its swept values in grid order and its seed."""
+    from aquasim_py.runner import json_safe
+
+    payload = {
+        "scenario": {k: v for k, v in base.items() if k != "output"},
+        "point": [[k, v] for k, v in point],
+        "seed": int(seed),
+    }
+    text = json.dumps(json_safe(payload), sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def bases(sc: _scenario.Scenario, jobs: Sequence[Job]) -> dict[str | None, dict[str, Any]]:
@@ -125,20 +156,42 @@ def check_points(sc: _scenario.Scenario, jobs: Sequence[Job]) -> None:
             _scenario.build(_job_scenario(start[_variant_of(job)], path, job))
 
 
-def run_job(base: dict[str, Any], path: str | None, job: Job) -> dict[str, Any]:
-    """Run one job (in any process) and return its row: swept values, run, seed, metrics.
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split())
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None = None) -> dict[str, Any]:
+    """Run one job (in any process) and return its row: swept values, run, seed, key, error,
+    metrics.
 
     ``base`` is the job's resolved scenario (:func:`bases`), ``path`` its file (for relative
-    file names and messages).
+    file names and messages). An exception inside the run is caught and recorded: the row then
+    has its one-line ``error`` and no metrics (the other runs go on). ``traces``: a directory
+    to keep this run's trace tables in, under ``traces/<key>/`` (complete or absent).
     """
     from aquasim_py.runner import run_scenario
 
-    res = run_scenario(_job_scenario(base, path, job), progress=False)
     row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
     row["seed"] = job.seed
+    row["key"] = job.key
+    row["error"] = None
+    try:
+        res = run_scenario(_job_scenario(base, path, job), progress=False)
+    except Exception as e:  # a protocol's bug must not stop the sweep: record it in the row
+        row["error"] = _one_line(e)
+        return row
     # plain Python numbers: a protocol's metrics may hand back numpy scalars
     row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in res.metrics.items()})
+    if traces is not None:
+        final = Path(traces) / job.key
+        tmp = Path(traces) / f".{job.key}.tmp-{os.getpid()}"
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        res.write_into(tmp, final=final)
+        shutil.rmtree(final, ignore_errors=True)  # a run repeated on --resume replaces its tables
+        os.rename(tmp, final)
     return row
 
 
@@ -149,16 +202,21 @@ def run_jobs(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: Progress | None = None,
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+    traces: str | Path | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``jobs`` and return their rows in job order.
 
     ``workers``: local processes (default ``os.cpu_count()``; 1 runs in this process).
     ``scheduler``: a Dask scheduler address ("tcp://host:8786"); then ``workers`` is ignored.
-    ``progress(done, total)`` is called after each finished run (in this process).
+    ``progress(done, total)`` is called after each finished run (in this process), and
+    ``on_row(row)`` before it, in finishing order, with the row as the run returned it (e.g.
+    :meth:`Journal.append`). ``traces``: keep each run's tables under ``traces/<key>/``.
     """
     # the runs need no [sweep] table (and re-checking its grid in every run would be wasted)
     start = bases(sc, jobs)
     path = str(sc.path) if sc.path is not None else None
+    tdir = str(traces) if traces is not None else None
     total = len(jobs)
     results: list[dict[str, Any] | None] = [None] * total
     pos = {job.index: i for i, job in enumerate(jobs)}
@@ -166,82 +224,106 @@ def run_jobs(
 
     def _done(i: int, row: dict[str, Any]) -> None:
         nonlocal done
+        if on_row is not None:
+            on_row(row)
         results[i] = row
         done += 1
         if progress is not None:
             progress(done, total)
 
     if scheduler is not None:
-        _run_dask(scheduler, start, path, jobs, pos, _done)
+        _run_dask(scheduler, start, path, jobs, pos, _done, tdir)
     else:
         n = workers if workers is not None else (os.cpu_count() or 1)
         n = max(1, min(int(n), total)) if total else 1
         if n == 1:
+            # A finished simulation is cyclic garbage (SimPy processes <-> environment) that
+            # the generational GC frees only rarely, so a long in-process sweep's memory would
+            # creep up (+73 MB over 1000 small runs, tools/bench_sweep_memory.py). A full
+            # collection costs ~0.1 s with pandas and scipy loaded: one every 5 s at most.
+            collected = time.monotonic()
             for i, job in enumerate(jobs):
-                _done(i, run_job(start[_variant_of(job)], path, job))
+                _done(i, run_job(start[_variant_of(job)], path, job, tdir))
+                if time.monotonic() - collected > 5.0:
+                    gc.collect()
+                    collected = time.monotonic()
         else:
-            # Worker processes may be forked: the CLI's progress display runs no thread for
-            # that reason (a lock held by another thread at fork time would stay held).
-            with ProcessPoolExecutor(max_workers=n, initializer=_worker_init, initargs=(os.getpid(),)) as pool:
-                futs = {pool.submit(run_job, start[_variant_of(job)], path, job): job for job in jobs}
-                try:
-                    for fut in as_completed(futs):
-                        _done(pos[futs[fut].index], fut.result())
-                except BaseException:
-                    for f in futs:
-                        f.cancel()
-                    _end_workers(pool)  # an interrupted sweep does not wait for runs in flight
-                    raise
+            _run_local(n, start, path, jobs, _done, tdir)
     rows = [r for r in results if r is not None]
-    # a drop reason absent from a run's trace means none of those drops happened in it
-    counts = {k for r in rows for k in r if k.startswith("packets.")}
-    for r in rows:
-        for k in counts:
-            r.setdefault(k, 0)
+    fill_counts(rows)
     return rows
 
 
-def _worker_init(parent: int) -> None:
-    """Start-up of a local worker process: it dies with the sweep's parent process.
+def _run_local(
+    n: int,
+    start: dict[str | None, dict[str, Any]],
+    path: str | None,
+    jobs: Sequence[Job],
+    done: Callable[[int, dict[str, Any]], None],
+    traces: str | None,
+) -> None:
+    # Worker processes may be forked: the CLI's progress display runs no thread for that
+    # reason (a lock held by another thread at fork time would stay held). At most 2n jobs
+    # are queued at a time: the parent holds O(n) futures whatever the sweep's size (flat
+    # memory), and an interruption has little queued work to cancel.
+    todo = iter(enumerate(jobs))
+    pending: dict[Future[dict[str, Any]], int] = {}
+    with ProcessPoolExecutor(max_workers=n, initializer=_die_with_parent, initargs=(os.getpid(),)) as pool:
+        try:
+            while True:
+                while len(pending) < 2 * n:
+                    nxt = next(todo, None)
+                    if nxt is None:
+                        break
+                    i, job = nxt
+                    pending[pool.submit(run_job, start[_variant_of(job)], path, job, traces)] = i
+                if not pending:
+                    break
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in sorted(finished, key=pending.__getitem__):
+                    done(pending.pop(fut), fut.result())
+        except BaseException:
+            # Ctrl-C, or a dead worker: the runs in flight are lost anyway; stop them now
+            # rather than wait for them (a run can take minutes)
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                proc.terminate()
+            raise
 
-    Interruptions go to the parent (a terminal's Ctrl-C reaches the whole process group), which
-    ends its workers itself. On Linux the kernel kills the worker when the parent dies, even by
-    SIGKILL (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread polls the parent's pid.
-    """
+
+def _die_with_parent(parent: int) -> None:
+    """Worker initializer: end this worker when the sweep's process dies (e.g. SIGKILL).
+
+    A ProcessPoolExecutor worker holds both ends of its job queue, so it never sees its parent
+    go and would wait forever, holding the parent's stdout open. On Linux the kernel sends it
+    SIGKILL when the parent dies (``PR_SET_PDEATHSIG``); elsewhere a daemon thread polls.
+    Ctrl-C is the parent's business: the workers ignore SIGINT (no traceback from each), and
+    the parent stops them."""
+    import signal
+    import sys
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler, inherited by fork
+
     if sys.platform.startswith("linux"):
+        import ctypes
+
         try:
             libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
         except (OSError, AttributeError):
-            _watch_parent(parent)
-    else:
-        _watch_parent(parent)
-    if os.getppid() != parent:  # the parent died before the request above took effect
-        os._exit(1)
+            pass
+        if os.getppid() != parent:  # the parent died before prctl took effect
+            os._exit(1)
+        return
+    import threading
+    import time
 
-
-_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
-
-
-def _watch_parent(parent: int) -> None:
-    def watch() -> None:
+    def _watch() -> None:
         while os.getppid() == parent:
             time.sleep(1.0)
         os._exit(1)
 
-    threading.Thread(target=watch, name="aquasim-parent-watch", daemon=True).start()
-
-
-def _end_workers(pool: ProcessPoolExecutor) -> None:
-    """Kill the pool's worker processes (their runs are abandoned) so that leaving the pool's
-    ``with`` block does not wait for the runs in flight."""
-    procs = getattr(pool, "_processes", None) or {}  # CPython keeps its workers here
-    for p in list(procs.values()):
-        with contextlib.suppress(Exception):
-            p.kill()
-    pool.shutdown(wait=False, cancel_futures=True)
+    threading.Thread(target=_watch, daemon=True).start()
 
 
 def _run_dask(
@@ -251,6 +333,7 @@ def _run_dask(
     jobs: Sequence[Job],
     pos: dict[int, int],
     done: Callable[[int, dict[str, Any]], None],
+    traces: str | None,
 ) -> None:
     try:
         from dask.distributed import Client
@@ -258,18 +341,37 @@ def _run_dask(
     except ImportError as e:
         raise DaskMissingError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from e
     with Client(scheduler) as client:
-        futs = [client.submit(run_job, start[_variant_of(job)], path, job, pure=False) for job in jobs]
+        # traces: the workers write them, so DIR must be on a file system they share
+        futs = [client.submit(run_job, start[_variant_of(job)], path, job, traces, pure=False) for job in jobs]
         index = {f.key: job.index for f, job in zip(futs, jobs)}
-        for fut in dask_completed(futs):
-            done(pos[index[fut.key]], fut.result())
+        try:
+            for fut in dask_completed(futs):
+                done(pos[index[fut.key]], fut.result())
+        except BaseException:
+            client.cancel(futs)
+            raise
+
+
+def fill_counts(rows: Iterable[dict[str, Any]]) -> None:
+    """A drop reason absent from a run's trace means none of those drops happened in it: 0.
+
+    Only successful runs (no ``error``) get the zeros; a failed run has no counts."""
+    rows = list(rows)
+    counts = {k for r in rows for k in r if k.startswith("packets.")}
+    for r in rows:
+        if not r.get("error"):
+            for k in counts:
+                r.setdefault(k, 0)
 
 
 def columns(rows: Sequence[dict[str, Any]], jobs: Sequence[Job]) -> list[str]:
-    """CSV columns: grid keys (grid order), run, seed, then every metric name sorted."""
+    """CSV columns: grid keys (grid order), run, seed, key and error (when the rows have them),
+    then every metric name sorted."""
     grid = [k for k, _ in jobs[0].point] if jobs else []
-    fixed = set(grid) | {"run", "seed"}
+    extra = [c for c in ("key", "error") if any(c in r for r in rows)]
+    fixed = set(grid) | {"run", "seed", "key", "error"}
     metric_names = sorted({k for r in rows for k in r if k not in fixed})
-    return grid + ["run", "seed"] + metric_names
+    return grid + ["run", "seed"] + extra + metric_names
 
 
 def _cell(v: Any) -> Any:
@@ -289,3 +391,131 @@ def rows_to_csv(rows: Sequence[dict[str, Any]], cols: Sequence[str], path: str |
         w.writerow(cols)
         for r in rows:
             w.writerow([_cell(r.get(c)) for c in cols])
+
+
+# --------------------------------------------------------------------------- the row journal
+class Journal:
+    """The append-only row journal ``DIR/rows.jsonl``: one JSON object per finished run, in
+    finishing order, each line flushed and fsynced before the next run is counted done, so a
+    crash or a kill loses only runs in flight, never a written row. Floats are written exactly
+    (JSON's shortest round-trip text; NaN as ``NaN``)."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self._fh = open(self.path, "a", encoding="utf-8")  # noqa: SIM115  (closed by close())
+
+    def append(self, row: dict[str, Any]) -> None:
+        self._fh.write(json.dumps(row, separators=(",", ":")) + "\n")
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def __enter__(self) -> Journal:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_journal(path: str | Path, *, repair: bool = False) -> tuple[list[dict[str, Any]], int]:
+    """The journal's complete rows, in file order, and how many broken lines were dropped.
+
+    A line is complete when it ends with a newline and parses as a JSON object with a ``key``;
+    a process killed mid-write leaves at most one incomplete last line. ``repair``: rewrite the
+    file with only the complete rows (atomically), so appending after it starts a clean line.
+    A missing journal has no rows.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return [], 0
+    lines = data.split(b"\n")
+    tail = lines.pop()  # b"" when the file ends with a newline, else an unfinished line
+    rows: list[dict[str, Any]] = []
+    good: list[bytes] = []
+    dropped = 1 if tail.strip() else 0
+    for line in lines:
+        try:
+            row = json.loads(line)
+        except ValueError:
+            row = None
+        if isinstance(row, dict) and isinstance(row.get("key"), str):
+            rows.append(row)
+            good.append(line)
+        elif line.strip():
+            dropped += 1
+    if repair and (dropped or tail):
+        _atomic_write(path, b"".join(x + b"\n" for x in good))
+    return rows, dropped
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+
+
+def latest_rows(rows: Iterable[dict[str, Any]], jobs: Sequence[Job]) -> list[dict[str, Any]]:
+    """One row per job that has one, in plan order: a key's last journal row wins (a failed
+    run repeated on ``--resume`` is replaced by its new row). Rows of keys not in the plan (a
+    changed scenario) are left out."""
+    by_key: dict[str, dict[str, Any]] = {}
+    for r in rows:
+        by_key[r["key"]] = r
+    return [by_key[j.key] for j in jobs if j.key in by_key]
+
+
+def done_keys(rows: Iterable[dict[str, Any]]) -> set[str]:
+    """Keys whose latest row is a success: what ``--resume`` skips (failed runs run again)."""
+    last: dict[str, dict[str, Any]] = {}
+    for r in rows:
+        last[r["key"]] = r
+    return {k for k, r in last.items() if not r.get("error")}
+
+
+def finish(out: str | Path, jobs: Sequence[Job]) -> tuple[list[dict[str, Any]], list[str]]:
+    """Rewrite ``out/sweep.csv`` from the journal, in plan order (atomically), with
+    ``summary.csv`` (:func:`aquasim_py.metrics.summarize_runs` per grid point over the
+    successful runs) and ``sweep.parquet`` when pyarrow is installed. Returns the rows and the
+    columns. The same journal rows give the same bytes whatever order they finished in."""
+    out = Path(out)
+    rows = latest_rows(read_journal(out / JOURNAL)[0], jobs)
+    fill_counts(rows)
+    cols = columns(rows, jobs)
+    tmp = out / f".sweep.csv.tmp-{os.getpid()}"
+    rows_to_csv(rows, cols, tmp)
+    with open(tmp, "rb+") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp, out / "sweep.csv")
+    _write_summary(out, jobs, cols)
+    return rows, cols
+
+
+def _write_summary(out: Path, jobs: Sequence[Job], cols: Sequence[str]) -> None:
+    import pandas as pd
+
+    from aquasim_py.metrics import summarize_runs
+
+    grid = [k for k, _ in jobs[0].point] if jobs else []
+    df = pd.read_csv(out / "sweep.csv", dtype={"key": str, "error": str})
+    if "error" in df.columns:
+        df["error"] = df["error"].fillna("")
+    fixed = set(grid) | {"run", "seed", "key", "error"}
+    ok = df[df["error"] == ""] if "error" in df.columns else df
+    metric_cols = [c for c in cols if c not in fixed and pd.api.types.is_numeric_dtype(ok[c])]
+    if metric_cols and len(ok):
+        summary = summarize_runs(ok, by=grid, metrics=metric_cols)
+    else:
+        summary = pd.DataFrame(columns=[*grid, "metric", "n", "mean", "std", "ci95_low", "ci95_high"])
+    summary.to_csv(out / "summary.csv", index=False, lineterminator="\n")
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        return
+    df.to_parquet(out / "sweep.parquet", index=False)

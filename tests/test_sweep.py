@@ -5,6 +5,10 @@ from __future__ import annotations
 import csv
 import json
 import math
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -159,8 +163,11 @@ def test_dask_rows_equal_local_rows(scen):
     jobs = sweep.plan(sc)
     local = sweep.run_jobs(sc, jobs, workers=1)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster:
-        remote = sweep.run_jobs(sc, jobs, scheduler=cluster.scheduler_address)
+        journal: list[dict] = []
+        remote = sweep.run_jobs(sc, jobs, scheduler=cluster.scheduler_address, on_row=journal.append)
     assert json.dumps(local) == json.dumps(remote)
+    # the Dask path feeds the same row journal, one row per run as it finishes
+    assert sorted(r["key"] for r in journal) == sorted(j.key for j in jobs)
 
 
 def test_csv_cells_round_trip_floats(tmp_path):
@@ -172,3 +179,222 @@ def test_csv_cells_round_trip_floats(tmp_path):
     with open(tmp_path / "x.csv") as fh:
         back = next(iter(csv.DictReader(fh)))
     assert float(back["a"]) == 0.1 + 0.2 and np.isnan(float(back["m"])) and json.loads(back["v"]) == [1, 2]
+
+
+# --------------------------------------------------------------------------- surviving sweeps
+KILL_SCENARIO = """\
+[simulation]
+duration_s = 200.0
+seed = 5
+
+[environment]
+volume = { lo = [0.0, 0.0, 0.0], hi = [800.0, 800.0, 60.0] }
+
+[[nodes]]
+role = "anchor"
+protocol = "beacon"
+placement = { kind = "explicit", positions = [[0.0, 0.0, 5.0], [800.0, 800.0, 5.0]] }
+params = { period_s = 4.0 }
+
+[[nodes]]
+role = "ordinary"
+count = 3
+protocol = "beacon"
+placement = { kind = "uniform" }
+
+[sweep]
+runs = 4
+grid = { "nodes.1.count" = [2, 4] }
+"""
+
+
+@pytest.fixture(scope="module")
+def kill_reference(tmp_path_factory) -> tuple[Path, bytes]:
+    """The kill scenario and the sweep.csv of its uninterrupted sweep (8 runs)."""
+    d = tmp_path_factory.mktemp("kill")
+    p = d / "k.toml"
+    p.write_text(KILL_SCENARIO)
+    assert cli.main(["sweep", str(p), "--workers", "1", "--out", str(d / "ref"), "--quiet"]) == 0
+    return p, (d / "ref" / "sweep.csv").read_bytes()
+
+
+def _journal_lines(path: Path) -> list[bytes]:
+    try:
+        return [x for x in path.read_bytes().split(b"\n") if x]
+    except FileNotFoundError:
+        return []
+
+
+@pytest.mark.parametrize(("sig", "workers"), [(signal.SIGINT, "1"), (signal.SIGKILL, "2")])
+def test_killed_sweep_resumes_to_the_uninterrupted_rows(kill_reference, tmp_path, sig, workers, capsys):
+    scen, reference = kill_reference
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "aquasim_py.cli", "sweep", str(scen), "--workers", workers, "--out", str(out)]
+    errfile = tmp_path / "stderr.txt"
+    with open(errfile, "wb") as fh:
+        proc = subprocess.Popen([*cmd, "--quiet"], stdout=subprocess.DEVNULL, stderr=fh)
+    k = 2
+    deadline = time.monotonic() + 120.0
+    while len(_journal_lines(out / sweep.JOURNAL)) < k:
+        assert proc.poll() is None, errfile.read_text()
+        assert time.monotonic() < deadline, "no rows written in 120 s"
+        time.sleep(0.005)
+    proc.send_signal(sig)
+    proc.wait(timeout=120)
+    err = errfile.read_bytes()
+    assert proc.returncode != 0, "the sweep finished before the signal: make its runs longer"
+    written = _journal_lines(out / sweep.JOURNAL)
+    assert k <= len(written) < 8
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130
+        assert err.decode().strip() == (
+            f"error: interrupted by SIGINT: {len(written)} of 8 runs saved in {out}; finish with --resume"
+        )
+        # the rows so far, already in plan order
+        assert reference.startswith((out / "sweep.csv").read_bytes().split(b"\n", 1)[0])
+    else:
+        assert proc.returncode == -signal.SIGKILL
+        # as if killed in the middle of writing a row: an unfinished last line
+        with open(out / sweep.JOURNAL, "ab") as fh:
+            fh.write(written[-1][: len(written[-1]) // 2])
+    before = {json.loads(x)["key"] for x in written}
+    capsys.readouterr()
+    assert cli.main(["sweep", str(scen), "--workers", workers, "--out", str(out), "--resume"]) == 0
+    said = capsys.readouterr().out
+    dropped = " (dropped 1 partially written row)" if sig == signal.SIGKILL else ""
+    assert f"resuming {out}: {len(written)} of 8 runs already done{dropped}" in said
+    assert (out / "sweep.csv").read_bytes() == reference
+    keys = [json.loads(x)["key"] for x in _journal_lines(out / sweep.JOURNAL)]
+    assert len(keys) == len(set(keys)) == 8  # each run once: the saved ones were not run again
+    assert set(keys) > before
+
+
+def test_run_keys_are_stable_and_distinct(scen):
+    sc = scenario.load(scen)
+    keys = [j.key for j in sweep.plan(sc)]
+    assert keys == [j.key for j in sweep.plan(scenario.load(scen))]
+    assert len(set(keys)) == len(keys) and all(len(k) == 16 and int(k, 16) >= 0 for k in keys)
+    # the key follows the resolved scenario: a changed value changes every key...
+    other = [j.key for j in sweep.plan(scenario.load(scen, overrides=["simulation.duration_s=41"]))]
+    assert not set(other) & set(keys)
+    # ...but not more runs (the first runs keep theirs) nor where the results go
+    more = sweep.plan(scenario.load(scen, overrides=["sweep.runs=4", "output.directory='elsewhere'"]))
+    assert [j.key for j in more if j.run < 3] == keys
+
+
+def test_journal_drops_broken_lines(tmp_path):
+    path = tmp_path / sweep.JOURNAL
+    with sweep.Journal(path) as j:
+        j.append({"key": "a", "x": 0.1 + 0.2, "m": float("nan")})
+        j.append({"key": "b", "x": 1})
+    with open(path, "ab") as fh:
+        fh.write(b'{"key": "c", "x"')  # killed mid-write
+    rows, dropped = sweep.read_journal(path)
+    assert [r["key"] for r in rows] == ["a", "b"] and dropped == 1
+    assert rows[0]["x"] == 0.1 + 0.2 and math.isnan(rows[0]["m"])
+    sweep.read_journal(path, repair=True)
+    with sweep.Journal(path) as j:
+        j.append({"key": "c", "x": 2})
+    rows, dropped = sweep.read_journal(path)
+    assert [r["key"] for r in rows] == ["a", "b", "c"] and dropped == 0
+
+
+class _Boom(RuntimeError):
+    pass
+
+
+def _boom_protocol() -> str:
+    """A beacon that raises inside the simulation when its ``boom`` parameter is set."""
+    from aquasim_py import registry
+    from aquasim_py.protocols.beacon.node import BeaconNode
+
+    name = "test_sweep_boom"
+    try:
+        registry.get(name)
+    except Exception:
+
+        class BoomNode(BeaconNode):
+            name = "test_sweep_boom"
+
+            class Params(BeaconNode.Params):
+                boom: bool = False
+
+            def run(self):
+                if self.params.boom:
+                    yield self.env.timeout(1.0)
+                    raise _Boom("protocol\nbug")
+                yield from super().run()
+
+        registry.register(BoomNode)
+    return name
+
+
+def test_failed_run_is_recorded_and_the_others_go_on(tmp_path, capsys):
+    name = _boom_protocol()
+    p = tmp_path / "boom.toml"
+    text = SCENARIO.replace('count = 3\nprotocol = "beacon"', f'count = 3\nprotocol = "{name}"')
+    text = text.replace(
+        'grid = { "channel.jitter_std_s" = [0.0, 1e-3], "nodes.1.count" = [2, 4] }',
+        'grid = { "nodes.1.params.boom" = [false, true] }',
+    )
+    p.write_text(text.replace("runs = 3", "runs = 2"))
+    out = tmp_path / "o"
+    rc = cli.main(["sweep", str(p), "--workers", "1", "--out", str(out), "--quiet", "--keep-traces"])
+    stdout, err = capsys.readouterr()
+    assert rc == 1
+    assert err.strip() == f"error: 2 of 4 runs failed (see the error column of {out / 'sweep.csv'})"
+    assert stdout.strip() == f"4 runs in {stdout.split(' in ')[1].split(' s ')[0]} s -> {out / 'sweep.csv'}"
+    with open(out / "sweep.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["nodes.1.params.boom"] for r in rows] == ["False", "False", "True", "True"]
+    assert [r["error"] for r in rows] == ["", "", "_Boom: protocol bug", "_Boom: protocol bug"]
+    assert all(r["packets.sent"] == "" for r in rows[2:]) and all(int(r["packets.sent"]) > 0 for r in rows[:2])
+    # the successful runs' traces are kept, complete, under runs/<key>/
+    kept = sorted(d.name for d in (out / "runs").iterdir())
+    assert kept == sorted(r["key"] for r in rows[:2])
+    assert (out / "runs" / kept[0] / "summary.json").exists()
+    # summary.csv: the successful runs only
+    import pandas as pd
+
+    s = pd.read_csv(out / "summary.csv")
+    sent = s[s["metric"] == "packets.sent"]
+    assert list(sent["nodes.1.params.boom"]) == [False] and list(sent["n"]) == [2]
+
+
+def test_summary_csv_is_summarize_runs_of_sweep_csv(scen, tmp_path):
+    import pandas as pd
+
+    from aquasim_py.metrics import summarize_runs
+
+    out = tmp_path / "o"
+    assert cli.main(["sweep", str(scen), "--workers", "1", "--out", str(out), "--quiet", "--set", "sweep.runs=2"]) == 0
+    runs = pd.read_csv(out / "sweep.csv")
+    s = pd.read_csv(out / "summary.csv")
+    assert list(s.columns) == [
+        "channel.jitter_std_s",
+        "nodes.1.count",
+        "metric",
+        "n",
+        "mean",
+        "std",
+        "ci95_low",
+        "ci95_high",
+    ]
+    rmse = s[(s["metric"] == "beacon.range_rmse_m") & (s["nodes.1.count"] == 4) & (s["channel.jitter_std_s"] == 1e-3)]
+    vals = runs[(runs["nodes.1.count"] == 4) & (runs["channel.jitter_std_s"] == 1e-3)]["beacon.range_rmse_m"]
+    assert int(rmse["n"].iloc[0]) == 2 and rmse["mean"].iloc[0] == pytest.approx(vals.mean(), rel=1e-12)
+    assert len(s) == len(
+        summarize_runs(
+            runs,
+            by=["channel.jitter_std_s", "nodes.1.count"],
+            metrics=[c for c in runs.columns if c.startswith(("beacon.", "packets."))],
+        )
+    )
+    pq = pytest.importorskip("pyarrow.parquet")
+    assert pq.read_table(out / "sweep.parquet").num_rows == 8
+
+
+def test_help_names_the_sweep_directory(capsys):
+    assert cli.main(["sweep", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "out/<scenario file stem>-sweep" in text and "--resume" in text and "--keep-traces" in text

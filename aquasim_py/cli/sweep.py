@@ -1,6 +1,8 @@
 """``aquasim-py sweep SCENARIO.toml``: every (grid point, seed) of the scenario's ``[sweep]``
 table, each run through :func:`aquasim_py.run_scenario` (by :mod:`aquasim_py.sweep`), on local
-processes or a Dask cluster; writes ``sweep.csv`` and ``sweep.json``."""
+processes or a Dask cluster. Rows are journalled in ``DIR/rows.jsonl`` as runs finish
+(``--resume`` picks up from it); at the end ``sweep.csv`` (plan order), ``summary.csv``,
+``sweep.json`` and, with pyarrow, ``sweep.parquet``."""
 
 from __future__ import annotations
 
@@ -8,13 +10,18 @@ import argparse
 import json
 import math
 import os
+import shutil
+import signal
+import sys
 import time
 from collections.abc import Mapping, Sequence
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any
 
 from aquasim_py import __version__
 from aquasim_py.cli import common
-from aquasim_py.runner import console, json_safe, staged_output
+from aquasim_py.runner import console, json_safe
 
 EXAMPLES = """\
 examples:
@@ -23,11 +30,18 @@ examples:
   aquasim-py sweep scenarios/beacon.toml --set sweep.runs=20
   aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786   # Dask cluster
   aquasim-py sweep scenarios/itmtl_sweep.toml --set 'sweep.grid.variant=["itmtl", "wsc"]'
+  aquasim-py sweep scenarios/beacon.toml --resume        # after Ctrl-C or a crash
 
 The scenario's [sweep] table gives runs (Monte Carlo seeds per grid point) and grid
-(key paths -> value lists; the key variant takes [variants.NAME] names). One row per run
-goes to DIR/sweep.csv, in the same order whatever the number of workers.
+(key paths -> value lists; the key variant takes [variants.NAME] names). DIR is --out, else
+the [output] directory with "-sweep" appended, else out/<scenario file stem>-sweep. Each
+finished run's row is appended to DIR/rows.jsonl at once; at the end DIR/sweep.csv holds one
+row per run (key, error, metrics) in plan order whatever the number of workers or
+interruptions, DIR/summary.csv the mean, std and 95 % CI per grid point. Exit status 1 when
+any run failed (its error is in the error column).
 """
+
+OUTPUTS = ("sweep.csv", "sweep.json", "summary.csv", "sweep.parquet")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -38,6 +52,17 @@ def parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     common.add_common(p)
+    for a in p._actions:  # a sweep's own default directory (common's help describes a plain run's)
+        if a.dest == "out":
+            a.help = (
+                "output directory (default: the [output] directory + '-sweep', else out/<scenario file stem>-sweep)"
+            )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the rows already in DIR/rows.jsonl and run only the missing (or failed) runs",
+    )
+    p.add_argument("--keep-traces", action="store_true", help="also keep each run's trace tables under DIR/runs/<key>/")
     p.add_argument(
         "--workers",
         type=common.positive_int,
@@ -65,80 +90,162 @@ def command(argv: Sequence[str]) -> int:
         except ImportError:
             raise common.UsageError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from None
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
+    _prepare(out, sc.path, key, resume=args.resume, overwrite=args.overwrite)
+    journal_path = out / sweep.JOURNAL
+    before, dropped = sweep.read_journal(journal_path, repair=True) if args.resume else ([], 0)
+    skip = sweep.done_keys(before)
+    todo = [j for j in jobs if j.key not in skip]
+    already = len(jobs) - len(todo)
+    if args.resume and not args.quiet:
+        note = f" (dropped {dropped} partially written row{'s' * (dropped != 1)})" if dropped else ""
+        print(f"resuming {out}: {already} of {len(jobs)} runs already done{note}")
+    traces = out / sweep.RUNS if args.keep_traces else None
+    started = time.perf_counter()
     try:
-        return _run(sc, args, jobs, workers, out, key)
-    except common.Interrupted as e:  # SIGINT / SIGTERM: say what became of the finished runs
-        e.detail = f"{_finished[0]} of {len(jobs)} sweep runs had finished; no rows kept, no output written"
-        raise
-
-
-_finished = [0]  # runs of the current sweep finished so far (for the interruption message)
-
-
-def _count(done: int, total: int) -> None:
-    _finished[0] = done
-
-
-def _run(sc: Any, args: argparse.Namespace, jobs: list[Any], workers: int, out: Any, key: str) -> int:
-    from aquasim_py import sweep
-
-    _count(0, len(jobs))
-    with staged_output(out, sc.path, key, overwrite=args.overwrite) as tmp:
-        started = time.perf_counter()
-        if common._progress_wanted(args.quiet):
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            with Progress(
-                TextColumn("[bold]{task.description}"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TextColumn("runs"),
-                TimeElapsedColumn(),
-                TimeRemainingColumn(),
-                # no refresh thread: worker processes are forked while this display is up
-                console=console(stderr=True),
-                transient=True,
-                auto_refresh=False,
-            ) as prog:
-                task = prog.add_task(f"{sc.name} sweep", total=len(jobs), start=False)
-                prog.refresh()
-
-                def tick(done: int, total: int) -> None:
-                    _count(done, total)
-                    prog.start_task(task)
-                    prog.update(task, completed=done)
-                    prog.refresh()
-
-                rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler, progress=tick)
+        with sweep.Journal(journal_path) as journal:
+            if common._progress_wanted(args.quiet):
+                _run_with_bar(sc, todo, len(jobs), already, workers, args.scheduler, journal, traces)
+            else:
+                sweep.run_jobs(
+                    sc, todo, workers=workers, scheduler=args.scheduler, on_row=journal.append, traces=traces
+                )
+    except (KeyboardInterrupt, BrokenProcessPool) as e:
+        rows, cols = sweep.finish(out, jobs)
+        _write_info(out, sc, args, workers, rows, cols, jobs, time.perf_counter() - started)
+        if isinstance(e, common.Interrupted):
+            why = f"interrupted by {signal.Signals(e.signum).name}"
         else:
-            rows = sweep.run_jobs(sc, jobs, workers=workers, scheduler=args.scheduler, progress=_count)
-        wall = time.perf_counter() - started
-        cols = sweep.columns(rows, jobs)
-        sweep.rows_to_csv(rows, cols, tmp / "sweep.csv")
-        info = {
-            "aquasim_py_version": __version__,
-            "scenario_file": str(sc.path),
-            "seed": sc.simulation.seed,
-            "runs": len(rows),
-            "workers": None if args.scheduler else workers,
-            "scheduler": args.scheduler,
-            "wall_time_s": wall,
-            "columns": cols,
-            "scenario": sc.to_dict(),
-        }
-        (tmp / "sweep.json").write_text(json.dumps(json_safe(info), indent=2) + "\n")
+            why = "interrupted" if isinstance(e, KeyboardInterrupt) else "a worker process died"
+        print(
+            f"error: {why}: {len(rows)} of {len(jobs)} runs saved in {out}; finish with --resume",
+            file=sys.stderr,
+        )
+        if isinstance(e, common.Interrupted):
+            return 128 + e.signum  # 130 for SIGINT, 143 for SIGTERM
+        return 130 if isinstance(e, KeyboardInterrupt) else 1
+    wall = time.perf_counter() - started
+    rows, cols = sweep.finish(out, jobs)
+    if traces is not None and traces.is_dir():  # kept traces are the sweep's files too
+        from aquasim_py.outdir import record_files
+
+        record_files(out, sorted(p.relative_to(out).as_posix() for p in traces.rglob("*") if p.is_file()))
+    _write_info(out, sc, args, workers, rows, cols, jobs, wall)
     if not args.quiet:
         con = console()
         con.print(summary_table(rows, jobs, cols))
-        con.print(f"{len(rows)} runs in {wall:.1f} s -> {out / 'sweep.csv'}", soft_wrap=True)
+    reused = f" ({already} from the journal)" if already else ""
+    print(f"{len(rows)} runs{reused} in {wall:.1f} s -> {out / 'sweep.csv'}")
+    failed = sum(1 for r in rows if r.get("error"))
+    if failed:
+        print(
+            f"error: {failed} of {len(rows)} runs failed (see the error column of {out / 'sweep.csv'})", file=sys.stderr
+        )
+        return 1
     return 0
+
+
+def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite: bool = False) -> None:
+    """Make the sweep's directory (before any run). Without ``resume``, a previous sweep's
+    outputs there are removed: the new sweep starts from an empty journal. A non-empty
+    directory that is not an aquasim-py output is refused unless ``overwrite`` (then only the
+    sweep's own files are written and removed there); the directory's manifest lists the
+    sweep's files from the start, so an interrupted sweep's directory is its own."""
+    from aquasim_py.outdir import OutputRefused, is_own_output, record_files
+    from aquasim_py.scenario import ScenarioError
+    from aquasim_py.sweep import JOURNAL, RUNS
+
+    if out.exists() and not out.is_dir():
+        raise ScenarioError(file, key, f"{out} exists and is not a directory")
+    own = not out.exists() or is_own_output(out)
+    if not own and not overwrite:
+        hint = "use --overwrite to write into it" if key == "--out" else "or give --out, or --overwrite"
+        raise OutputRefused(file, key, f"{out}: not empty and not an aquasim-py output directory ({hint})")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        record_files(out, [JOURNAL, *OUTPUTS])
+        if not resume:
+            for name in (JOURNAL, *OUTPUTS):
+                (out / name).unlink(missing_ok=True)
+            if own:  # a runs/ folder in a user's directory is the user's
+                shutil.rmtree(out / RUNS, ignore_errors=True)
+    except OSError as e:
+        raise ScenarioError(file, key, f"cannot write to {out}: {e.strerror or e}") from None
+
+
+def _write_info(
+    out: Path,
+    sc: Any,
+    args: argparse.Namespace,
+    workers: int,
+    rows: Sequence[Mapping[str, Any]],
+    cols: Sequence[str],
+    jobs: Sequence[Any],
+    wall: float,
+) -> None:
+    info = {
+        "aquasim_py_version": __version__,
+        "scenario_file": str(sc.path),
+        "seed": sc.simulation.seed,
+        "runs": len(rows),
+        "planned": len(jobs),
+        "complete": len(rows) == len(jobs),
+        "failed": sum(1 for r in rows if r.get("error")),
+        "resumed": bool(args.resume),
+        "workers": None if args.scheduler else workers,
+        "scheduler": args.scheduler,
+        "wall_time_s": wall,  # of this invocation (a resumed sweep: the part run now)
+        "columns": list(cols),
+        "scenario": sc.to_dict(),
+    }
+    tmp = out / ".sweep.json.tmp"
+    tmp.write_text(json.dumps(json_safe(info), indent=2) + "\n")
+    os.replace(tmp, out / "sweep.json")
+
+
+def _run_with_bar(
+    sc: Any,
+    todo: Sequence[Any],
+    total: int,
+    already: int,
+    workers: int,
+    scheduler: str | None,
+    journal: Any,
+    traces: Path | None,
+) -> None:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from aquasim_py import sweep
+
+    with Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("runs"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        # no refresh thread: worker processes are forked while this display is up
+        console=console(stderr=True),
+        transient=True,
+        auto_refresh=False,
+    ) as prog:
+        task = prog.add_task(f"{sc.name} sweep", total=total, completed=already, start=False)
+        prog.refresh()
+
+        def tick(done: int, _total: int) -> None:
+            prog.start_task(task)
+            prog.update(task, completed=already + done)
+            prog.refresh()
+
+        sweep.run_jobs(
+            sc, todo, workers=workers, scheduler=scheduler, progress=tick, on_row=journal.append, traces=traces
+        )
 
 
 def summary_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: Sequence[str]) -> Any:
@@ -148,8 +255,9 @@ def summary_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: 
 
     grid_keys = [k for k, _ in jobs[0].point] if jobs else []
     points: dict[tuple, list[Mapping[str, Any]]] = {}
-    for job, row in zip(jobs, rows):
-        points.setdefault(tuple(json.dumps(v) for _, v in job.point), []).append(row)
+    for row in rows:
+        if not row.get("error"):  # a failed run has no metrics
+            points.setdefault(tuple(json.dumps(row[k]) for k in grid_keys), []).append(row)
     shown = list(points)[:8]
     caption = f"columns: {', '.join(grid_keys)}" if grid_keys else None
     if len(points) > len(shown):
@@ -159,12 +267,19 @@ def summary_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: 
     for p in shown:
         t.add_column(", ".join(p) or "all runs", justify="right")
     for c in cols:
-        if c in grid_keys or c in ("run", "seed"):
+        if c in grid_keys or c in ("run", "seed", "key", "error"):
             continue
         cells = []
         for p in shown:
-            vals = np.array([float(r.get(c, math.nan)) for r in points[p]], dtype=float)
+            vals = np.array([_num(r.get(c)) for r in points[p]], dtype=float)
             vals = vals[np.isfinite(vals)]
             cells.append(common.fmt(float(vals.mean())) if vals.size else "-")
         t.add_row(c, *cells)
     return t
+
+
+def _num(v: Any) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):  # missing, or a non-numeric metric
+        return math.nan
