@@ -522,9 +522,28 @@ class Simulation:
                 out[i] = mob.position(t)[j]
         return out
 
+    def velocities_at(self, idx: np.ndarray, t: float) -> np.ndarray:
+        """True velocities (k, 3) of nodes ``idx`` at true time ``t`` (the rows of
+        :meth:`velocities`, without evaluating the other nodes when the model can)."""
+        if len(self.groups) == 1:
+            group = self.groups[0]
+            batched = getattr(group.mobility, "velocity_at", None)
+            if batched is not None:
+                return np.asarray(batched(idx - group.start, t), dtype=float)
+        return self.velocities(t)[idx]
+
     def is_moving(self) -> np.ndarray:
         """(N,) bool: which nodes belong to a non-static mobility group."""
         return self._moving
+
+    def max_speed(self) -> float:
+        """An upper bound (m/s) on every node's speed at all times: 0 when no node moves, inf
+        when a moving group's model gives no bound (``Mobility.max_speed``)."""
+        bound = 0.0
+        for g in self.groups:
+            if not g.static:
+                bound = max(bound, float(getattr(g.mobility, "max_speed", lambda: math.inf)()))
+        return bound
 
     def clock_of(self, node_id: int) -> Any:
         """The Clock of a node (kernel, trace and tests only)."""

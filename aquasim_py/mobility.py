@@ -298,6 +298,11 @@ class Mobility:
                 raise ValueError("times must be finite and >= 0 s")
         return i, ts
 
+    def max_speed(self) -> float:
+        """An upper bound (m/s) on every node's speed at all times (``inf`` if the model has
+        none); folding into the box keeps speeds. Used by the channel's neighbour index."""
+        return math.inf
+
     def track(self, times: ArrayLike) -> Array:
         """Positions (m, n, 3) at each of ``times`` (convenience, loops over times)."""
         ts = np.asarray(times, dtype=float).reshape(-1)
@@ -340,6 +345,9 @@ class Static(Mobility):
     def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._p0[idx]
 
+    def max_speed(self) -> float:
+        return 0.0
+
     def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return np.zeros((idx.size, 3))
 
@@ -367,6 +375,9 @@ class ConstantVelocity(Mobility):
 
     def _raw_position(self, t: float) -> Array:
         return self._p0 + self._v * t
+
+    def max_speed(self) -> float:
+        return float(np.sqrt(np.einsum("ij,ij->i", self._v, self._v)).max())
 
     def _raw_velocity(self, t: float) -> Array:
         return self._v
@@ -434,6 +445,9 @@ class CoordinatedTurn(Mobility):
         d[:2] *= speed
         d[2] = vz
         return np.ascontiguousarray(d.T)
+
+    def max_speed(self) -> float:
+        return float(np.hypot(self.speed, self.vz).max())
 
     def _raw_position(self, t: float) -> Array:
         return self._arc(self._p0, self.speed, self.turn_rate, self.heading, self.vz, t)
@@ -511,6 +525,9 @@ class RandomWalk(Mobility):
         while self._vels is None or k >= self._vels.count:
             self._draw_block()
         return k, t - k * self.leg_duration
+
+    def max_speed(self) -> float:
+        return self.speed_max  # every leg: speed <= speed_max along a unit direction
 
     def _raw_position(self, t: float) -> Array:
         k, dt = self._leg(t)

@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
+from .neighbours import NeighbourIndex
 from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
@@ -216,6 +217,10 @@ class AcousticChannel:
         self._max_duration = 0.0
         self._collision = config.collision
         self._static_links: dict[int, tuple[int, Any]] = {}
+        self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
+        self._static = False
+        self._index: NeighbourIndex | None = None
+        self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
 
@@ -349,21 +354,44 @@ class AcousticChannel:
         net = self._net
         modems = self._modems
         n = len(modems)
-        static = not net.is_moving().any()
+        if n != self._layout_n:
+            self._new_layout(n)
+        static = self._static
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:
                 return hit[1]
-        pos = net.positions(t0)
-        p_src = pos[src]
-        diff = pos - p_src
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        d2[src] = np.inf
-        cand = np.flatnonzero(d2 <= self._range2)
+        index = self._index
+        if index is None:
+            # no speed bound: the exact test on every node (one vectorized computation)
+            pos = net.positions(t0)
+            p_src = pos[src]
+            diff = pos - p_src
+            d2 = np.einsum("ij,ij->i", diff, diff)
+            d2[src] = np.inf
+            cand = np.flatnonzero(d2 <= self._range2)
+            p_cand = pos[cand]
+        else:
+            # the k-d tree's superset of the nodes in range, then the same exact test on it alone
+            if static:
+                pos = net.positions(t0)
+                p_src = pos[src]
+                near = index.candidates(p_src, t0, n, net.positions)
+                near = near[near != src]
+                p_near = pos[near]
+            else:
+                p_src = net.positions_at(np.array([src], dtype=np.intp), np.array([t0]))[0]
+                near = index.candidates(p_src, t0, n, net.positions)
+                near = near[near != src]
+                p_near = net.positions_at(near, np.full(near.size, t0))
+            diff = p_near - p_src
+            keep = np.einsum("ij,ij->i", diff, diff) <= self._range2
+            cand = near[keep]
+            p_cand = p_near[keep]
         heard: list[tuple[_Modem, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
-            times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            times, paths, snr = self._arrivals(t0, p_src, cand, p_cand)
             thr = self.config.snr_threshold_db
             for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
                 if T != T:  # NaN: no eigenray (shadow zone)
@@ -376,6 +404,23 @@ class AcousticChannel:
         if static:
             self._static_links[src] = (n, out)
         return out
+
+    def _new_layout(self, n: int) -> None:
+        """Nodes were added: whether the network is static, and the neighbour index (None when
+        a moving node's model gives no speed bound: every transmission then tests every node)."""
+        net = self._net
+        self._layout_n = n
+        self._static = not bool(net.is_moving().any())
+        bound = getattr(net, "max_speed", None)
+        vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
+        self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
+        self._vel_at = getattr(net, "velocities_at", None)
+
+    def _velocities(self, idx: NDArray[np.intp], t: float) -> NDArray[np.float64]:
+        """True velocities (k, 3) of nodes ``idx`` at ``t``, evaluating only those when the network can."""
+        if self._vel_at is not None:
+            return np.asarray(self._vel_at(idx, t), dtype=float)
+        return self._net.velocities(t)[idx]
 
     def _arrivals(
         self, t0: float, p_src: NDArray[np.float64], cand: NDArray[np.intp], p_rx: NDArray[np.float64]
@@ -390,7 +435,7 @@ class AcousticChannel:
         else:
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
-                start = _constant_start(ssp, refl, p_src, p_rx, moving, net.velocities(t0)[cand])
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, self._velocities(cand, t0))
             if start is None:
                 ray = eigenray(ssp, p_src, p_rx, reflections=refl)
                 fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
@@ -398,7 +443,7 @@ class AcousticChannel:
                 # Start from the fixed point of the receivers' straight-line motion at t0
                 # (vectorized, no mobility queries): for constant velocity it is already the
                 # answer, and the exact iteration below then stops after one query per receiver.
-                v0 = net.velocities(t0)[cand[active]]
+                v0 = self._velocities(cand[active], t0)
                 fields["time"][active] = _linear_fixed_point(
                     ssp,
                     refl,
