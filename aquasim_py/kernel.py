@@ -28,6 +28,7 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
+from .mobility import Mobility
 from .node import Node, Role, Sensors, SensorUnavailable
 from .packet import Reception
 from .trace import Trace, TraceConfig
@@ -503,6 +504,10 @@ class Simulation:
         if len(self.groups) == 1:
             # one group (the common case, on the moving-receiver hot path): no per-group split
             group = self.groups[0]
+            ts = np.asarray(times, dtype=float)
+            if isinstance(group.mobility, Mobility) and ts.shape == np.shape(idx):
+                # the channel's ids and times are valid: skip position_at's argument checks
+                return group.mobility._position_at(idx - group.start, ts)
             batched = getattr(group.mobility, "position_at", None)
             if batched is not None:
                 return np.asarray(batched(idx - group.start, times), dtype=float)
@@ -521,6 +526,14 @@ class Simulation:
             for i, j, t in zip(sel.tolist(), (idx[sel] - group.start).tolist(), times[sel].tolist()):
                 out[i] = mob.position(t)[j]
         return out
+
+    def states_at(self, idx: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """True positions and velocities ((k, 3) each) of nodes ``idx`` at true time ``t``, in
+        one evaluation of the trajectories when the nodes are in one group."""
+        if len(self.groups) == 1 and isinstance(self.groups[0].mobility, Mobility):
+            group = self.groups[0]
+            return group.mobility._state_at(idx - group.start, np.full(len(idx), float(t)))
+        return self.positions_at(idx, np.full(len(idx), float(t))), self.velocities_at(idx, t)
 
     def velocities_at(self, idx: np.ndarray, t: float) -> np.ndarray:
         """True velocities (k, 3) of nodes ``idx`` at true time ``t`` (the rows of

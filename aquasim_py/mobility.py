@@ -281,6 +281,25 @@ class Mobility:
             return raw_v
         return raw_v * self.box.fold(self._raw_position_at(i, ts))[1]
 
+    def state_at(self, idx: ArrayLike, t: ArrayLike) -> tuple[Array, Array]:
+        """``(position_at(idx, t), velocity_at(idx, t))`` from one evaluation of the trajectories."""
+        return self._state_at(*self._pairs(idx, t))
+
+    def _state_at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
+        # No argument checks (the kernel's hot path passes valid ids and times, (m,) each); the
+        # same operations as position_at / velocity_at, so the same bits.
+        raw_p = self._raw_position_at(idx, t)
+        raw_v = self._raw_velocity_at(idx, t)
+        if not self._folds:
+            return raw_p, raw_v
+        pos, sign = self.box.fold(raw_p)
+        return pos, raw_v * sign
+
+    def _position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        # position_at without argument checks (see _state_at)
+        raw = self._raw_position_at(idx, t)
+        return self.box.reflect(raw) if self._folds else raw
+
     def _pairs(self, idx: ArrayLike, t: ArrayLike) -> tuple[NDArray[np.intp], Array]:
         i = np.asarray(idx)
         if i.ndim != 1 or (i.size and i.dtype.kind not in "iu"):

@@ -5,8 +5,10 @@ is within r of p" in O(log N + k). Between rebuilds the nodes move: a node at q(
 q(t) with |q(t) - q(t_b)| <= v_max (t - t_b) (mirror folding into the box is 1-Lipschitz, so
 it cannot add distance). The channel's range test is |q(t0) - p_src(t0)| <= R at the send
 time t0, with p_src(t0) exact (queried, not from the tree), so every node in range at t0 lies
-within R + v_max (t0 - t_b) of p_src(t0) in the tree: the ball query with that radius returns
-a superset of the in-range set, and the channel's exact distance test then filters it. The
+within R + v_max (t0 - t_b) of p_src(t0) in the tree (R + 2 v_max (t0 - t_b) of the sender's
+own position in the tree, :meth:`NeighbourIndex.candidates_of`): the ball query with that
+radius returns a superset of the in-range set, and the channel's exact distance test then
+filters it. The
 packet's flight time does not enter the margin because the range test is at the send time
 (the arrival positions come from the exact fixed point on the candidates, not from the tree).
 
@@ -60,11 +62,29 @@ class NeighbourIndex:
         (s): a superset of the in-range set (the sender itself included if it is in the tree).
         ``count``: number of nodes now (a change rebuilds); ``positions(t)``: all positions
         (count, 3) at ``t``, called only to rebuild."""
+        age = self._refresh(t, count, positions)
+        return self._query(p_src, self.range_m + self.max_speed * age)
+
+    def candidates_of(
+        self, src: int, t: float, count: int, positions: Callable[[float], NDArray[np.float64]]
+    ) -> NDArray[np.intp]:
+        """As :meth:`candidates`, around node ``src``'s position *in the tree* (so the sender's
+        own position need not be evaluated first): the sender has moved too since the build,
+        so the margin is 2 v_max (t - t_b). The result contains ``src`` itself."""
+        age = self._refresh(t, count, positions)
+        assert self._tree is not None
+        return self._query(self._tree.data[src], self.range_m + 2.0 * self.max_speed * age)
+
+    def _refresh(self, t: float, count: int, positions: Callable[[float], NDArray[np.float64]]) -> float:
+        """Rebuild the tree if it is too old or the node count changed; its age (s) at ``t``."""
         age = t - self._built_at
         if self._tree is None or count != self._count or not (0.0 <= age <= self.staleness_s):
             self._tree = cKDTree(positions(t))
             self._built_at, self._count, age = t, count, 0.0
             self.rebuilds += 1
-        r = self.range_m + self.max_speed * age
+        return age
+
+    def _query(self, p: NDArray[np.float64], r: float) -> NDArray[np.intp]:
+        assert self._tree is not None
         r += _REL_SLACK * r + _ABS_SLACK_M
-        return np.asarray(self._tree.query_ball_point(p_src, r, return_sorted=True), dtype=np.intp)
+        return np.asarray(self._tree.query_ball_point(p, r, return_sorted=True), dtype=np.intp)
