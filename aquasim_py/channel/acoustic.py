@@ -2,8 +2,11 @@
 
 On a transmission at true time t0 from position p_s = p_src(t0):
 
-1. candidates: every node within ``max_range_m`` of p_s at t0 (one vectorized distance
-   computation over all node positions);
+1. candidates: every node within ``max_range_m`` of p_s at t0. When the network bounds its
+   nodes' speed (``max_speed``; always for a static one) a k-d tree of recent positions
+   (:class:`~.neighbours.NeighbourIndex`) gives a superset and only those nodes' positions are
+   evaluated, so the cost follows the neighbourhood, not the network; otherwise one
+   vectorized distance computation over all node positions. The exact test is the same;
 2. delay: the eigenray time from p_s to the receiver's position *at the arrival instant*,
    i.e. the fixed point t_a = t0 + T(p_s, p_rx(t_a)), iterated (vectorized over receivers)
    until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step.
