@@ -28,6 +28,7 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
+from .mobility import Mobility
 from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import Trace, TraceConfig
@@ -556,6 +557,10 @@ class Simulation:
         if len(self.groups) == 1:
             # one group (the common case, on the moving-receiver hot path): no per-group split
             group = self.groups[0]
+            ts = np.asarray(times, dtype=float)
+            if isinstance(group.mobility, Mobility) and ts.shape == np.shape(idx):
+                # the channel's ids and times are valid: skip position_at's argument checks
+                return group.mobility._position_at(idx - group.start, ts)
             batched = getattr(group.mobility, "position_at", None)
             if batched is not None:
                 return np.asarray(batched(idx - group.start, times), dtype=float)
@@ -575,9 +580,36 @@ class Simulation:
                 out[i] = mob.position(t)[j]
         return out
 
+    def states_at(self, idx: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """True positions and velocities ((k, 3) each) of nodes ``idx`` at true time ``t``, in
+        one evaluation of the trajectories when the nodes are in one group."""
+        if len(self.groups) == 1 and isinstance(self.groups[0].mobility, Mobility):
+            group = self.groups[0]
+            return group.mobility._state_at(idx - group.start, np.full(len(idx), float(t)))
+        return self.positions_at(idx, np.full(len(idx), float(t))), self.velocities_at(idx, t)
+
+    def velocities_at(self, idx: np.ndarray, t: float) -> np.ndarray:
+        """True velocities (k, 3) of nodes ``idx`` at true time ``t`` (the rows of
+        :meth:`velocities`, without evaluating the other nodes when the model can)."""
+        if len(self.groups) == 1:
+            group = self.groups[0]
+            batched = getattr(group.mobility, "velocity_at", None)
+            if batched is not None:
+                return np.asarray(batched(idx - group.start, t), dtype=float)
+        return self.velocities(t)[idx]
+
     def is_moving(self) -> np.ndarray:
         """(N,) bool: which nodes belong to a non-static mobility group."""
         return self._moving
+
+    def max_speed(self) -> float:
+        """An upper bound (m/s) on every node's speed at all times: 0 when no node moves, inf
+        when a moving group's model gives no bound (``Mobility.max_speed``)."""
+        bound = 0.0
+        for g in self.groups:
+            if not g.static:
+                bound = max(bound, float(getattr(g.mobility, "max_speed", lambda: math.inf)()))
+        return bound
 
     def clock_of(self, node_id: int) -> Any:
         """The Clock of a node (kernel, trace and tests only)."""

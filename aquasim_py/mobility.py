@@ -282,6 +282,25 @@ class Mobility:
             return raw_v
         return raw_v * self.box.fold(self._raw_position_at(i, ts))[1]
 
+    def state_at(self, idx: ArrayLike, t: ArrayLike) -> tuple[Array, Array]:
+        """``(position_at(idx, t), velocity_at(idx, t))`` from one evaluation of the trajectories."""
+        return self._state_at(*self._pairs(idx, t))
+
+    def _state_at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
+        # No argument checks (the kernel's hot path passes valid ids and times, (m,) each); the
+        # same operations as position_at / velocity_at, so the same bits.
+        raw_p = self._raw_position_at(idx, t)
+        raw_v = self._raw_velocity_at(idx, t)
+        if not self._folds:
+            return raw_p, raw_v
+        pos, sign = self.box.fold(raw_p)
+        return pos, raw_v * sign
+
+    def _position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        # position_at without argument checks (see _state_at)
+        raw = self._raw_position_at(idx, t)
+        return self.box.reflect(raw) if self._folds else raw
+
     def _pairs(self, idx: ArrayLike, t: ArrayLike) -> tuple[NDArray[np.intp], Array]:
         i = np.asarray(idx)
         if i.ndim != 1 or (i.size and i.dtype.kind not in "iu"):
@@ -298,6 +317,11 @@ class Mobility:
             if not (ts.min() >= 0.0 and ts.max() < math.inf):
                 raise ValueError("times must be finite and >= 0 s")
         return i, ts
+
+    def max_speed(self) -> float:
+        """An upper bound (m/s) on every node's speed at all times (``inf`` if the model has
+        none); folding into the box keeps speeds. Used by the channel's neighbour index."""
+        return math.inf
 
     def track(self, times: ArrayLike) -> Array:
         """Positions (m, n, 3) at each of ``times`` (convenience, loops over times)."""
@@ -341,6 +365,9 @@ class Static(Mobility):
     def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._p0[idx]
 
+    def max_speed(self) -> float:
+        return 0.0
+
     def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return np.zeros((idx.size, 3))
 
@@ -368,6 +395,9 @@ class ConstantVelocity(Mobility):
 
     def _raw_position(self, t: float) -> Array:
         return self._p0 + self._v * t
+
+    def max_speed(self) -> float:
+        return float(np.sqrt(np.einsum("ij,ij->i", self._v, self._v)).max())
 
     def _raw_velocity(self, t: float) -> Array:
         return self._v
@@ -435,6 +465,9 @@ class CoordinatedTurn(Mobility):
         d[:2] *= speed
         d[2] = vz
         return np.ascontiguousarray(d.T)
+
+    def max_speed(self) -> float:
+        return float(np.hypot(self.speed, self.vz).max())
 
     def _raw_position(self, t: float) -> Array:
         return self._arc(self._p0, self.speed, self.turn_rate, self.heading, self.vz, t)
@@ -512,6 +545,9 @@ class RandomWalk(Mobility):
         while self._vels is None or k >= self._vels.count:
             self._draw_block()
         return k, t - k * self.leg_duration
+
+    def max_speed(self) -> float:
+        return self.speed_max  # every leg: speed <= speed_max along a unit direction
 
     def _raw_position(self, t: float) -> Array:
         k, dt = self._leg(t)

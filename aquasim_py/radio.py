@@ -11,6 +11,12 @@ interfaces below, which the kernel implements and hands to it:
   its modem stamps with, its own MAC-jitter random stream, and its inbox.
 - :class:`PacketLog` (given at construction): where the channel writes the ``packets`` trace.
 
+A network may also offer, and the channel then uses (found with ``getattr``, so a stub need
+not): ``max_speed() -> float`` (an upper bound on every node's speed in m/s; finite enables the
+k-d tree neighbour index, :mod:`aquasim_py.channel.neighbours`), ``states_at(idx, t)`` and
+``velocities_at(idx, t)`` (the rows ``idx`` of positions / velocities at ``t`` without the
+other nodes). :class:`aquasim_py.kernel.Simulation` implements all three.
+
 Everything the channel keeps per node (the transmit queue, its own transmissions for
 half-duplex, the signals heard for collisions) is the channel's own state: the kernel never
 reads it. This module imports neither the kernel nor the channel, so the two do not import

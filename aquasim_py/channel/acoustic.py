@@ -2,8 +2,11 @@
 
 On a transmission at true time t0 from position p_s = p_src(t0):
 
-1. candidates: every node within ``max_range_m`` of p_s at t0 (one vectorized distance
-   computation over all node positions);
+1. candidates: every node within ``max_range_m`` of p_s at t0. When the network bounds its
+   nodes' speed (``max_speed``; always for a static one) a k-d tree of recent positions
+   (:class:`~.neighbours.NeighbourIndex`) gives a superset and only those nodes' positions are
+   evaluated, so the cost follows the neighbourhood, not the network; otherwise one
+   vectorized distance computation over all node positions. The exact test is the same;
 2. delay: the eigenray time from p_s to the receiver's position *at the arrival instant*,
    i.e. the fixed point t_a = t0 + T(p_s, p_rx(t_a)), iterated (vectorized over receivers)
    until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step.
@@ -44,6 +47,7 @@ from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
 from .obstacles import ObstacleConfig, ObstacleField
+from .neighbours import NeighbourIndex
 from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
@@ -170,22 +174,24 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     the noise sum is the costliest part and this runs once per transmission."""
     from . import loss
 
-    noise, band = _snr_constants(config)
+    noise, band, alpha = _snr_constants(config)
     return (
         np.asarray(config.source_level_db, dtype=float)
-        - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading)
+        - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading, absorption_db_per_km=alpha)
         - noise
         - band
     )
 
 
 @lru_cache(maxsize=64)
-def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz) of a channel config."""
+def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km) of a channel
+    config (alpha is what ``loss.path_loss_db`` computes itself when not given: the same bits)."""
     from . import loss
 
     noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
-    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float))
+    alpha = loss.thorp_absorption_db_per_km(config.frequency_khz)
+    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha
 
 
 def default_loss_model() -> LossModel:
@@ -258,6 +264,13 @@ class AcousticChannel:
         self._max_duration = 0.0
         self._collision = config.collision
         self._static_links: dict[int, tuple[int, Any]] = {}
+        self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
+        self._static = False
+        self._index: NeighbourIndex | None = None
+        self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
+        self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
+            None
+        )
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
         self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
@@ -409,23 +422,56 @@ class AcousticChannel:
         net = self._net
         modems = self._modems
         n = len(modems)
-        static = not net.is_moving().any() and self._sound_speed is None
+        if n != self._layout_n:
+            self._new_layout(n)
+        static = self._static and self._sound_speed is None  # drawn per packet: no cache
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:
                 return hit[1]
-        pos = net.positions(t0)
-        p_src = pos[src]
-        diff = pos - p_src
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        d2[src] = np.inf
-        cand = np.flatnonzero(d2 <= self._range2)
+        index = self._index
+        v_cand: NDArray[np.float64] | None = None  # candidates' velocities at t0, when known
+        v_near: NDArray[np.float64] | None
+        if index is None:
+            # no speed bound: the exact test on every node (one vectorized computation)
+            pos = net.positions(t0)
+            p_src = pos[src]
+            diff = pos - p_src
+            d2 = np.einsum("ij,ij->i", diff, diff)
+            d2[src] = np.inf
+            cand = np.flatnonzero(d2 <= self._range2)
+            p_cand = pos[cand]
+            v_cand = None
+        else:
+            # the k-d tree's superset of the nodes in range, then the same exact test on it alone
+            if static:
+                pos = net.positions(t0)
+                p_src = pos[src]
+                near = index.candidates(p_src, t0, n, net.positions)
+                near = near[near != src]
+                p_near = pos[near]
+                v_near = None
+            else:
+                # one trajectory evaluation (positions and velocities at t0) for the sender and
+                # the candidates around its position in the tree
+                near = index.candidates_of(src, t0, n, net.positions)
+                p_near, v_near = self._states(near, t0)
+                is_src = near == src
+                p_src = p_near[is_src][0]
+                other = ~is_src
+                near, p_near, v_near = near[other], p_near[other], v_near[other]
+            diff = p_near - p_src
+            keep = np.einsum("ij,ij->i", diff, diff) <= self._range2
+            cand = near[keep]
+            p_cand = p_near[keep]
+            if v_near is not None:
+                v_cand = v_near[keep]
         heard: list[tuple[_Modem, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
-            times, paths, snr = self._arrivals(t0, p_src, cand, pos[cand])
+            times, paths, snr = self._arrivals(t0, p_src, cand, p_cand, v_cand)
             if self._sound_speed is not None:  # path-mean speed taken at the mid depth
-                times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + pos[cand, 2]) / 2))
+                times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + p_cand[:, 2]) / 2))
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
             thr = self.config.snr_threshold_db
@@ -441,10 +487,41 @@ class AcousticChannel:
             self._static_links[src] = (n, out)
         return out
 
+    def _new_layout(self, n: int) -> None:
+        """Nodes were added: whether the network is static, and the neighbour index (None when
+        a moving node's model gives no speed bound: every transmission then tests every node)."""
+        net = self._net
+        self._layout_n = n
+        self._static = not bool(net.is_moving().any())
+        bound = getattr(net, "max_speed", None)
+        vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
+        self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
+        self._vel_at = getattr(net, "velocities_at", None)
+        self._states_at = getattr(net, "states_at", None)
+
+    def _velocities(self, idx: NDArray[np.intp], t: float) -> NDArray[np.float64]:
+        """True velocities (k, 3) of nodes ``idx`` at ``t``, evaluating only those when the network can."""
+        if self._vel_at is not None:
+            return np.asarray(self._vel_at(idx, t), dtype=float)
+        return self._net.velocities(t)[idx]
+
+    def _states(self, idx: NDArray[np.intp], t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True positions and velocities (k, 3) of nodes ``idx`` at ``t`` (one call if the network can)."""
+        if self._states_at is not None:
+            return self._states_at(idx, t)
+        return self._net.positions_at(idx, np.full(idx.size, t)), self._velocities(idx, t)
+
     def _arrivals(
-        self, t0: float, p_src: NDArray[np.float64], cand: NDArray[np.intp], p_rx: NDArray[np.float64]
+        self,
+        t0: float,
+        p_src: NDArray[np.float64],
+        cand: NDArray[np.intp],
+        p_rx: NDArray[np.float64],
+        v_rx: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.int8], NDArray[np.float64]]:
-        """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point)."""
+        """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point).
+
+        v_rx: the candidates' velocities (m/s) at t0 if already known (else asked for)."""
         ssp = self.ssp
         refl = self.config.reflections
         net = self._net
@@ -454,7 +531,8 @@ class AcousticChannel:
         else:
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
-                start = _constant_start(ssp, refl, p_src, p_rx, moving, net.velocities(t0)[cand])
+                v = v_rx if v_rx is not None else self._velocities(cand, t0)
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, v)
             if start is None:
                 ray = eigenray(ssp, p_src, p_rx, reflections=refl)
                 fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
@@ -462,7 +540,7 @@ class AcousticChannel:
                 # Start from the fixed point of the receivers' straight-line motion at t0
                 # (vectorized, no mobility queries): for constant velocity it is already the
                 # answer, and the exact iteration below then stops after one query per receiver.
-                v0 = net.velocities(t0)[cand[active]]
+                v0 = v_rx[active] if v_rx is not None else self._velocities(cand[active], t0)
                 fields["time"][active] = _linear_fixed_point(
                     ssp,
                     refl,
@@ -476,12 +554,13 @@ class AcousticChannel:
             else:
                 fields, active = start
             time = fields["time"]
+            straight = _straight_rays(ssp, p_src) if isinstance(ssp, Constant) else None
             # exact fixed point t_a = t0 + T(p_src(t0), p_rx(t_a)) on the true trajectories
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
                 p_new = net.positions_at(cand[active], t0 + time[active])
-                r = eigenray(ssp, p_src, p_new, reflections=refl)
+                r = straight(p_new) if straight is not None else eigenray(ssp, p_src, p_new, reflections=refl)
                 step = np.abs(r.time - time[active])
                 for f in fields:
                     fields[f][active] = getattr(r, f)
@@ -610,6 +689,41 @@ def _linear_fixed_point(
             return t
     slope = _slope_along(ssp, p_src, p0, v, arrival_angle)
     return _secant_fixed_point(_travel_time_fn(ssp, refl, p_src, path), p0, v, t_start, slope)
+
+
+def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArray[np.float64]], Eigenray]:
+    """``eigenray(ssp, p_src, dst)`` for a constant profile and one source, as a function of
+    the receivers dst (k, 3): the same arithmetic as ``raytrace._constant_direct`` (so the same
+    bits; a straight line is the first arrival in every ``reflections`` mode), without
+    broadcasting the source to every receiver, and the source's own checks done once."""
+    c = ssp.speed_mps
+    bottom = ssp.bottom
+    z_s = float(p_src[2])
+    src_ok = z_s >= 0.0 and (bottom is None or z_s <= bottom) and bool(np.isfinite(p_src).all())
+    none, direct = np.int8(PathKind.NONE), np.int8(PathKind.DIRECT)
+
+    def rays(d: NDArray[np.float64]) -> Eigenray:
+        diff = d - p_src
+        dist = np.linalg.norm(diff, axis=-1)
+        horiz = np.hypot(diff[..., 0], diff[..., 1])
+        ang = np.arctan2(diff[..., 2], horiz)
+        z = d[..., 2]
+        ok = (z >= 0.0) & np.isfinite(d).all(axis=-1)
+        if bottom is not None:
+            ok &= z <= bottom
+        if not src_ok:
+            ok[...] = False
+        bad = ~ok
+        return Eigenray(
+            time=np.where(bad, np.nan, dist / c),
+            length=np.where(bad, np.nan, dist),
+            launch_angle=np.where(bad, np.nan, ang),
+            arrival_angle=np.where(bad, np.nan, ang),
+            turning_depth=np.full(dist.shape, np.nan),
+            path=np.where(bad, none, direct),
+        )
+
+    return rays
 
 
 def _constant_start(
