@@ -46,8 +46,8 @@ from numpy.typing import NDArray
 from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
-from .obstacles import ObstacleConfig, ObstacleField
 from .neighbours import NeighbourIndex
+from .obstacles import ObstacleConfig, ObstacleField
 from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
