@@ -282,3 +282,25 @@ class Node:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} id={self.id} role={self.role.value}>"
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached for names the node does not have: say what a node can use instead of
+        # letting the error surface from inside the kernel's process stepping
+        if name.startswith("__"):
+            raise AttributeError(name)
+        hint = _TRUTH_HINTS.get(name, "")
+        raise AttributeError(
+            f"{type(self).__name__} has no attribute {name!r}: a node sees only its local clock, its "
+            f"receptions and its own sensors{hint} (README, 'Writing a protocol')"
+        )
+
+
+#: what a node can use instead of the ground truth a protocol author may guess at
+_TRUTH_HINTS = {
+    "position": "; its own position comes from known_position() (a position fix) or from localization",
+    "true_position": "; its own position comes from known_position() (a position fix) or from localization",
+    "now": "; time is local_time()",
+    "time": "; time is local_time()",
+    "sim": "; the simulation is not reachable from a node",
+    "velocity_true": "; velocity() is the velocity sensor",
+}

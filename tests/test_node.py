@@ -347,3 +347,11 @@ def test_local_durations_with_a_drifting_clock():
     assert max(abs(e) for e in seen) < 1e-9
     # and the drift is real: the true durations differ from the local ones by more than that
     assert abs(clock.to_true(clock.to_local(100.0) + 55.0) - 100.0 - 55.0 / 1.0002) > 1e-7
+
+
+def test_a_guessed_truth_attribute_says_what_a_node_can_use() -> None:
+    sim = Simulation(1, ssp=C, volume=BOX)
+    node = sim.add_group(Node, 1, positions=[[1.0, 2.0, 3.0]])[0]
+    with pytest.raises(AttributeError, match=r"no attribute 'position'.*known_position\(\)"):
+        node.position()  # type: ignore[attr-defined]
+    assert not hasattr(node, "now")  # still an AttributeError, so hasattr() keeps working
