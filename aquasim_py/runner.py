@@ -114,6 +114,21 @@ class RunResult:
                     out.append(r)
         return out
 
+    def derived_tables(self) -> dict[str, Any]:
+        """The tables behind what the protocols' reports print (each protocol's optional
+        ``derived_tables(tables) -> {name: DataFrame}``, e.g. ITMTL's per-round table), written
+        beside the trace tables so a printed table is never only on the terminal."""
+        out: dict[str, Any] = {}
+        for cls in self.scenario.protocols():
+            derive = getattr(cls, "derived_tables", None)
+            if callable(derive):
+                try:
+                    out.update(derive(self.tables))
+                except Exception as e:  # like a failed report: the run's outputs are kept
+                    name = getattr(cls, "name", cls.__name__)
+                    self.metric_errors[f"{name}.derived_tables"] = f"{type(e).__name__}: {e}"
+        return out
+
     @property
     def missing_tables(self) -> list[str]:
         """Tables ``[trace] tables`` asks for that this run did not produce."""
@@ -142,7 +157,7 @@ class RunResult:
         self.out = final
         wanted = self.scenario.trace.tables
         selected = self.tables if wanted is None else {k: v for k, v in self.tables.items() if k in wanted}
-        write_frames(selected, directory, self.scenario.trace.format)
+        write_frames({**selected, **self.derived_tables()}, directory, self.scenario.trace.format)
         (directory / "summary.json").write_text(json.dumps(self.summary(), indent=2) + "\n")
 
     def __repr__(self) -> str:

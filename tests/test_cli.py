@@ -308,6 +308,7 @@ def test_trace_table_selection(scen, tmp_path, capsys):
     assert rc == 0
     assert sorted(p.name for p in out.iterdir()) == [
         ".aquasim-output.json",
+        "beacon_range_errors.csv",  # the table behind the printed report, always written
         "packets.csv",
         "ranges.csv",
         "summary.json",

@@ -101,7 +101,7 @@ def test_own_output_rewritten_only_own_files(tmp_path, capsys):
     # its own directory needs no --overwrite; tables no longer written disappear, the user's stays
     rc, err = run(capsys, sc, "--out", out, "--quiet", "--set", 'trace.tables=["packets"]')
     assert rc == 0, err
-    assert listing(out) == [MANIFEST, "analysis.ipynb", "packets.csv", "summary.json"]
+    assert listing(out) == [MANIFEST, "analysis.ipynb", "beacon_range_errors.csv", "packets.csv", "summary.json"]
 
 
 def test_out_dot_in_a_temporary_cwd(tmp_path, capsys, monkeypatch):

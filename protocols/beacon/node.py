@@ -109,6 +109,17 @@ class BeaconNode(Node):
         }
 
     @classmethod
+    def derived_tables(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, pd.DataFrame]:
+        """The per-anchor range-error table the report prints, as ``beacon_range_errors``."""
+        err = range_errors(tables)
+        if len(err) == 0:
+            return {}
+        g = err.groupby("anchor", sort=True)["error_m"]
+        rmse = g.apply(lambda e: float(np.sqrt(np.mean(e.to_numpy(float) ** 2))))
+        agg = pd.DataFrame({"ranges": g.size(), "mean_m": g.mean(), "std_m": g.std(ddof=1), "rmse_m": rmse})
+        return {"beacon_range_errors": agg.reset_index()}
+
+    @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> Any:
         """Per-anchor range error table (a rich Table), printed by the CLI after the metrics."""
         from rich.table import Table

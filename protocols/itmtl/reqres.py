@@ -369,6 +369,12 @@ class ReqResNode(Node):
     paper: ClassVar[dict[str, str]] = {}
 
     @classmethod
+    def derived_tables(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, pd.DataFrame]:
+        """The per-round table the report prints, as ``<protocol>_rounds`` (one row per round)."""
+        pr = itmtl_metrics.per_round(tables, cls.name)
+        return {f"{cls.name}_rounds": pr.reset_index()} if len(pr) else {}
+
+    @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
         m = itmtl_metrics.mac_metrics(tables, cls.name)
         lines = [
