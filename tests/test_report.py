@@ -89,8 +89,9 @@ def test_report_command_on_a_stvf_run_and_a_sweep(tmp_path: Path, capsys: pytest
     scen = tmp_path / "sw.toml"
     scen.write_text(SWEEP)
     sw = tmp_path / "sweep"
-    assert cli.main(["sweep", str(scen), "--workers", "1", "--quiet", "--out", str(sw)]) == 0
-    assert cli.main(["report", str(sw)]) == 0
+    assert cli.main(["sweep", str(scen), "--workers", "1", "--quiet", "--out", str(sw), "--report"]) == 0
+    _check(sw, set())
+    assert cli.main(["report", str(sw)]) == 0  # the command gives the same files again
     _check(sw, set())
     assert any(p.name.startswith("sweep_") for p in sw.glob("*.png"))
     assert "report:" in capsys.readouterr().out

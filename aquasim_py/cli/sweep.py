@@ -64,6 +64,9 @@ def parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--keep-traces", action="store_true", help="also keep each run's trace tables under DIR/runs/<key>/")
     p.add_argument(
+        "--report", action="store_true", help="also write plots and report.html (see 'aquasim-py report --help')"
+    )
+    p.add_argument(
         "--workers",
         type=common.positive_int,
         metavar="N",
@@ -135,6 +138,11 @@ def command(argv: Sequence[str]) -> int:
         con.print(summary_table(rows, jobs, cols))
     reused = f" ({already} from the journal)" if already else ""
     print(f"{len(rows)} runs{reused} in {wall:.1f} s -> {out / 'sweep.csv'}")
+    if args.report:
+        from aquasim_py.cli.report import reports_for
+
+        for html in reports_for(out):
+            print(f"report: {html}")
     failed = sum(1 for r in rows if r.get("error"))
     if failed:
         print(
