@@ -193,6 +193,21 @@ def clean_stale(where: Path) -> list[Path]:
 
 
 # --------------------------------------------------------------------------- staging
+def refuse_foreign(target: Path, file: Any, key: str, *, overwrite: bool = False, hint: str | None = None) -> bool:
+    """The one check before writing into ``target``: refuse a file in its place, and a
+    non-empty directory that is not an aquasim-py output unless ``overwrite`` (one-line
+    :class:`OutputRefused` naming ``key``). Returns whether ``target`` is (or will be) the
+    tool's own: absent, empty, or carrying a manifest."""
+    target = Path(target)
+    if target.exists() and not target.is_dir():
+        raise ScenarioError(file, key, f"{target} exists and is not a directory")
+    own = not target.exists() or is_own_output(target)
+    if not own and not overwrite:
+        why = hint if hint is not None else _refusal_hint(key)
+        raise OutputRefused(file, key, f"{target}: not empty and not an aquasim-py output directory ({why})")
+    return own
+
+
 @contextmanager
 def _signals_held() -> Iterator[None]:
     """Hold SIGINT / SIGTERM while the staged files are moved into place (a few renames), so
@@ -227,13 +242,8 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
     created here are removed and ``target`` is left as it was.
     """
     target = Path(target)
-    if target.exists() and not target.is_dir():
-        raise ScenarioError(file, key, f"{target} exists and is not a directory")
+    refuse_foreign(target, file, key, overwrite=overwrite)
     into = target.is_dir()  # an existing directory: stage inside it, then move file by file
-    if into and not overwrite and not is_own_output(target):
-        raise OutputRefused(
-            file, key, f"{target}: not empty and not an aquasim-py output directory ({_refusal_hint(key)})"
-        )
     where = target if into else target.parent
     label = target.resolve().name or "out"
     created: list[Path] = []

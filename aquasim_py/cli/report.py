@@ -48,7 +48,7 @@ def reports_for(out: Path) -> list[Path]:
 
 
 def command(argv: Sequence[str]) -> int:
-    from aquasim_py.outdir import OutputRefused, is_own_output
+    from aquasim_py.outdir import refuse_foreign
     from aquasim_py.report import ReportError
 
     args = parser().parse_args(argv)
@@ -62,8 +62,8 @@ def command(argv: Sequence[str]) -> int:
                 raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
         else:
             dest = Path(args.out)
-            if dest.exists() and not is_own_output(dest):  # never write over a user's files
-                raise OutputRefused(None, "--out", f"{dest}: not empty and not an aquasim-py output directory")
+            # never write over a user's files (the report has no --overwrite)
+            refuse_foreign(dest, None, "--out", hint="give an empty or new directory")
             dest.mkdir(parents=True, exist_ok=True)
             paths = [_report_into(directory, dest)]
     except ReportError as e:

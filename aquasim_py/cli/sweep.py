@@ -158,16 +158,11 @@ def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite:
     directory that is not an aquasim-py output is refused unless ``overwrite`` (then only the
     sweep's own files are written and removed there); the directory's manifest lists the
     sweep's files from the start, so an interrupted sweep's directory is its own."""
-    from aquasim_py.outdir import OutputRefused, is_own_output, record_files
+    from aquasim_py.outdir import record_files, refuse_foreign
     from aquasim_py.scenario import ScenarioError
     from aquasim_py.sweep import JOURNAL, RUNS
 
-    if out.exists() and not out.is_dir():
-        raise ScenarioError(file, key, f"{out} exists and is not a directory")
-    own = not out.exists() or is_own_output(out)
-    if not own and not overwrite:
-        hint = "use --overwrite to write into it" if key == "--out" else "or give --out, or --overwrite"
-        raise OutputRefused(file, key, f"{out}: not empty and not an aquasim-py output directory ({hint})")
+    own = refuse_foreign(out, file, key, overwrite=overwrite)
     try:
         out.mkdir(parents=True, exist_ok=True)
         record_files(out, [JOURNAL, *OUTPUTS])
