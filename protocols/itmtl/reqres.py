@@ -364,8 +364,8 @@ class ReqResNode(Node):
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
 
-    #: What the ITMTL paper (seed 004) reports for this protocol, metric -> claim; for a
-    #: variants runner to print beside the measured comparison (``paper`` column).
+    #: What the ITMTL paper (seed 004) reports for this protocol, quantity -> claim, listed by
+    #: the report of a single run (the variants runner prints them with our values: paper.py).
     paper: ClassVar[dict[str, str]] = {}
 
     @classmethod
@@ -384,7 +384,6 @@ class ReqResNode(Node):
             f"rounds retried {m['retry_fraction']:.3f}",
         ]
         if cls.paper:
-            # printed here until the variants runner shows a ``paper`` column of its own
             lines.append(f"{cls.name} in the ITMTL paper (Gao et al.; compare with the variants table):")
             lines += [f"  {k}: {v}" for k, v in cls.paper.items()]
         return "\n".join(lines)
