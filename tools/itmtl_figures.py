@@ -75,6 +75,7 @@ def _plot(
             yerr=g["half"],
             marker="o",
             capsize=3,
+            linestyle="-" if pd.api.types.is_numeric_dtype(xs) else "none",  # no line between categories
             label=None if key is None else (label(key) or str(key)),
         )
     ax.set_xlabel(xlabel)

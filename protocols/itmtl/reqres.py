@@ -384,6 +384,8 @@ class ReqResNode(Node):
             f"rounds retried {m['retry_fraction']:.3f}",
         ]
         if cls.paper:
-            lines.append(f"{cls.name} in the ITMTL paper (Gao et al.; compare with the variants table):")
+            lines.append(
+                f"{cls.name} in the ITMTL paper (Gao et al.; our values of these statistics: run every variant, paper.csv):"
+            )
             lines += [f"  {k}: {v}" for k, v in cls.paper.items()]
         return "\n".join(lines)
