@@ -152,14 +152,16 @@ def _free_implied_counts(base: dict[str, Any], overrides: Sequence[tuple[Any, An
     filled that count in, and a swept placement with another number of positions would
     otherwise contradict it."""
     groups = base.get("nodes") or []
-    swept = {tuple(loc[:3]) for loc, _ in overrides if len(loc) >= 3 and loc[0] == "nodes"}
-    free = {
-        i % len(groups)
-        for (_, i, key) in swept
-        if key == "placement" and isinstance(i, int) and -len(groups) <= i < len(groups)
-    }
-    free -= {i % len(groups) for (_, i, key) in swept if key == "count" and isinstance(i, int)}
-    free = {i for i in free if groups[i].get("placement", {}).get("kind") in ("explicit", "grid")}
+    n = len(groups)
+
+    def swept(key: str) -> set[int]:
+        return {
+            loc[1] % n
+            for loc, _ in overrides
+            if len(loc) >= 3 and loc[0] == "nodes" and loc[2] == key and isinstance(loc[1], int) and -n <= loc[1] < n
+        }
+
+    free = {i for i in swept("placement") - swept("count") if groups[i]["placement"]["kind"] in ("explicit", "grid")}
     if not free:
         return base
     return {**base, "nodes": [{**g, "count": None} if i in free else g for i, g in enumerate(groups)]}
