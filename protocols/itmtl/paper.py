@@ -21,7 +21,8 @@ import numpy as np
 import pandas as pd
 
 from aquasim_py import metrics as generic
-from aquasim_py.protocols.itmtl.metrics import _ordinary, _rows
+
+from .metrics import _ordinary, _rows
 
 #: the paper's names, in the order the tables list them
 ALGORITHMS = ("ITMTL", "ITMTL-wsc", "TSHL", "MU-Sync", "Mobi-Sync")
@@ -57,7 +58,8 @@ def wsc_gap_per_round(itmtl: pd.DataFrame, wsc: pd.DataFrame, nodes: pd.DataFram
     """Per round, on the (node, round) pairs both localized (:func:`node_rounds` of each):
     mean |sync error| (s) and NMSE (:func:`aquasim_py.metrics.nmse`) of each, and the gaps of
     the paper's Figs 11-12: ``sync_gap_pct`` = 100 (wsc - ITMTL) / ITMTL and
-    ``nmse_decrease_pct`` = 100 (wsc - ITMTL) / wsc."""
+    ``nmse_decrease_pct`` = 100 (wsc - ITMTL) / wsc. ``nodes``: the ``nodes`` table (both runs
+    are of one network)."""
     keys = itmtl[["node", "round"]].merge(wsc[["node", "round"]])
     out = {}
     for tag, df in (("itmtl", itmtl), ("wsc", wsc)):
