@@ -163,7 +163,8 @@ def gap_statistics(res: dict[str, list[dict[str, float]]], gaps: list[pd.DataFra
     n = min(len(res["itmtl"]), len(res["wsc"]), len(gaps))
     mats = {c: round_matrix(gaps[:n], c).to_numpy() for c in ("sync_itmtl_s", "sync_wsc_s", "nmse_itmtl", "nmse_wsc")}
 
-    def per_round(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def curves_gap(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-round sync gap and NMSE decrease (%) of the seeds ``idx``' mean curves."""
         with np.errstate(all="ignore"):
             m = {c: np.nanmean(v[:, idx], axis=1) for c, v in mats.items()}
             sync = 100.0 * (m["sync_wsc_s"] - m["sync_itmtl_s"]) / m["sync_itmtl_s"]
@@ -171,7 +172,11 @@ def gap_statistics(res: dict[str, list[dict[str, float]]], gaps: list[pd.DataFra
         return sync[np.isfinite(sync)], nmse[np.isfinite(nmse)]
 
     def stat(which: int, fn: Any) -> Any:
-        return lambda idx: (lambda g: float(fn(g)) if g.size else np.nan)(per_round(idx)[which])
+        def f(idx: np.ndarray) -> float:
+            g = curves_gap(idx)[which]
+            return float(fn(g)) if g.size else np.nan
+
+        return f
 
     def final_gap(key: str, relative_to: str) -> Any:
         vi = np.array([r[key] for r in res["itmtl"][:n]], float)
