@@ -411,8 +411,9 @@ class Table:
         return df
 
 
-#: rows a streamed table holds before handing them to its file (~7 MB for ``packets``)
-CHUNK_ROWS = 65536
+#: rows a streamed table holds before handing them to its file (~2 MB of columns for
+#: ``packets``; formatting a chunk as CSV briefly takes several times that)
+CHUNK_ROWS = 16384
 
 
 class Trace:
@@ -442,14 +443,15 @@ class Trace:
     def append(self, table: str, **row: Any) -> None:
         self.table(table).append(**row)
 
-    def stream(self, route: Callable[[str], Path | None], fmt: str = "csv", chunk_rows: int = CHUNK_ROWS) -> None:
+    def stream(self, route: Callable[[str], Path | None], fmt: str = "csv", chunk_rows: int | None = None) -> None:
         """Stream every table (those that exist and those made later): ``route(name)`` is the
         file to write it to (``.csv`` or ``.parquet`` as ``fmt``), or None to keep none of
         its rows. Rows go out in chunks of ``chunk_rows``; the files are byte for byte what
         :meth:`write` gives for the same rows."""
         if fmt not in ("csv", "parquet"):
             raise ValueError(f"unknown trace format {fmt!r} (use 'csv' or 'parquet')")
-        self._route, self._fmt, self._chunk_rows = route, fmt, chunk_rows
+        self._route, self._fmt = route, fmt
+        self._chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
         for t in self.tables.values():
             self._attach(t)
 
