@@ -14,7 +14,9 @@ Every output directory the tool writes carries a manifest, :data:`MANIFEST`
   even then only the files this run writes are replaced;
 * every staging directory holds a marker, :data:`STAGING_MARKER`, with the owning process id;
   staging directories whose owner is dead (a SIGKILL, a power cut) are removed by the next run
-  that stages in the same place. Nothing without a marker is ever removed.
+  that stages in the same place. Nothing without a marker is ever removed. The scratch
+  directories of trace tables only metrics read (:func:`scratch_dir`, in ``TMPDIR``) follow
+  the same rule.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ __all__ = [
     "clean_stale",
     "is_own_output",
     "record_files",
+    "scratch_dir",
     "staged_output",
 ]
 
@@ -190,6 +193,17 @@ def clean_stale(where: Path) -> list[Path]:
         shutil.rmtree(p, ignore_errors=True)
         removed.append(p)
     return removed
+
+
+def scratch_dir() -> Path:
+    """A new private directory for a run's trace tables that nobody asked to keep (the ones
+    only metrics read), in the system's temporary directory (``TMPDIR``). It carries a staging
+    marker, so that one left by a killed run is removed by the next run (:func:`clean_stale`)."""
+    where = Path(tempfile.gettempdir())
+    clean_stale(where)
+    d = Path(tempfile.mkdtemp(prefix=".aquasim-trace.tmp-", dir=where))
+    (d / STAGING_MARKER).write_text(json.dumps(_marker()))
+    return d
 
 
 # --------------------------------------------------------------------------- staging

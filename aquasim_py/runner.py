@@ -25,7 +25,8 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -264,15 +265,16 @@ def relocate_results(results: Mapping[str, RunResult], tmp: Path, final: Path) -
             res.tables.relocate(tmp, final)
 
 
-def _stream_trace(sim: Any, sc: Scenario, dest: Path | None) -> Any:
+@contextmanager
+def _streamed_trace(sim: Any, sc: Scenario, dest: Path | None) -> Iterator[Callable[[], Any]]:
     """Route every trace table of ``sim`` to a file as the run goes: the tables ``[trace]
     tables`` selects into ``dest`` (None: the scratch directory), those only the metrics read
     (:func:`~aquasim_py.metrics.tables_read`) into a scratch directory, the others nowhere.
-    Returns a function that finishes the files and gives their
-    :class:`~aquasim_py.trace.TraceFiles` (which owns the scratch directory)."""
-    import tempfile
-
+    Gives a function that finishes the files and returns their
+    :class:`~aquasim_py.trace.TraceFiles`, which then owns the scratch directory; an error
+    or a signal inside the block removes it."""
     from aquasim_py import metrics
+    from aquasim_py.outdir import scratch_dir
     from aquasim_py.trace import TraceFiles
 
     wanted = sc.trace.tables
@@ -280,7 +282,7 @@ def _stream_trace(sim: Any, sc: Scenario, dest: Path | None) -> Any:
     fmt = sc.trace.format
     if fmt == "parquet" and dest is None and not _has_pyarrow():
         fmt = "csv"  # no file asked for: parquet only when it can be written (write() converts)
-    scratch = Path(tempfile.mkdtemp(prefix="aquasim-trace-"))
+    scratch = scratch_dir()
 
     def route(name: str) -> Path | None:
         if wanted is None or name in wanted:
@@ -289,23 +291,18 @@ def _stream_trace(sim: Any, sc: Scenario, dest: Path | None) -> Any:
             return scratch / f"{name}.{fmt}"
         return None
 
-    try:
-        sim.trace.stream(route, fmt)
-    except BaseException:
-        shutil.rmtree(scratch, ignore_errors=True)
-        raise
-
     def finish() -> TraceFiles:
-        try:
-            done = sim.trace.close()
-        except BaseException:
-            shutil.rmtree(scratch, ignore_errors=True)
-            raise
+        done = sim.trace.close()
         files = {k: p for k, (p, _) in done.items() if p is not None}
         dropped = [k for k, (p, _) in done.items() if p is None]
         return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch)
 
-    return finish
+    try:
+        sim.trace.stream(route, fmt)
+        yield finish
+    except BaseException:
+        shutil.rmtree(scratch, ignore_errors=True)
+        raise
 
 
 def _has_pyarrow() -> bool:
@@ -322,10 +319,28 @@ def _execute(sc: Scenario, progress: Progress, dest: Path | None = None) -> RunR
     from aquasim_py import metrics
 
     sim = _scenario.build(sc)
-    finish = _stream_trace(sim, sc, dest)
+    with _streamed_trace(sim, sc, dest) as finish:
+        wall = _run(sim, sc, progress)
+        tables = finish()
+    errors: dict[str, str] = {}
+    m = metrics.summarize(
+        tables,
+        sc.protocols(),
+        percentiles=sc.metrics.percentiles,
+        warmup_s=sc.metrics.warmup_s,
+        unknown_roles=sc.metrics.unknown_roles,
+        errors=errors,
+    )
+    return RunResult(
+        scenario=sc, tables=tables, metrics=dict(m), wall_time_s=wall, variant=sc.variant, metric_errors=errors
+    )
+
+
+def _run(sim: Any, sc: Scenario, progress: Progress) -> float:
+    """Run ``sim`` for the scenario's duration with the progress display asked for; returns
+    the wall time (s)."""
     duration = sc.simulation.duration_s
-    variant = sc.variant
-    label = sc.name if variant is None else f"{sc.name}/{variant}"
+    label = sc.name if sc.variant is None else f"{sc.name}/{sc.variant}"
     started = time.perf_counter()
     if progress is None:
         progress = sys.stderr.isatty()
@@ -347,20 +362,7 @@ def _execute(sc: Scenario, progress: Progress, dest: Path | None = None) -> RunR
         sim.run(duration, progress=progress)
     else:
         sim.run(duration)
-    wall = time.perf_counter() - started
-    tables = finish()
-    errors: dict[str, str] = {}
-    m = metrics.summarize(
-        tables,
-        sc.protocols(),
-        percentiles=sc.metrics.percentiles,
-        warmup_s=sc.metrics.warmup_s,
-        unknown_roles=sc.metrics.unknown_roles,
-        errors=errors,
-    )
-    return RunResult(
-        scenario=sc, tables=tables, metrics=dict(m), wall_time_s=wall, variant=variant, metric_errors=errors
-    )
+    return time.perf_counter() - started
 
 
 def run_variants(
