@@ -242,7 +242,7 @@ class Table:
     (a file written as the run goes, or nothing for a table nobody reads) and the columns start
     empty again, keeping their types, so memory does not grow with the run's length. A table
     whose rows arrive out of time order (``packets``) hands over only the rows no later row
-    can precede (:meth:`order_by`), so the file is sorted as :meth:`frame` sorts.
+    can precede (:meth:`order_by_time`), so the file is sorted as :meth:`frame` sorts.
     """
 
     _BATCH = 4096
@@ -328,8 +328,7 @@ class Table:
 
     def _reset_columns(self) -> None:
         """Empty every column, keeping its (possibly widened) type."""
-        for col in self.columns.values():
-            col.__init__(col.kind)  # type: ignore[misc]
+        self.columns = {k: _Column(c.kind) for k, c in self.columns.items()}
         self._n = 0
 
     def _push_frame(self, df: pd.DataFrame) -> None:
@@ -338,13 +337,15 @@ class Table:
             col.push_many(tuple(df[key].tolist()))
         self._n = len(df)
 
-    def close(self) -> None:
-        """Hand every remaining row to the sink and close it (nothing, without a sink)."""
+    def close(self) -> Path | None:
+        """Hand every remaining row to the sink and close it; returns the file written (None
+        without a sink, or for a table whose rows were dropped)."""
         if self._sink is None:
-            return
+            return None
         self._flush()
         self._spill(final=True)
         self._sink.close(self._held_frame())
+        return self._sink.path
 
     def append(self, **row: Any) -> None:
         """Append one row; unknown columns are created (earlier rows get missing values)."""
@@ -469,12 +470,7 @@ class Trace:
 
     def close(self) -> dict[str, tuple[Path | None, int]]:
         """Finish streaming: table name -> (its file or None, its number of rows)."""
-        out: dict[str, tuple[Path | None, int]] = {}
-        for name, t in self.tables.items():
-            t.close()
-            sink = t._sink
-            out[name] = (getattr(sink, "path", None), t.n)
-        return out
+        return {name: (t.close(), t.n) for name, t in self.tables.items()}
 
     def frames(self) -> dict[str, pd.DataFrame]:
         """Every table as a DataFrame (DESIGN.md columns first, extra columns after)."""

@@ -242,7 +242,7 @@ def test_a_protocol_that_declares_what_it_reads_lets_the_rest_go(tmp_path):
     """stvf reads estimates and nodes: with positions not requested, no positions file exists
     anywhere and asking for it says why."""
     p = tmp_path / "s.toml"
-    text = Path("scenarios/stvf_quick.toml").read_text()
+    text = (Path(__file__).resolve().parents[1] / "scenarios" / "stvf_quick.toml").read_text()
     text = text.replace('tables = ["nodes", "estimates", "positions"]', 'tables = ["nodes"]')
     p.write_text(text)
     short = {"simulation.duration_s": 3.0, "metrics.warmup_s": 0.0}
