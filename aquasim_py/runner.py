@@ -44,6 +44,7 @@ __all__ = [
     "RunResult",
     "check_output_format",
     "compare",
+    "execute",
     "json_safe",
     "relocate_results",
     "run_scenario",
@@ -238,7 +239,7 @@ def run_scenario(
     sc = _as_scenario(scenario_or_path, variant, seed, overrides)
     if out is not None:
         return run_staged(sc, out, overwrite=overwrite, progress=progress)
-    return _execute(sc, progress)
+    return execute(sc, progress)
 
 
 def run_staged(
@@ -249,7 +250,7 @@ def run_staged(
     out = Path(out)
     check_output_format(sc)
     with staged_output(out, sc.path, key, overwrite=overwrite) as tmp:
-        res = _execute(sc, progress, dest=tmp)
+        res = execute(sc, progress, dest=tmp)
         res.write_into(tmp, final=out)
     relocate_results({"": res}, tmp, out)
     return res
@@ -313,9 +314,10 @@ def _has_pyarrow() -> bool:
     return True
 
 
-def _execute(sc: Scenario, progress: Progress, dest: Path | None = None) -> RunResult:
-    """Build and run ``sc``, streaming its trace tables (into ``dest`` those ``[trace] tables``
-    selects), then compute the metrics from the files written."""
+def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) -> RunResult:
+    """Build and run a resolved scenario, streaming its trace tables (those ``[trace] tables``
+    selects into the existing directory ``dest``, unstaged: callers stage), then compute the
+    metrics from the files written."""
     from aquasim_py import metrics
 
     sim = _scenario.build(sc)
@@ -430,7 +432,7 @@ def run_resolved_into(
     results: dict[str, RunResult] = {}
     for name, sc in resolved.items():
         (tmp / name).mkdir()
-        res = _execute(sc, progress, dest=tmp / name)
+        res = execute(sc, progress, dest=tmp / name)
         res.write_into(tmp / name, final=final / name)
         results[name] = res
     write_comparison(results, tmp / "variants.csv")
