@@ -28,6 +28,7 @@ import signal
 import socket
 import tempfile
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path, PurePosixPath
@@ -195,13 +196,24 @@ def clean_stale(where: Path) -> list[Path]:
     return removed
 
 
+SCRATCH_PREFIX = ".aquasim-trace.tmp-"
+
+
 def scratch_dir() -> Path:
     """A new private directory for a run's trace tables that nobody asked to keep (the ones
     only metrics read), in the system's temporary directory (``TMPDIR``). It carries a staging
-    marker, so that one left by a killed run is removed by the next run (:func:`clean_stale`)."""
+    marker, so that one left by a killed run is removed by the next run (:func:`clean_stale`).
+    A kill between making it and marking it (or while removing it, after the marker) leaves
+    it empty and unmarked: such a one, older than a minute, is removed too (``rmdir`` only
+    removes an empty directory, and a live run marks its own within microseconds)."""
     where = Path(tempfile.gettempdir())
     clean_stale(where)
-    d = Path(tempfile.mkdtemp(prefix=".aquasim-trace.tmp-", dir=where))
+    now = time.time()
+    for p in where.glob(SCRATCH_PREFIX + "*"):
+        with suppress(OSError):
+            if now - p.lstat().st_mtime > 60.0 and not p.is_symlink():
+                p.rmdir()
+    d = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=where))
     (d / STAGING_MARKER).write_text(json.dumps(_marker()))
     return d
 

@@ -359,6 +359,23 @@ def test_sigterm_to_a_sweep(tmp_path):
     assert listing(tmp_path) == ["scen.toml"]
 
 
+def test_scratch_dir_removes_only_what_a_killed_run_left(tmp_path, monkeypatch):
+    """A run killed between making its trace scratch folder and marking it leaves it empty:
+    the next one removes such a folder once it is a minute old, and nothing else."""
+    from aquasim_py.outdir import SCRATCH_PREFIX, scratch_dir
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    old, fresh, full = (tmp_path / f"{SCRATCH_PREFIX}{n}" for n in ("old", "fresh", "full"))
+    for d in (old, fresh, full):
+        d.mkdir()
+    (full / "x.csv").write_text("someone's")
+    for d in (old, full):
+        os.utime(d, (time.time() - 120, time.time() - 120))
+    mine = scratch_dir()
+    assert (mine / STAGING_MARKER).is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([fresh.name, full.name, mine.name])
+
+
 def test_clean_stale_keeps_live_and_foreign(tmp_path):
     live = tmp_path / ".a.tmp-live"
     live.mkdir()
