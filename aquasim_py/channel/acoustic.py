@@ -305,6 +305,14 @@ class AcousticChannel:
         (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
         return len(self._modems[node].rx_log)
 
+    def packets_watermark(self) -> float:
+        """A true time (s) no ``packets`` row written from now on precedes: a reception's row
+        (time: its first bit's arrival) is written when its last bit arrives, at most the longest
+        packet queued so far later; every other row is written at or before its time. Twice that
+        plus 1 us, so the rounding of event times can never make the promise wrong (the trace
+        streams the rows before it, sorted, :meth:`aquasim_py.trace.Table.order_by_time`)."""
+        return self._env.now - 2.0 * self._max_duration - 1e-6
+
     # -- transmit ---------------------------------------------------------------------------------
 
     def transmit(self, src: int, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:

@@ -124,6 +124,7 @@ class SvlpfNode(Node):
     """An SVL-PF node: target (requests), anchor (sensor) or buoy (fusion node) by role."""
 
     name = "svlpf"
+    trace_tables = ("svlpf", "packets", "positions", "nodes")  # what metrics / derived_tables / report read
     Params = SvlpfParams
 
     def setup(self) -> None:
