@@ -10,6 +10,8 @@ equal those of a run of that estimator alone, i.e. of the scenario's variant).
     python tools/svlpf_figures.py tables [--out out/svlpf_mc]
     # Figs. 4-7 (trajectories and per-frame errors of one run) as PNGs under OUT/
     python tools/svlpf_figures.py figures [--out out/svlpf_mc] [--seed 1]
+    # the diagnosis (eq 25) against the channel's obstructed links, per SNR estimate noise
+    nice -n 10 python tools/svlpf_figures.py diagnosis --runs 10 --snr-std 0 1 3 6
 
 Configurations: ``excessive`` = scenarios/svlpf.toml (Table 3, Figs. 6-7: the excessive noise
 on the obstructed links), ``gaussian`` = scenarios/svlpf_gaussian.toml (Table 2, Figs. 4-5),
@@ -152,6 +154,52 @@ def paired(d: pd.DataFrame) -> None:
     print("paired difference to SVL-PF at k=100 (m): " + ", ".join(parts))
 
 
+def diagnosis_run(snr_std: float, seed: int) -> pd.DataFrame:
+    """One run of scenarios/svlpf.toml (SVL-PF alone) with the receivers' SNR estimate noise
+    std ``snr_std`` (dB): per frame, the flagged sensors against the selected sensors whose
+    link from the target the channel obstructed (ground truth: the obstacle field rebuilt
+    from the run's keyed streams, as the channel draws it)."""
+    import tomllib
+
+    from aquasim_py import scenario
+    from aquasim_py.channel.obstacles import ObstacleField
+
+    path = ROOT / CONFIGS["excessive"][0]
+    raw = tomllib.loads(path.read_text())
+    raw.pop("variants", None)
+    sc = scenario.load_dict(raw, path, overrides=[f"channel.snr_estimate_std_db={snr_std}"], seed=seed)
+    sim = scenario.build(sc)
+    sim.run(sc.simulation.duration_s)
+    cfg = sim.channel_config.obstacles
+    truth = ObstacleField(
+        cfg, lambda a, b: float(sim.rng("obstacle", a, b).random()), lambda a, b: sim.rng("obstacle", a, b, "delay")
+    )
+    rows = []
+    sv = sim.trace.frames()["svlpf"]
+    for sel, flg in zip(sv["selected"], sv["flagged"]):
+        sel_ids = {int(i) for i in str(sel).split()}
+        flagged = {int(i) for i in str(flg).split() if i.isdigit()}
+        obstructed = {i for i in sel_ids if truth.obstructed(1, i)}
+        rows.append((snr_std, seed, len(obstructed), len(flagged - obstructed), len(obstructed - flagged)))
+    return pd.DataFrame(rows, columns=["snr_std_db", "seed", "obstructed", "false_flags", "misses"])
+
+
+def cmd_diagnosis(args: argparse.Namespace) -> None:
+    jobs = [(x, s) for x in args.snr_std for s in range(1, args.runs + 1)]
+    with ProcessPoolExecutor(max_workers=args.workers) as ex:
+        d = pd.concat(list(ex.map(diagnosis_run, *zip(*jobs))), ignore_index=True)
+    print(f"diagnosis (eq 25) of scenarios/svlpf.toml, {args.runs} runs x 100 frames per SNR noise level")
+    print(
+        f"{'SNR noise std (dB)':>18} {'obstructed/frame':>17} {'false flags/frame':>18} {'misses/frame':>13} {'exact frames':>13}"
+    )
+    for x, g in d.groupby("snr_std_db"):
+        exact = ((g["false_flags"] == 0) & (g["misses"] == 0)).mean()
+        print(
+            f"{x:>18g} {g['obstructed'].mean():>17.2f} {g['false_flags'].mean():>18.4f}"
+            f" {g['misses'].mean():>13.4f} {100 * exact:>12.1f}%"
+        )
+
+
 def cmd_figures(args: argparse.Namespace) -> None:
     import matplotlib
 
@@ -201,8 +249,12 @@ def main() -> None:
     f.add_argument("--seed", type=int, default=1)
     for p in (r, t, f):
         p.add_argument("--out", default=str(ROOT / "out" / "svlpf_mc"))
+    g = sub.add_parser("diagnosis", help="the diagnosis against the obstructed links, per SNR estimate noise")
+    g.add_argument("--runs", type=int, default=10)
+    g.add_argument("--workers", type=int, default=2)
+    g.add_argument("--snr-std", type=float, nargs="+", default=[0.0, 1.0, 3.0, 6.0])
     args = ap.parse_args()
-    {"run": cmd_run, "tables": cmd_tables, "figures": cmd_figures}[args.cmd](args)
+    {"run": cmd_run, "tables": cmd_tables, "figures": cmd_figures, "diagnosis": cmd_diagnosis}[args.cmd](args)
 
 
 if __name__ == "__main__":
