@@ -30,6 +30,7 @@ import argparse
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -60,22 +61,31 @@ PAPER = {
 STEPS = list(range(10, 101, 10))
 
 
-def one_run(config: str, seed: int, out: str) -> str:
-    """Simulate one (configuration, seed) and write its per-frame errors; returns the CSV path."""
+def simulate(config: str, seed: int, overrides: list[str]) -> Any:
+    """Run the scenario of ``config`` as written (its [variants] dropped) with ``overrides``;
+    returns the finished Simulation."""
+    import tomllib
+
     from aquasim_py import scenario
-    from aquasim_py.protocols.svlpf.metrics import step_errors
 
     path, extra = CONFIGS[config]
+    raw = tomllib.loads((ROOT / path).read_text())
+    raw.pop("variants", None)
+    sc = scenario.load_dict(raw, ROOT / path, overrides=[*overrides, *extra], seed=seed)
+    sim = scenario.build(sc)
+    sim.run(sc.simulation.duration_s)
+    return sim
+
+
+def one_run(config: str, seed: int, out: str) -> str:
+    """Simulate one (configuration, seed) with the four estimators side by side (ALSO) and
+    write its per-frame errors; returns the CSV path."""
+    from aquasim_py.protocols.svlpf.metrics import step_errors
+
     dest = Path(out) / "runs" / f"{config}_seed{seed}.csv"
     if dest.is_file():
         return str(dest)
-    import tomllib
-
-    raw = tomllib.loads((ROOT / path).read_text())
-    raw.pop("variants", None)  # the scenario as written; the estimators run side by side (ALSO)
-    sc = scenario.load_dict(raw, ROOT / path, overrides=[ALSO, *extra], seed=seed)
-    sim = scenario.build(sc)
-    sim.run(sc.simulation.duration_s)
+    sim = simulate(config, seed, [ALSO])
     e = step_errors(sim.trace.frames())
     e.insert(0, "seed", seed)
     e.insert(0, "config", config)
@@ -159,17 +169,9 @@ def diagnosis_run(snr_std: float, seed: int) -> pd.DataFrame:
     std ``snr_std`` (dB): per frame, the flagged sensors against the selected sensors whose
     link from the target the channel obstructed (ground truth: the obstacle field rebuilt
     from the run's keyed streams, as the channel draws it)."""
-    import tomllib
-
-    from aquasim_py import scenario
     from aquasim_py.channel.obstacles import ObstacleField
 
-    path = ROOT / CONFIGS["excessive"][0]
-    raw = tomllib.loads(path.read_text())
-    raw.pop("variants", None)
-    sc = scenario.load_dict(raw, path, overrides=[f"channel.snr_estimate_std_db={snr_std}"], seed=seed)
-    sim = scenario.build(sc)
-    sim.run(sc.simulation.duration_s)
+    sim = simulate("excessive", seed, [f"channel.snr_estimate_std_db={snr_std}"])
     cfg = sim.channel_config.obstacles
     truth = ObstacleField(
         cfg, lambda a, b: float(sim.rng("obstacle", a, b).random()), lambda a, b: sim.rng("obstacle", a, b, "delay")
@@ -179,7 +181,7 @@ def diagnosis_run(snr_std: float, seed: int) -> pd.DataFrame:
     for sel, flg in zip(sv["selected"], sv["flagged"]):
         sel_ids = {int(i) for i in str(sel).split()}
         flagged = {int(i) for i in str(flg).split() if i.isdigit()}
-        obstructed = {i for i in sel_ids if truth.obstructed(1, i)}
+        obstructed = {i for i in sel_ids if truth.obstructed(1, i)}  # node 1: the target
         rows.append((snr_std, seed, len(obstructed), len(flagged - obstructed), len(obstructed - flagged)))
     return pd.DataFrame(rows, columns=["snr_std_db", "seed", "obstructed", "false_flags", "misses"])
 
@@ -242,7 +244,7 @@ def main() -> None:
     r = sub.add_parser("run", help="Monte Carlo runs")
     r.add_argument("--runs", type=int, default=50)
     r.add_argument("--workers", type=int, default=2)
-    r.add_argument("--configs", nargs="+", default=["excessive", "gaussian"], choices=sorted(CONFIGS))
+    r.add_argument("--configs", nargs="+", default=sorted(CONFIGS), choices=sorted(CONFIGS))
     t = sub.add_parser("tables", help="print Tables 2-3")
     t.add_argument("--csv", action="store_true", help="also write OUT/tables.csv")
     f = sub.add_parser("figures", help="draw Figs. 4-7")
