@@ -21,7 +21,7 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    packet survives if its SNR exceeds the total power of the overlapping signals by
    ``capture_threshold_db``).
 
-Each delivery is one timeout callback, scheduled at the instant the last bit arrives: by then
+Each delivery is one event (a slim :class:`_Delivery`, not a Timeout) scheduled at the instant the last bit arrives: by then
 every signal that can overlap the reception and every transmission of the receiver that can
 cut it are known (they started before that instant), so the verdict needs no second event.
 
@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Any, Literal, cast
 import numpy as np
 import simpy
 from numpy.typing import NDArray
+from simpy.events import NORMAL
 
 from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
@@ -80,7 +81,8 @@ _Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
 _MAX_ITER = 50
-_FLOAT_FIELDS = tuple(f for f in Eigenray.__dataclass_fields__ if f != "path")
+_FIELDS = tuple(Eigenray.__dataclass_fields__)
+_FLOAT_FIELDS = tuple(f for f in _FIELDS if f != "path")
 
 
 @dataclass(frozen=True)
@@ -172,26 +174,28 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     The same terms in the same order as ``loss.snr_db`` (so the same bits), with the two that
     depend only on the config (ambient noise N(f) and 10 log10 B) computed once per config:
     the noise sum is the costliest part and this runs once per transmission."""
-    from . import loss
-
-    noise, band, alpha = _snr_constants(config)
-    return (
-        np.asarray(config.source_level_db, dtype=float)
-        - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading, absorption_db_per_km=alpha)
-        - noise
-        - band
-    )
+    noise, band, alpha, k10 = _snr_constants(config)
+    # loss.path_loss_db(l, f, k, l0 = 1, alpha) term by term (the same operations, so the same
+    # bits): 10 k log10(max(l, l0) / l0) + (max(l, l0) - l0) 1e-3 alpha, with l / 1.0 = l and
+    # no divide-by-zero guard needed since max(l, 1) >= 1 (NaN stays NaN)
+    length = np.maximum(np.asarray(ray.length, dtype=float), 1.0)
+    loss_db = k10 * np.log10(length) + (length - 1.0) * 1e-3 * alpha
+    return config.source_level_db - loss_db - noise - band
 
 
 @lru_cache(maxsize=64)
-def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km) of a channel
-    config (alpha is what ``loss.path_loss_db`` computes itself when not given: the same bits)."""
+def _snr_constants(
+    config: ChannelConfig,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km, 10 k) of a
+    channel config (alpha is what ``loss.path_loss_db`` computes itself when not given, 10 k
+    the factor ``loss.spreading_loss_db`` applies: the same bits)."""
     from . import loss
 
     noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
     alpha = loss.thorp_absorption_db_per_km(config.frequency_khz)
-    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha
+    k10 = 10.0 * loss._spreading_k(config.spreading)
+    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha, k10
 
 
 def default_loss_model() -> LossModel:
@@ -227,6 +231,21 @@ class _Modem:
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
         self.log_cap = 8  # prune tx_log beyond this length (see _prune)
+
+
+class _Delivery:
+    """One delivery on SimPy's event queue: what ``Environment.step`` uses of an event (its
+    ``callbacks`` and ``_ok``) plus the signal record. Scheduled with ``env.schedule`` at the
+    same instant and with the same priority and sequence number a ``Timeout`` would get, so
+    the order of events is unchanged; it skips the Timeout's construction (the largest cost of
+    a delivery after the verdict itself)."""
+
+    __slots__ = ("callbacks", "sig")
+    _ok = True
+
+    def __init__(self, sig: _Signal, finish: Callable[[_Delivery], None]) -> None:
+        self.callbacks = [finish]
+        self.sig = sig
 
 
 class AcousticChannel:
@@ -378,6 +397,7 @@ class AcousticChannel:
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
         forget = t0 - 2.0 * self._max_duration
         finish = self._on_delivery
+        schedule = env.schedule
         if dst is None:
             for rx, T, path, s in heard:
                 arr = t0 + T
@@ -390,7 +410,7 @@ class AcousticChannel:
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
-                env.timeout(end - t0, sig).callbacks.append(finish)
+                schedule(cast(simpy.Event, _Delivery(sig, finish)), NORMAL, end - t0)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
             for rx, T, path, s in heard:
@@ -406,12 +426,12 @@ class AcousticChannel:
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 if intended:
-                    env.timeout(end - t0, sig).callbacks.append(finish)
+                    schedule(cast(simpy.Event, _Delivery(sig, finish)), NORMAL, end - t0)
         return tx_local
 
     def _links(
         self, src: int, t0: float
-    ) -> tuple[frozenset[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
 
         heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver;
@@ -443,29 +463,22 @@ class AcousticChannel:
             p_cand = pos[cand]
             v_cand = None
         else:
-            # the k-d tree's superset of the nodes in range, then the same exact test on it alone
+            # the sender and the k-d tree's superset of the nodes in range around it, then the
+            # same exact test on that superset alone
+            near = index.neighbourhood(src, t0, n, net.positions)
             if static:
-                pos = net.positions(t0)
-                p_src = pos[src]
-                near = index.candidates(p_src, t0, n, net.positions)
-                near = near[near != src]
-                p_near = pos[near]
+                p_near = net.positions(t0)[near]
                 v_near = None
             else:
-                # one trajectory evaluation (positions and velocities at t0) for the sender and
-                # the candidates around its position in the tree
-                near = index.candidates_of(src, t0, n, net.positions)
+                # one trajectory evaluation (positions and velocities at t0) for all of them
                 p_near, v_near = self._states(near, t0)
-                is_src = near == src
-                p_src = p_near[is_src][0]
-                other = ~is_src
-                near, p_near, v_near = near[other], p_near[other], v_near[other]
-            diff = p_near - p_src
+            p_src = p_near[0]
+            diff = p_near[1:] - p_src
             keep = np.einsum("ij,ij->i", diff, diff) <= self._range2
-            cand = near[keep]
-            p_cand = p_near[keep]
+            cand = near[1:][keep]
+            p_cand = p_near[1:][keep]
             if v_near is not None:
-                v_cand = v_near[keep]
+                v_cand = v_near[1:][keep]
         heard: list[tuple[_Modem, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
@@ -475,14 +488,29 @@ class AcousticChannel:
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
             thr = self.config.snr_threshold_db
-            for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
-                if T != T:  # NaN: no eigenray (shadow zone)
-                    lost.append((rid, "no_path", T, PATH_NAMES[p], s))
-                elif s < thr:  # NaN SNR (no loss model) compares False: never dropped on SNR
-                    lost.append((rid, "snr", T, PATH_NAMES[p], s))
-                else:
-                    heard.append((modems[rid], T, PATH_NAMES[p], s))
-        out = (frozenset(cand.tolist()), heard, lost)
+            ids = cand.tolist()
+            # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
+            # no loss model, compares False: never dropped on SNR)
+            if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
+                heard = list(
+                    zip(
+                        map(modems.__getitem__, ids),
+                        times.tolist(),
+                        map(PATH_NAMES.__getitem__, paths.tolist()),
+                        snr.tolist(),
+                    )
+                )
+            else:
+                for rid, T, p, s in zip(ids, times.tolist(), paths.tolist(), snr.tolist()):
+                    if T != T:
+                        lost.append((rid, "no_path", T, PATH_NAMES[p], s))
+                    elif s < thr:
+                        lost.append((rid, "snr", T, PATH_NAMES[p], s))
+                    else:
+                        heard.append((modems[rid], T, PATH_NAMES[p], s))
+        else:
+            ids = []
+        out = (ids, heard, lost)
         if static:
             self._static_links[src] = (n, out)
         return out
@@ -559,12 +587,18 @@ class AcousticChannel:
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
-                p_new = net.positions_at(cand[active], t0 + time[active])
+                # every receiver active (the usual first step): whole arrays, no gathers
+                whole = active.size == time.size
+                t_act = time if whole else time[active]
+                p_new = net.positions_at(cand if whole else cand[active], t0 + t_act)
                 r = straight(p_new) if straight is not None else eigenray(ssp, p_src, p_new, reflections=refl)
-                step = np.abs(r.time - time[active])
-                for f in fields:
-                    fields[f][active] = getattr(r, f)
-                time[active] = r.time
+                step = np.abs(r.time - t_act)
+                if whole:
+                    fields = {f: np.asarray(getattr(r, f)) for f in _FIELDS}
+                    time = fields["time"]
+                else:
+                    for f in _FIELDS:
+                        fields[f][active] = getattr(r, f)
                 # converged (or lost the path: NaN stays NaN and leaves the loop)
                 active = active[step > FIXED_POINT_TOL_S]
             ray = Eigenray(**fields)
@@ -575,9 +609,9 @@ class AcousticChannel:
 
     # -- receive ----------------------------------------------------------------------------------
 
-    def _on_delivery(self, ev: simpy.Event) -> None:
+    def _on_delivery(self, ev: _Delivery) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        sig = cast(_Signal, ev.value)  # the timeout's value: the record made in _start
+        sig = ev.sig  # the record made in _start
         arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
         for a, b in rx.tx_log:
@@ -714,6 +748,15 @@ def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArr
         if not src_ok:
             ok[...] = False
         bad = ~ok
+        if not bad.any():  # the usual case: the np.where below would change nothing
+            return Eigenray(
+                time=dist / c,
+                length=dist,
+                launch_angle=ang,
+                arrival_angle=ang.copy(),  # own array: the fixed point writes rows of each field
+                turning_depth=np.full(dist.shape, np.nan),
+                path=np.full(dist.shape, direct),
+            )
         return Eigenray(
             time=np.where(bad, np.nan, dist / c),
             length=np.where(bad, np.nan, dist),
@@ -752,6 +795,8 @@ def _constant_start(
     if not np.isfinite(t).all():
         return None
     n = len(p_rx)
+    if active.size == n:  # every row is overwritten by the first exact step, which reads only time
+        return {"time": t}, active
     # every row is filled below: traced (rest) or overwritten by the first exact step (active)
     fields: dict[str, NDArray[Any]] = {f: np.empty(n) for f in _FLOAT_FIELDS}
     fields["path"] = np.empty(n, dtype=np.int8)

@@ -51,27 +51,28 @@ def test_candidates_contain_every_node_in_range(
         d = np.linalg.norm(pos - pos[src], axis=1)
         truth = set(np.flatnonzero(d <= range_m).tolist())
         around = index.candidates(pos[src], t, mob.n, mob.position)
-        of = index.candidates_of(src, t, mob.n, mob.position)
+        hood = index.neighbourhood(src, t, mob.n, mob.position)
         assert truth <= set(around.tolist())
-        assert truth <= set(of.tolist())
-        assert np.all(np.diff(around) > 0) and np.all(np.diff(of) > 0)  # sorted, no repeats
+        assert truth <= set(hood.tolist())
+        assert hood[0] == src and src not in hood[1:].tolist()  # the sender first, once
+        assert np.all(np.diff(around) > 0) and np.all(np.diff(hood[1:]) > 0)  # sorted, no repeats
     assert index.rebuilds == 1  # never rebuilt within the staleness bound
 
 
 def test_rebuilds_when_stale_or_grown() -> None:
     mob = _moving(10, 2.0, 1)
     index = NeighbourIndex(300.0, 2.0)
-    assert index.staleness_s == pytest.approx(0.05 * 300.0 / 2.0)
-    index.candidates_of(0, 0.0, 10, mob.position)
-    index.candidates_of(0, index.staleness_s, 10, mob.position)
+    assert index.staleness_s == pytest.approx(0.025 * 300.0 / 2.0)
+    index.neighbourhood(0, 0.0, 10, mob.position)
+    index.neighbourhood(0, index.staleness_s, 10, mob.position)
     assert index.rebuilds == 1
-    index.candidates_of(0, index.staleness_s * 1.01, 10, mob.position)
+    index.neighbourhood(0, index.staleness_s * 1.01, 10, mob.position)
     assert index.rebuilds == 2
-    index.candidates_of(0, index.staleness_s * 1.01, 11, lambda t: np.vstack([mob.position(t), [[0.0, 0.0, 1.0]]]))
+    index.neighbourhood(0, index.staleness_s * 1.01, 11, lambda t: np.vstack([mob.position(t), [[0.0, 0.0, 1.0]]]))
     assert index.rebuilds == 3
     static = NeighbourIndex(300.0, 0.0)
-    static.candidates_of(0, 0.0, 10, mob.position)
-    static.candidates_of(0, 1e9, 10, mob.position)
+    static.neighbourhood(0, 0.0, 10, mob.position)
+    static.neighbourhood(0, 1e9, 10, mob.position)
     assert static.rebuilds == 1
     with pytest.raises(ValueError):
         NeighbourIndex(300.0, float("inf"))
