@@ -285,6 +285,7 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
         self._static = False
+        self._all_moving = False
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
@@ -521,6 +522,7 @@ class AcousticChannel:
         net = self._net
         self._layout_n = n
         self._static = not bool(net.is_moving().any())
+        self._all_moving = bool(net.is_moving().all())
         bound = getattr(net, "max_speed", None)
         vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
         self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
@@ -553,10 +555,16 @@ class AcousticChannel:
         ssp = self.ssp
         refl = self.config.reflections
         net = self._net
-        moving = net.is_moving()[cand]
-        if not moving.any():
+        fast = None
+        if self._all_moving and v_rx is not None and isinstance(ssp, Constant):
+            fast = _straight_moving(ssp, p_src, p_rx, v_rx, t0, lambda t: net.positions_at(cand, t))
+        moving = net.is_moving()[cand] if fast is None else None
+        if fast is not None:
+            ray = fast
+        elif moving is not None and not moving.any():
             ray = eigenray(ssp, p_src, p_rx, reflections=refl)
         else:
+            assert moving is not None
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
                 v = v_rx if v_rx is not None else self._velocities(cand, t0)
@@ -767,6 +775,55 @@ def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArr
         )
 
     return rays
+
+
+def _straight_moving(
+    ssp: Constant,
+    p_src: NDArray[np.float64],
+    p_rx: NDArray[np.float64],
+    v: NDArray[np.float64],
+    t0: float,
+    positions_at: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+) -> Eigenray | None:
+    """Constant profile, every receiver moving: the eigenrays to the receivers at their arrival
+    instants, or None when anything is unusual (a point out of the water, a receiver faster
+    than c/2, a step of the exact iteration larger than the tolerance: the general fixed point
+    in ``_arrivals`` then runs, with the same result).
+
+    The same operations, in the same order, as the general path's usual course (the
+    closed-form start of ``_constant_start``, one exact step, the ray of ``_straight_rays``),
+    so the same bits, with the per-row checks done as a few reductions over the whole
+    neighbourhood instead of masks and gathers: this runs once per transmission.
+    positions_at(times): the receivers' true positions (k, 3) at true times (k,)."""
+    c = ssp.speed_mps
+    bottom = ssp.bottom
+    z_s = float(p_src[2])
+    if not (z_s >= 0.0 and (bottom is None or z_s <= bottom) and math.isfinite(float(p_src.sum()))):
+        return None
+    z = p_rx[:, 2]
+    if not (z.min() >= 0.0 and (bottom is None or z.max() <= bottom)):  # NaN fails too
+        return None
+    t = _constant_moving_root(c, p_rx - p_src, v)  # NaN / inf for a non-finite receiver or speed
+    if not math.isfinite(float(t.sum())):
+        return None
+    p_new = positions_at(t0 + t)
+    diff = p_new - p_src
+    dist = np.sqrt(np.add.reduce(diff * diff, axis=-1))  # np.linalg.norm(diff, axis=-1), same bits
+    z = p_new[:, 2]
+    if not (math.isfinite(float(dist.sum())) and z.min() >= 0.0 and (bottom is None or z.max() <= bottom)):
+        return None
+    time = dist / c
+    if not bool((np.abs(time - t) <= FIXED_POINT_TOL_S).all()):
+        return None
+    ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
+    return Eigenray(
+        time=time,
+        length=dist,
+        launch_angle=ang,
+        arrival_angle=ang.copy(),
+        turning_depth=np.full(dist.shape, np.nan),
+        path=np.full(dist.shape, np.int8(PathKind.DIRECT)),
+    )
 
 
 def _constant_start(
