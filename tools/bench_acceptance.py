@@ -38,7 +38,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import bench_kernel as bk  # noqa: E402
+import bench_kernel as bk
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -155,10 +155,10 @@ def _scenario(pos: np.ndarray, rng_m: float, speed: float, duration: float, seed
     def group(name: str, role: str, sl: slice, params: str) -> str:
         mob = ""
         if vel is not None:
-            mob = f"mobility = {{ model = \"constant_velocity\", velocity = {json.dumps(vel[sl].tolist())} }}\n"
+            mob = f'mobility = {{ model = "constant_velocity", velocity = {json.dumps(vel[sl].tolist())} }}\n'
         return (
-            f"[[nodes]]\nname = \"{name}\"\nrole = \"{role}\"\ncount = {sl.stop - sl.start}\nprotocol = \"beacon\"\n"
-            f"placement = {{ kind = \"explicit\", positions = {json.dumps(pos[sl].tolist())} }}\n{mob}"
+            f'[[nodes]]\nname = "{name}"\nrole = "{role}"\ncount = {sl.stop - sl.start}\nprotocol = "beacon"\n'
+            f'placement = {{ kind = "explicit", positions = {json.dumps(pos[sl].tolist())} }}\n{mob}'
             f"params = {params}\n\n"
         )
 
@@ -199,10 +199,10 @@ def e2e(short: float, long: float, seed: int) -> list[dict[str, float | str]]:
     rows: list[dict[str, float | str]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for speed in (0.0, 1.0):
-            runs = []
-            for dur in (short, long):
-                runs.append(_cli_run(_scenario(pos, rng_m, speed, dur, seed), Path(tmp) / f"run_{speed}_{dur}"))
-            (c1, r1), (c2, r2) = runs
+            (c1, r1), (c2, r2) = (
+                _cli_run(_scenario(pos, rng_m, speed, dur, seed), Path(tmp) / f"run_{speed}_{dur}")
+                for dur in (short, long)
+            )
             # bare SimPy: the anchors' deliveries, for the same simulated span
             env, count = bk.build_bare(pos, rng_m, np.zeros(n), senders=n // 2)
             env.run(short)
