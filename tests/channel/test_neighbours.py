@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.channel.neighbours import NeighbourIndex
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity
@@ -113,3 +113,48 @@ def test_channel_packets_identical_with_and_without_index(monkeypatch: pytest.Mo
     without = _packets(3, False, monkeypatch)
     assert (with_index["event"] == "rx").sum() > 200  # the test exercises real receptions
     pd.testing.assert_frame_equal(with_index, without)
+
+
+def test_deliveries_of_a_transmission_take_one_queue_entry() -> None:
+    """A broadcast heard by many nodes keeps one entry on SimPy's queue (the next delivery),
+    and the receptions are still decided at their arrival instants, in time order."""
+    n = 30
+    rng = np.random.default_rng(5)
+    pos = np.column_stack([rng.uniform(0.0, 1500.0, n), rng.uniform(0.0, 1500.0, n), rng.uniform(10.0, 90.0, n)])
+
+    class _Once(Node):
+        name = "test_neighbours_once"
+
+        def run(self) -> Any:
+            if self.id == 0:
+                yield self.broadcast("hello", None, 32)
+
+    sim = Simulation(1, ssp=Constant(1500.0), volume=BOX, channel=ChannelConfig(max_range_m=5000.0, bitrate_bps=2000.0))
+    sim.add_group(_Once, n, positions=pos)
+    sim.run(1e-6)  # node 0 has transmitted
+    # 29 receptions pending, yet only the first delivery, node 0's end of transmission, the
+    # position sampler and run()'s stop event are queued
+    assert len(sim.env._queue) <= 4
+    sim.run(10.0)
+    p = sim.trace.frames()["packets"]
+    rx = p[p["event"] != "tx"]
+    assert len(rx) == n - 1
+    dist = np.linalg.norm(pos[rx["node"].to_numpy()] - pos[0], axis=1)
+    np.testing.assert_allclose(rx["time"].to_numpy(), dist / 1500.0, rtol=0.0, atol=1e-12)
+    assert np.all(np.diff(rx["time"].to_numpy()) >= 0.0)
+
+
+def test_public_schedule_fallback_gives_the_same_packets(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without SimPy's queue internals the channel schedules through ``Environment.schedule``:
+    the same receptions, times equal to within an ulp of the run time."""
+    direct = _packets(4, True, monkeypatch)
+    orig = AcousticChannel.__init__
+
+    def no_queue(self: AcousticChannel, *a: Any, **k: Any) -> None:
+        orig(self, *a, **k)
+        self._push = self._push_schedule
+
+    monkeypatch.setattr(AcousticChannel, "__init__", no_queue)
+    fallback = _packets(4, True, monkeypatch)
+    assert (direct["event"] == "rx").sum() > 200
+    pd.testing.assert_frame_equal(direct, fallback, check_exact=False, rtol=1e-14, atol=1e-12)
