@@ -40,6 +40,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_kernel as bk
 
+from aquasim_py.kernel import quiet_gc
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -207,7 +209,8 @@ def e2e(short: float, long: float, seed: int) -> list[dict[str, float | str]]:
             env, count = bk.build_bare(pos, rng_m, np.zeros(n), senders=n // 2)
             env.run(short)
             n0, t0 = count[0], time.process_time()
-            env.run(long)
+            with quiet_gc():  # as Simulation.run does for the kernel
+                env.run(long)
             bare_us = 1e6 * (time.process_time() - t0) / (count[0] - n0)
             us = 1e6 * (c2 - c1) / (r2 - r1)
             label = "moving 1 m/s" if speed else "static"

@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import ChannelConfig
-from aquasim_py.kernel import Simulation
+from aquasim_py.kernel import Simulation, quiet_gc
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
 
@@ -175,9 +175,8 @@ def run_both(
         sim.run(t)
         c1 = time.process_time()
         wall_k += time.perf_counter() - w0
-        gc.freeze()  # the same garbage-collector treatment Simulation.run gives the kernel
-        env.run(t)
-        gc.unfreeze()
+        with quiet_gc():  # the same garbage-collector treatment Simulation.run gives the kernel
+            env.run(t)
         c2 = time.process_time()
         cpu_k += c1 - c0
         cpu_b += c2 - c1
