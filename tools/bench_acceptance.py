@@ -143,7 +143,7 @@ def plot(points: list[dict[str, float]], path: Path) -> None:
     plt.close(fig)
 
 
-def _scenario(pos: np.ndarray, rng_m: float, speed: float, duration: float, seed: int) -> str:
+def _scenario(pos: np.ndarray, rng_m: float, speed: float, duration: float, seed: int, fmt: str = "csv") -> str:
     """A CLI scenario: the first half of ``pos`` anchors beaconing every PERIOD s, the rest
     listeners; constant sound speed; every node moving at ``speed`` (m/s, horizontal headings)."""
     n = len(pos)
@@ -171,7 +171,7 @@ def _scenario(pos: np.ndarray, rng_m: float, speed: float, duration: float, seed
         f'[channel]\nmax_range_m = {rng_m}\nbitrate_bps = {bk.BITRATE}\ncollision = "destructive"\n\n'
         + group("anchors", "anchor", slice(0, half), f"{{ period_s = {bk.PERIOD}, bits = {bk.BITS} }}")
         + group("sensors", "ordinary", slice(half, n), "{}")
-        + '[trace]\nposition_interval_s = 10.0\nformat = "csv"\n'
+        + f'[trace]\nposition_interval_s = 10.0\nformat = "{fmt}"\n'
     )
 
 
@@ -190,19 +190,23 @@ def _cli_run(scenario: str, out: Path) -> tuple[float, int]:
     )
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    ev = pd.read_csv(out / "packets.csv", usecols=["event"])["event"]
+    if (out / "packets.csv").exists():
+        ev = pd.read_csv(out / "packets.csv", usecols=["event"])["event"]
+    else:
+        ev = pd.read_parquet(out / "packets.parquet", columns=["event"])["event"]
     return cpu, int(ev.isin(["rx", "drop"]).sum())
 
 
-def e2e(short: float, long: float, seed: int) -> list[dict[str, float | str]]:
-    """End-to-end CLI runs against bare SimPy (see the module docstring)."""
+def e2e(short: float, long: float, seed: int, fmt: str = "csv") -> list[dict[str, float | str]]:
+    """End-to-end CLI runs against bare SimPy (see the module docstring), traces written as
+    ``fmt`` ("csv", the default of the scenarios, or "parquet", which needs pyarrow)."""
     n = 200
     pos, rng_m = bk.layout(n, 16.0, seed)
     rows: list[dict[str, float | str]] = []
     with tempfile.TemporaryDirectory() as tmp:
         for speed in (0.0, 1.0):
             (c1, r1), (c2, r2) = (
-                _cli_run(_scenario(pos, rng_m, speed, dur, seed), Path(tmp) / f"run_{speed}_{dur}")
+                _cli_run(_scenario(pos, rng_m, speed, dur, seed, fmt), Path(tmp) / f"run_{speed}_{dur}")
                 for dur in (short, long)
             )
             # bare SimPy: the anchors' deliveries, for the same simulated span
@@ -215,12 +219,12 @@ def e2e(short: float, long: float, seed: int) -> list[dict[str, float | str]]:
             us = 1e6 * (c2 - c1) / (r2 - r1)
             label = "moving 1 m/s" if speed else "static"
             print(
-                f"  e2e {label}: {us:.2f} us per reception ({r2 - r1} receptions), bare {bare_us:.2f} us",
+                f"  e2e {fmt} {label}: {us:.2f} us per reception ({r2 - r1} receptions), bare {bare_us:.2f} us",
                 flush=True,
             )
             rows.append(
                 {
-                    "figure": f"end to end (CLI, 200 beacon nodes), {label}",
+                    "figure": f"end to end (CLI, 200 beacon nodes, {fmt}), {label}",
                     "value": bare_us / us,
                     "unit": "of bare SimPy",
                     "target": ">= 0.15" if speed else ">= 0.2",
@@ -256,6 +260,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--receptions", type=float, default=3e5, help="receptions per scaling point (steady state)")
     ap.add_argument("--kernel-until", type=float, default=50.0, help="simulated s of the 200-node kernel runs")
     ap.add_argument("--e2e", default="10,60", help="short,long durations (s) of the CLI runs")
+    ap.add_argument("--e2e-formats", default="csv", help="trace formats of the CLI runs (csv, parquet)")
     ap.add_argument("--layered-pairs", type=int, default=20_000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--plot", type=Path, default=None, help="PNG of cost per reception vs network size")
@@ -277,7 +282,8 @@ def main(argv: list[str] | None = None) -> int:
     if "e2e" in parts:
         print("end to end ...", flush=True)
         short, long = (float(v) for v in args.e2e.split(","))
-        rows += e2e(short, long, args.seed)
+        for fmt in args.e2e_formats.split(","):
+            rows += e2e(short, long, args.seed, fmt)
     if "layered" in parts:
         print("layered ...", flush=True)
         rows += layered(args.layered_pairs, 3)
