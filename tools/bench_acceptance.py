@@ -124,14 +124,25 @@ def plot(points: list[dict[str, float]], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
-    for speed, style in ((0.0, "o-"), (1.0, "s-")):
+    for speed, marker, colour in ((0.0, "o", "C0"), (1.0, "s", "C1")):
         pts = sorted((p for p in points if p["speed"] == speed), key=lambda p: p["nodes"])
         n = [p["nodes"] for p in pts]
         label = "moving 1 m/s" if speed else "static"
-        ax.plot(n, [p["us_per_reception"] for p in pts], style, label=f"kernel, {label}")
-        ax.plot(n, [p["bare_us_per_delivery"] for p in pts], style, alpha=0.4, label=f"bare SimPy ({label} run)")
+        ax.plot(n, [p["us_per_reception"] for p in pts], marker + "-", color=colour, label=f"kernel, {label}")
+        ax.plot(
+            n,
+            [p["bare_us_per_delivery"] for p in pts],
+            marker + "--",
+            color=colour,
+            alpha=0.5,
+            label=f"bare SimPy ({label} run)",
+        )
+    sizes = sorted({p["nodes"] for p in points})
     ax.set_xscale("log")
     ax.set_yscale("log")
+    ax.set_xticks(sizes, [f"{n:g}" for n in sizes])
+    ax.minorticks_off()
+    ax.set_yticks([2, 5, 10, 20, 50], ["2", "5", "10", "20", "50"])
     ax.set_xlabel("nodes (16 neighbours each)")
     ax.set_ylabel("CPU per reception (us), steady state")
     ax.set_title("Cost per reception vs network size (tools/bench_acceptance.py)")
@@ -265,7 +276,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--plot", type=Path, default=None, help="PNG of cost per reception vs network size")
     ap.add_argument("--json", type=Path, default=None, help="write every figure and scaling point here")
+    ap.add_argument("--replot", type=Path, default=None, help="only redraw --plot from a JSON written by --json")
     args = ap.parse_args(argv)
+    if args.replot is not None:
+        plot(json.loads(args.replot.read_text())["scaling"], args.plot or Path("out/bench/scaling.png"))
+        return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     parts = set(args.only.split(","))
     rows: list[dict[str, float | str]] = []
