@@ -114,10 +114,10 @@ def first_tx_phases(n: int, seed: int) -> np.ndarray:
 
 
 def build_bare(
-    pos: np.ndarray, rng_m: float, phases: np.ndarray, senders: int | None = None, period: float = PERIOD
+    pos: np.ndarray, rng_m: float, phases: np.ndarray, senders: int | None = None
 ) -> tuple[simpy.Environment, list[int]]:
     """The same deliveries with plain SimPy: one process per sending node (the first
-    ``senders``, default all), one timeout per delivery, one transmission per ``period``."""
+    ``senders``, default all), one timeout per delivery."""
     nbrs = neighbour_lists(pos, rng_m)
     n_send = len(pos) if senders is None else senders
     delays = [
@@ -135,7 +135,7 @@ def build_bare(
         while True:
             for dl in delays[i]:
                 env.timeout(dl).callbacks.append(arrive)
-            yield env.timeout(period)
+            yield env.timeout(PERIOD)
 
     for i in range(n_send):
         env.process(node(i))

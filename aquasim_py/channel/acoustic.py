@@ -579,13 +579,11 @@ class AcousticChannel:
         fast = None
         if self._all_moving and v_rx is not None and isinstance(ssp, Constant):
             fast = _straight_moving(ssp, p_src, p_rx, v_rx, t0, lambda t: net.positions_at(cand, t))
-        moving = net.is_moving()[cand] if fast is None else None
         if fast is not None:
             ray = fast
-        elif moving is not None and not moving.any():
+        elif not (moving := net.is_moving()[cand]).any():
             ray = eigenray(ssp, p_src, p_rx, reflections=refl)
         else:
-            assert moving is not None
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
                 v = v_rx if v_rx is not None else self._velocities(cand, t0)

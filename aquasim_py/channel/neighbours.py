@@ -76,34 +76,20 @@ class NeighbourIndex:
         off = self._offsets
         return self._flat[off[src] : off[src + 1]]
 
-    def candidates(
-        self, p_src: NDArray[np.float64], t: float, count: int, positions: Callable[[float], NDArray[np.float64]]
-    ) -> NDArray[np.intp]:
-        """Sorted ids of the nodes that may be within range of the point ``p_src`` (m) at true
-        time ``t`` (s): a superset of the in-range set (a ball query of radius
-        R + v_max (t - t_b); the point itself is exact, only the nodes have moved)."""
-        age = self._refresh(t, count, positions)
-        assert self._tree is not None
-        r = self.range_m + self.max_speed * age
-        r += _REL_SLACK * r + _ABS_SLACK_M
-        return np.asarray(self._tree.query_ball_point(p_src, r, return_sorted=True), dtype=np.intp)
-
-    def _refresh(self, t: float, count: int, positions: Callable[[float], NDArray[np.float64]]) -> float:
-        """Rebuild the tree and the neighbourhoods if too old or the node count changed; the
-        tree's age (s) at ``t``."""
+    def _refresh(self, t: float, count: int, positions: Callable[[float], NDArray[np.float64]]) -> None:
+        """Rebuild the tree and the neighbourhoods if too old or the node count changed."""
         age = t - self._built_at
         if self._tree is None or count != self._count or not (0.0 <= age <= self.staleness_s):
             self._build(positions(t))
-            self._built_at, self._count, age = t, count, 0.0
+            self._built_at, self._count = t, count
             self.rebuilds += 1
-        return age
 
     def _build(self, pos: NDArray[np.float64]) -> None:
         """The tree of ``pos`` (n, 3) and every node's neighbourhood (itself first, then the
         others sorted) as one flat array with offsets: no per-node work at query time."""
         self._tree = tree = cKDTree(pos)
         n = len(pos)
-        reach = self.range_m + 2.0 * self.max_speed * (self.staleness_s if math.isfinite(self.staleness_s) else 0.0)
+        reach = self.range_m + (2.0 * self.max_speed * self.staleness_s if self.max_speed > 0.0 else 0.0)
         reach += _REL_SLACK * reach + _ABS_SLACK_M
         lists = tree.query_ball_point(pos, reach, return_sorted=True)
         lengths = np.fromiter(map(len, lists), dtype=np.intp, count=n)
