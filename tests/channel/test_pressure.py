@@ -11,7 +11,11 @@ import pytest
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import ChannelConfig
-from aquasim_py.channel.pressure import received_pressure, received_pressure_gradient
+from aquasim_py.channel.pressure import (
+    received_pressure,
+    received_pressure_and_gradient,
+    received_pressure_gradient,
+)
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node
 
@@ -29,6 +33,10 @@ def test_pressure_closed_form_and_gradient() -> None:
             for e in np.eye(3)
         ]
         np.testing.assert_allclose(g, fd, rtol=1e-7)
+    for k in (1.0, 1.5, 2.0):  # the fused form: same values to rounding (a few ulp)
+        h, g = received_pressure_and_gradient(src, rx, 5e4, k)
+        assert h == pytest.approx(received_pressure(src, rx, 5e4, k), rel=1e-14)
+        np.testing.assert_allclose(g, received_pressure_gradient(src, rx, 5e4, k), rtol=1e-14)
 
 
 class _Emitter(Node):
