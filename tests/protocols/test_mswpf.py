@@ -157,3 +157,31 @@ def test_shipped_2d_scenario_variants_run() -> None:
     r = aquasim_py.run_scenario("scenarios/mswpf_2d.toml", variant="ew", overrides=["nodes.1.params.steps=10"])  # type: ignore[attr-defined]
     assert r.metrics["mswpf.steps"] == 10
     assert r.scenario.nodes[1].params["weights"] == "ew"
+
+
+@pytest.mark.parametrize("relocalize", [True, False])
+def test_location_error_is_white_when_sensors_relocalize(relocalize: bool) -> None:
+    """Eq 4: a sensor's believed position is its true one plus white noise of std r_x per axis,
+    fresh every interval; the fix of each report is in ``mswpf_reports``. Without relocalizing
+    the error is one draw for the whole run. The sample std of the pooled x / y errors lies in
+    the chi-square 99.9 % interval around r_x."""
+    from scipy.stats import chi2
+
+    rx = 4.0
+    d = _small_network(True)
+    d["nodes"][0]["sensors"]["position_noise_std_m"] = rx
+    d["nodes"][0]["params"]["relocalize"] = relocalize
+    t = _run(d)
+    rep = t["mswpf_reports"]
+    truth = t["positions"].groupby("node")[["x", "y"]].first()
+    err = rep[["x", "y"]].to_numpy() - truth.loc[rep["node"]].to_numpy()
+    per_sensor = rep.groupby("node")[["x", "y"]].nunique().max(axis=1)
+    n_reports = rep.groupby("node").size()
+    assert (n_reports > 1).any()  # some sensor reported more than once
+    if relocalize:
+        assert (per_sensor == n_reports).all()  # a new fix every report
+        n = err.size
+        s = float(np.sqrt(np.mean(err**2)))
+        assert np.sqrt(chi2.ppf(5e-4, n) / n) * rx < s < np.sqrt(chi2.ppf(1 - 5e-4, n) / n) * rx
+    else:
+        assert (per_sensor == 1).all()
