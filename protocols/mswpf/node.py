@@ -112,7 +112,9 @@ class MswpfNode(Node):
         slot0_s: float = Field(0.15, ge=0.0, description="offset of report slot 0 after emission k (s)")
         mi_samples: int = Field(1000, ge=10, description="draws from the task's predicted Gaussian for the MI")
         hello_bits: int = Field(96, ge=1)
-        report_bits: int = Field(96, ge=1, description="step, level, MI and the believed position")
+        report_bits: int = Field(
+            72, ge=1, description="step (8 bits), level (3), MI (16), believed x, y, z (15 each: 3 cm over 1 km)"
+        )
         # fusion centre
         dim: Literal[2, 3] = Field(2, description="2: plane at known depth; 3: full 3-D")
         q: float = Field(1.0, ge=0.0, description="CV process noise density (m^2/s^3)")
