@@ -162,7 +162,8 @@ def quantized_fisher_scale(h: ArrayLike, sigma: ArrayLike, thresholds: ArrayLike
     1/sigma^2 (the unquantized value) as the thresholds get dense."""
     a, t, s = _edge_terms(h, sigma, thresholds, _A_INFO)
     P = _probabilities_first(a, t)
-    phi = np.exp(-0.5 * np.minimum(a * a, _A_MAX**2)) * (_INV_SQRT_2PI * (t > 0.0))  # 0 where the tail is
+    # exponent capped (no subnormals); phi = 0 where the tail was skipped, as at an open edge
+    phi = np.exp(-0.5 * np.minimum(a * a, _A_MAX**2)) * (_INV_SQRT_2PI * (t > 0.0))
     d = np.empty_like(P)  # phi(a_l) - phi(a_{l+1}), with phi(+-inf) = 0
     d[0] = -phi[0]
     np.subtract(phi[:-1], phi[1:], out=d[1:-1])

@@ -20,12 +20,13 @@ Roles (one registered protocol; the behaviour follows the node's role):
   gauge (z). With ``relocalize = true`` (default) it takes a fresh fix for every report, so the
   error of its believed position is white in time, as eq 4 models it (the node drifts with the
   water around its estimate); ``relocalize = false`` keeps the first fix for the whole run (a
-  fixed bias, outside eq 10's model). It sends the position it used with each report. It files every emission's pressure under the interval
+  fixed bias, outside eq 10's model). It files every emission's pressure under the interval
   k = floor((rx_local - start_s) / interval_s) of its local clock (the network is assumed
   synchronized, as the paper's fixed sampling interval is), and when selected for k it
   quantizes the reading to L levels (eq 11), computes its predicted MI from the task's predicted
   position (``mi_samples`` draws from the Gaussian, its own stream; eqs 10, 19-23) and sends
-  (step, level, MI, believed position) to the FC in its TDMA slot (position in the task's list x ``slot_s``).
+  (step, level, MI, the believed position it used) to the FC in its TDMA slot (position in the
+  task's list x ``slot_s``); the FC evaluates eq 25 at the reported positions.
 
 ``ideal_links = true`` reproduces the paper's instantaneous, lossless fusion: hello, task and
 report exchanges bypass the acoustic channel (direct calls between the nodes of the same run,
