@@ -7,7 +7,10 @@ the qualified candidates of the 2-D grid.
     python tools/mswpf_bench.py [--repeat 200]
 
 Prints the minimum and median wall time and CPU time (process_time, robust on a loaded
-machine) per step in ms. Single-threaded numpy (OMP_NUM_THREADS=1) as in the Monte Carlo runs.
+machine) per step in ms, and the same for a fixed reference workload (sorting 2e5 random
+doubles) timed in the same run, interleaved with the steps: its figures say how fast the
+machine was at the time, so that runs on different days or loads can be compared.
+Single-threaded numpy (OMP_NUM_THREADS=1) as in the Monte Carlo runs.
 """
 
 from __future__ import annotations
@@ -41,8 +44,12 @@ def time_step(repeat: int = 200, L: int = 8) -> dict[str, float]:
     tr, sensors, loc = setup(L)
     sel = np.array([30, 31, 39])  # three sensors around (300, 310)
     levels = np.array([3, 4, 2])
-    wall, cpu, swall, scpu = [], [], [], []
+    wall, cpu, swall, scpu, rcpu = [], [], [], [], []
+    ref = np.random.default_rng(2).random(200_000)
     for _ in range(repeat):
+        c0 = time.process_time()
+        np.sort(ref)
+        rcpu.append(time.process_time() - c0)
         tr.predicted[:, :2] = np.random.default_rng(1).normal([300.0, 310.0], 5.0, (len(tr.predicted), 2))
         w0, c0 = time.perf_counter(), time.process_time()
         _, infos = tr.select(sensors, loc)  # the FC selects before the step; its FIMs are reused
@@ -61,6 +68,8 @@ def time_step(repeat: int = 200, L: int = 8) -> dict[str, float]:
         "step_cpu_median_ms": ms * float(np.median(cpu)),
         "select_wall_median_ms": ms * float(np.median(swall)),
         "select_cpu_median_ms": ms * float(np.median(scpu)),
+        "reference_cpu_min_ms": ms * min(rcpu),
+        "reference_cpu_median_ms": ms * float(np.median(rcpu)),
     }
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["received_pressure", "received_pressure_gradient"]
+__all__ = ["received_pressure", "received_pressure_and_gradient", "received_pressure_gradient"]
 
 Array = NDArray[np.float64]
 
@@ -24,6 +24,15 @@ def received_pressure(src: ArrayLike, rx: ArrayLike, source_level: float, expone
 
 def received_pressure_gradient(src: ArrayLike, rx: ArrayLike, source_level: float, exponent: float = 1.0) -> Array:
     """dh/d src (..., 3): -k S (src - rx) / D^(k+2). The gradient w.r.t. rx is its negative."""
+    return received_pressure_and_gradient(src, rx, source_level, exponent)[1]
+
+
+def received_pressure_and_gradient(
+    src: ArrayLike, rx: ArrayLike, source_level: float, exponent: float = 1.0
+) -> tuple[Array, Array]:
+    """h (...) and dh/d src (..., 3) = -k h (src - rx) / D^2 together, sharing the distance
+    terms (a particle filter needs both for every particle)."""
     d = np.asarray(src, dtype=float) - np.asarray(rx, dtype=float)
-    d2 = np.einsum("...i,...i->...", d, d)
-    return np.asarray(-exponent * source_level * d / (d2 ** (0.5 * exponent + 1.0))[..., None], dtype=float)
+    d2 = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
+    h = source_level / (np.sqrt(d2) if exponent == 1.0 else d2 ** (0.5 * exponent))
+    return h, (-exponent * h / d2)[..., None] * d

@@ -42,6 +42,7 @@ from .quantized import (
     quantize,
     quantized_fisher_scale,
     quantized_log_likelihood,
+    quantized_mutual_information,
 )
 
 __all__ = [
@@ -86,6 +87,7 @@ __all__ = [
     "quantize",
     "quantized_fisher_scale",
     "quantized_log_likelihood",
+    "quantized_mutual_information",
     "resample",
     "residual_resample",
     "sir_update",

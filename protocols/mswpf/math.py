@@ -20,17 +20,16 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from aquasim_py.channel.pressure import received_pressure, received_pressure_gradient
+from aquasim_py.channel.pressure import received_pressure_and_gradient
 from aquasim_py.estimation import (
     ConstantVelocityModel,
     best_subset,
-    level_probabilities,
-    mutual_information,
     particle_information,
     predicted_information,
     propagate,
     quantized_fisher_scale,
     quantized_log_likelihood,
+    quantized_mutual_information,
     sir_update,
 )
 
@@ -80,7 +79,7 @@ def sensor_model(targets: ArrayLike, sensors: ArrayLike, source_level: float, ex
     for target positions (N, 3)."""
     P = np.asarray(targets, dtype=float)[None, :, :]
     Sp = np.asarray(sensors, dtype=float)[:, None, :]
-    return received_pressure(P, Sp, source_level, exponent), received_pressure_gradient(P, Sp, source_level, exponent)
+    return received_pressure_and_gradient(P, Sp, source_level, exponent)
 
 
 def equivalent_std(r: float, grad: ArrayLike, loc_std: ArrayLike) -> Array:
@@ -104,7 +103,7 @@ def sensor_mi(
     equally weighted predicted target positions (N, 3) (eqs 10, 12, 19-23): (S,)."""
     h, g = sensor_model(targets, sensors, source_level, exponent)
     rm = equivalent_std(r, g, loc_std)
-    return mutual_information(level_probabilities(h, rm, gammas))
+    return quantized_mutual_information(h, rm, gammas)
 
 
 def fusion_weights(mi: ArrayLike, scheme: WeightScheme) -> Array:
@@ -167,6 +166,7 @@ class MswpfTracker:
     def __init__(self, cfg: MswpfConfig, x0: ArrayLike, P0: ArrayLike, rng: np.random.Generator) -> None:
         self.cfg = cfg
         self.model = ConstantVelocityModel(dim=cfg.dim, dt=cfg.T, q=cfg.q)
+        self.F, self.Q = self.model.F, self.model.Q  # built once (the model rebuilds them per access)
         self.rng = rng
         x0 = np.asarray(x0, dtype=float)
         P0 = np.asarray(P0, dtype=float)
@@ -222,9 +222,9 @@ class MswpfTracker:
         """Particles and prior information two intervals ahead (for a network whose task must
         leave before the next fusion): the next prediction moved once more, and
         (Q + F (J_prior + expected info of the sensors already tasked)^-1 F^T)^-1."""
-        X2 = propagate(self.predicted, self.model.transition, self.model.Q, self.rng)
+        X2 = propagate(self.predicted, self.model.transition, self.Q, self.rng)
         J1 = self.J_prior + np.asarray(infos, dtype=float).reshape(-1, self.model.n, self.model.n).sum(axis=0)
-        return X2, predicted_information(J1, self.model.F, self.model.Q)
+        return X2, predicted_information(J1, self.F, self.Q)
 
     def mi(self, sensors: ArrayLike, loc_std: ArrayLike) -> Array:
         """Predicted MI of sensors from the predicted particles (what the fusion centre would
@@ -269,8 +269,8 @@ class MswpfTracker:
             cov = (D * w[:, None]).T @ D
         self.mean, self.cov = mean, cov
         J_post = self.J_prior + info_sum
-        self.J_prior = predicted_information(J_post, self.model.F, self.model.Q)
+        self.J_prior = predicted_information(J_post, self.F, self.Q)
         self.J_post = J_post
-        self.predicted = propagate(Xr, self.model.transition, self.model.Q, self.rng)
+        self.predicted = propagate(Xr, self.model.transition, self.Q, self.rng)
         self.logw = lw
         return alpha, mean, cov

@@ -16,13 +16,17 @@ Roles (one registered protocol; the behaviour follows the node's role):
   predicts k+1, selects and broadcasts the task of k+1. Missing reports (late, lost, collided)
   are simply absent from the product of eq 25 and from the PCRLB information.
 - any other role: a sensor. Its believed position is its own position fix (x, y from
-  ``known_position()``, noise std = the group's ``sensors.position_noise_std_m``, drawn once at
-  start) and its depth gauge (z). It files every emission's pressure under the interval
+  ``known_position()``, noise std = the group's ``sensors.position_noise_std_m``) and its depth
+  gauge (z). With ``relocalize = true`` (default) it takes a fresh fix for every report, so the
+  error of its believed position is white in time, as eq 4 models it (the node drifts with the
+  water around its estimate); ``relocalize = false`` keeps the first fix for the whole run (a
+  fixed bias, outside eq 10's model). It files every emission's pressure under the interval
   k = floor((rx_local - start_s) / interval_s) of its local clock (the network is assumed
   synchronized, as the paper's fixed sampling interval is), and when selected for k it
   quantizes the reading to L levels (eq 11), computes its predicted MI from the task's predicted
   position (``mi_samples`` draws from the Gaussian, its own stream; eqs 10, 19-23) and sends
-  (step, level, MI) to the FC in its TDMA slot (position in the task's list x ``slot_s``).
+  (step, level, MI, the believed position it used) to the FC in its TDMA slot (position in the
+  task's list x ``slot_s``); the FC evaluates eq 25 at the reported positions.
 
 ``ideal_links = true`` reproduces the paper's instantaneous, lossless fusion: hello, task and
 report exchanges bypass the acoustic channel (direct calls between the nodes of the same run,
@@ -104,12 +108,15 @@ class MswpfNode(Node):
         location_std_m: float | None = Field(
             None, ge=0.0, description="the sensor's stated fix accuracy r_x = r_y (m); None: its fix's spec"
         )
+        relocalize: bool = Field(True, description="fresh position fix per report (eq 4's white error); false: one fix")
         hello_slot_s: float = Field(0.5, gt=0.0, description="hello TDMA slot per node id (s)")
         slot_s: float = Field(0.22, gt=0.0, description="report TDMA slot (s), from start + k T + slot0_s")
         slot0_s: float = Field(0.15, ge=0.0, description="offset of report slot 0 after emission k (s)")
         mi_samples: int = Field(1000, ge=10, description="draws from the task's predicted Gaussian for the MI")
         hello_bits: int = Field(96, ge=1)
-        report_bits: int = Field(48, ge=1)
+        report_bits: int = Field(
+            72, ge=1, description="step (8 bits), level (3), MI (16), believed x, y, z (15 each: 3 cm over 1 km)"
+        )
         # fusion centre
         dim: Literal[2, 3] = Field(2, description="2: plane at known depth; 3: full 3-D")
         q: float = Field(1.0, ge=0.0, description="CV process noise density (m^2/s^3)")
@@ -167,8 +174,7 @@ class MswpfNode(Node):
         p = self.params
         if p.fusion_center is None:
             raise ValueError(f"mswpf sensor {self.id}: params.fusion_center (the FC's node id) is required")
-        fix = self.known_position()
-        self.believed = np.array([fix[0], fix[1], self.depth()])
+        self.believed = self._fix()
         self.location_std = p.location_std_m if p.location_std_m is not None else self.position_fix_std()
         self._readings: list[tuple[float, float]] = []  # (rx_local, pressure), the latest few
         self._tasks: dict[int, _Task] = {}
@@ -191,6 +197,11 @@ class MswpfNode(Node):
                     self._try(k)
             else:
                 self.on_task(rec.packet.payload)
+
+    def _fix(self) -> np.ndarray:
+        """Believed position: x, y of the own position fix, z of the depth gauge."""
+        fix = self.known_position()
+        return np.array([fix[0], fix[1], self.depth()])
 
     def _hello(self) -> Generator[Any, Any, Any]:
         p = self.params
@@ -226,30 +237,39 @@ class MswpfNode(Node):
         p = self.params
         S, kexp, r, gam = task.model
         level = int(quantize(z, gam))
+        if p.relocalize:
+            self.believed = self._fix()
+        pos = tuple(self.believed.tolist())
         if task.particles is not None:
             targets = task.particles
         else:
             assert task.mean is not None and task.cov is not None
             targets = self.rng.multivariate_normal(task.mean, task.cov, size=p.mi_samples, method="eigh")
         mi = float(sensor_mi(targets, self.believed[None, :], [self.location_std], S, kexp, r, gam)[0])
+        self.log("mswpf_reports", step=k, level=level, mi=mi, x=pos[0], y=pos[1], z=pos[2])
         if self.ideal:
-            self._wire().fc.on_report(self.id, k, level, mi)
+            self._wire().fc.on_report(self.id, k, level, mi, pos)
         else:
             start, T = task.timing
             due = start + k * T + p.slot0_s + task.ids.index(self.id) * p.slot_s
-            self.env.process(self._report(max(0.0, due - self.local_time()), k, level, mi))
+            self.env.process(self._report(max(0.0, due - self.local_time()), (k, level, mi, pos)))
 
-    def _report(self, wait: float, k: int, level: int, mi: float) -> Generator[Any, Any, Any]:
+    def _report(self, wait: float, payload: tuple[int, int, float, tuple[float, ...]]) -> Generator[Any, Any, Any]:
         p = self.params
         if wait > 0.0:
             yield self.sleep(wait)
         assert p.fusion_center is not None
-        yield self.send(p.fusion_center, REPORT, (k, level, mi), p.report_bits)
+        yield self.send(p.fusion_center, REPORT, payload, p.report_bits)
 
     # -- fusion centre ----------------------------------------------------------------------------
 
-    def on_report(self, sid: int, k: int, level: int, mi: float) -> None:
-        self._reports.setdefault(k, {})[sid] = (level, mi)
+    def on_report(self, sid: int, k: int, level: int, mi: float, pos: tuple[float, ...]) -> None:
+        """A sensor's report of step k; its position is also the FC's latest belief of where the
+        sensor is (for later selections)."""
+        p = np.asarray(pos, dtype=float)
+        self._reports.setdefault(k, {})[sid] = (level, mi, p)
+        if sid in self._known:
+            self._known[sid] = (p, self._known[sid][1])
 
     def _listen(self) -> Generator[Any, Any, Any]:
         while True:
@@ -259,8 +279,8 @@ class MswpfNode(Node):
                 pos, std = rec.packet.payload
                 self._known[src] = (np.asarray(pos, dtype=float), float(std))
             else:
-                k, level, mi = rec.packet.payload
-                self.on_report(src, int(k), int(level), float(mi))
+                k, level, mi, pos = rec.packet.payload
+                self.on_report(src, int(k), int(level), float(mi), pos)
 
     def _fusion_centre(self) -> Generator[Any, Any, Any]:
         p = self.params
@@ -286,7 +306,7 @@ class MswpfNode(Node):
         self._timing = (p.start_s, p.interval_s)
         tracker = MswpfTracker(cfg, p.x0, p.p0_var * np.eye(n), self.rng)
         self._known: dict[int, tuple[np.ndarray, float]] = {}
-        self._reports: dict[int, dict[int, tuple[int, float]]] = {}
+        self._reports: dict[int, dict[int, tuple[int, float, np.ndarray]]] = {}
         self._wire().fc = self  # declares the link mode to the sensors (see _sensor)
         wire = self._wire() if p.ideal_links else None
         if wire is None:
@@ -314,7 +334,7 @@ class MswpfNode(Node):
             got = self._reports.pop(k, {})
             ids = [s for s in selected if s in got]
             rows = [selected.index(s) for s in ids]
-            pos = np.array([self._known[s][0] for s in ids]).reshape(-1, 3)
+            pos = np.array([got[s][2] for s in ids]).reshape(-1, 3)
             std = np.array([self._known[s][1] for s in ids])
             levels = np.array([got[s][0] for s in ids], dtype=np.int64)
             mi = np.array([got[s][1] for s in ids])

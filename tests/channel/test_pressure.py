@@ -11,7 +11,11 @@ import pytest
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import ChannelConfig
-from aquasim_py.channel.pressure import received_pressure, received_pressure_gradient
+from aquasim_py.channel.pressure import (
+    received_pressure,
+    received_pressure_and_gradient,
+    received_pressure_gradient,
+)
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node
 
@@ -21,7 +25,7 @@ def test_pressure_closed_form_and_gradient() -> None:
     D2 = 30.0**2 + 40.0**2 + 50.0**2
     assert received_pressure(src, rx, 5e4, 1.0) == pytest.approx(5e4 / math.sqrt(D2), rel=1e-15)
     assert received_pressure(src, rx, 5e6, 2.0) == pytest.approx(5e6 / D2, rel=1e-15)
-    for k in (1.0, 2.0):
+    for k in (1.0, 1.5, 2.0):  # 1: the sqrt branch; others: the power
         g = received_pressure_gradient(src, rx, 5e4, k)
         eps = 1e-4  # central differences: error ~ eps^2 h''' ~ 1e-10 relative here
         fd = [
@@ -29,6 +33,9 @@ def test_pressure_closed_form_and_gradient() -> None:
             for e in np.eye(3)
         ]
         np.testing.assert_allclose(g, fd, rtol=1e-7)
+    for k in (1.0, 1.5, 2.0):  # the fused form's h: the same to rounding (a few ulp)
+        h, _ = received_pressure_and_gradient(src, rx, 5e4, k)
+        assert h == pytest.approx(received_pressure(src, rx, 5e4, k), rel=1e-14)
 
 
 class _Emitter(Node):

@@ -18,6 +18,7 @@ from aquasim_py.estimation import (
     quantize,
     quantized_fisher_scale,
     quantized_log_likelihood,
+    quantized_mutual_information,
 )
 
 
@@ -82,3 +83,16 @@ def test_binary_fisher_closed_form_and_dense_limit() -> None:
     # dense thresholds (step 0.02 sigma): the unquantized 1/sigma^2, up to ~step^2/12 relative
     g = np.arange(-40.0, 40.0, 0.04)
     assert quantized_fisher_scale(0.3, 2.0, g) == pytest.approx(0.25, rel=1e-3)
+
+
+def test_fused_mi_equals_mi_of_the_level_probabilities() -> None:
+    """quantized_mutual_information skips edges beyond 12 sigma (bins of probability < 2e-33):
+    it must equal eq 23 on the full level probabilities to ~1e-30 nats, also for particles
+    spread over many bins and for a sensor whose particles all sit deep inside one bin."""
+    rng = np.random.default_rng(4)
+    g = np.linspace(300.0, 1000.0, 8)
+    h = np.stack([rng.uniform(200, 1100, 500), rng.normal(650.0, 3.0, 500), rng.normal(300.0, 4.0, 500)])
+    s = rng.uniform(2.0, 8.0, h.shape)
+    ref = mutual_information(level_probabilities(h, s, g))
+    np.testing.assert_allclose(quantized_mutual_information(h, s, g), ref, rtol=0, atol=1e-25)
+    assert ref[0] > 1.0 and ref[1] < 1e-6  # many bins vs one: the cases differ

@@ -157,3 +157,82 @@ def test_shipped_2d_scenario_variants_run() -> None:
     r = aquasim_py.run_scenario("scenarios/mswpf_2d.toml", variant="ew", overrides=["nodes.1.params.steps=10"])  # type: ignore[attr-defined]
     assert r.metrics["mswpf.steps"] == 10
     assert r.scenario.nodes[1].params["weights"] == "ew"
+
+
+@pytest.mark.parametrize("relocalize", [True, False])
+def test_location_error_is_white_when_sensors_relocalize(relocalize: bool) -> None:
+    """Eq 4: a sensor's believed position is its true one plus white noise of std r_x per axis,
+    fresh every interval; the fix of each report is in ``mswpf_reports``. Without relocalizing
+    the error is one draw for the whole run. The sample std of the pooled x / y errors lies in
+    the chi-square 99.9 % interval around r_x."""
+    from scipy.stats import chi2
+
+    rx = 4.0
+    d = _small_network(True)
+    d["nodes"][0]["sensors"]["position_noise_std_m"] = rx
+    d["nodes"][0]["params"]["relocalize"] = relocalize
+    t = _run(d)
+    rep = t["mswpf_reports"]
+    truth = t["positions"].groupby("node")[["x", "y"]].first()
+    err = rep[["x", "y"]].to_numpy() - truth.loc[rep["node"]].to_numpy()
+    per_sensor = rep.groupby("node")[["x", "y"]].nunique().max(axis=1)
+    n_reports = rep.groupby("node").size()
+    assert (n_reports > 1).any()  # some sensor reported more than once
+    if relocalize:
+        assert (per_sensor == n_reports).all()  # a new fix every report
+        n = err.size
+        s = float(np.sqrt(np.mean(err**2)))
+        assert np.sqrt(chi2.ppf(5e-4, n) / n) * rx < s < np.sqrt(chi2.ppf(1 - 5e-4, n) / n) * rx
+    else:
+        assert (per_sensor == 1).all()
+
+
+def test_pcrlb_selection_is_the_brute_force_det_j_maximizer() -> None:
+    """Eqs 32-36 end to end: the tracker's choice of Ns = 3 among the qualified candidates is
+    the subset a brute force picks by det(J^P + sum of the subset's J^D), with each sensor's
+    J^D computed independently: E over particles of sum_l grad P_l grad P_l^T / P_l, grad P_l
+    by central differences of eq 12 in the target position (r_x = 0, so r_m = r exactly)."""
+    import itertools
+
+    from aquasim_py.estimation import level_probabilities
+    from aquasim_py.protocols.mswpf.math import MswpfConfig, MswpfTracker, thresholds
+
+    gam = thresholds(6, 5e4, 1.0, 50.0, 160.0)
+    tr = MswpfTracker(
+        MswpfConfig(gammas=tuple(gam), n_particles=300),
+        [300.0, 310.0, 10.0, 10.0],
+        60 * np.eye(4),
+        np.random.default_rng(5),
+    )
+    g = np.arange(0.0, 1000.0, 120.0)
+    sensors = np.array([[x, y, 100.0] for x in g for y in g])
+    loc = np.zeros(len(sensors))
+    idx, _ = tr.select(sensors, loc)
+
+    P = tr.positions()
+    cand = np.flatnonzero(np.linalg.norm(sensors - P.mean(axis=0), axis=1) <= 160.0)
+    assert len(cand) > 3  # a real choice
+
+    def probs(pos: np.ndarray, s: np.ndarray) -> np.ndarray:
+        return level_probabilities(5e4 / np.linalg.norm(pos - s, axis=1), 5.0, gam)
+
+    eps = 1e-3
+    J_D = []
+    for c in cand:
+        p0 = probs(P, sensors[c])
+        grads = [(probs(P + eps * e, sensors[c]) - probs(P - eps * e, sensors[c])) / (2 * eps) for e in np.eye(3)[:2]]
+        G = np.stack(grads, axis=-1)  # (N, L, 2)
+        ok = p0 > 1e-300
+        I = np.einsum(
+            "nla,nlb->ab", np.where(ok[..., None], G, 0.0) / np.sqrt(np.where(ok, p0, 1.0))[..., None], G
+        ) / len(P)
+        full = np.zeros((4, 4))
+        full[:2, :2] = I
+        J_D.append(full)
+    dets = {
+        sub: np.linalg.det(tr.J_prior + sum(J_D[i] for i in sub)) for sub in itertools.combinations(range(len(cand)), 3)
+    }
+    best = max(dets, key=lambda k: dets[k])
+    ranked = sorted(dets.values(), reverse=True)
+    assert ranked[0] > ranked[1] * (1 + 1e-6)  # the maximizer is clear of the finite-difference error
+    assert sorted(idx.tolist()) == sorted(cand[list(best)].tolist())
