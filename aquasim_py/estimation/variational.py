@@ -23,11 +23,15 @@ from typing import cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import DegenerateGeometryError, InsufficientMeasurementsError
+from .lsq import multilaterate, multilateration_covariance
+
 __all__ = [
     "POS",
     "STVFPrior",
     "VariationalResult",
     "gamma_update",
+    "initial_fix",
     "initial_prior",
     "localization_confidence",
     "mean_update",
@@ -131,6 +135,34 @@ def initial_prior(position: ArrayLike, std: float) -> tuple[NDArray[np.float64],
     p = np.asarray(position, float)
     mu = np.array([p[0], 0.0, p[1], 0.0])
     return mu, np.eye(4) / std**2
+
+
+def initial_fix(
+    refs: ArrayLike, ranges: ArrayLike, rel_std: float, max_std: float, range_m: float
+) -> NDArray[np.float64] | None:
+    """A coarse (x, y) (m) for :func:`initial_prior` with std ``max_std``, or None when the
+    references cannot give one that good.
+
+    The linear multilateration fix on ``ranges`` (m) to ``refs`` (N, 2), kept only if (a) its
+    first-order covariance for range errors of std ``rel_std`` x range has std at most
+    ``max_std`` in its worst direction (q(mu_0) is isotropic; references near one line, which
+    Sec. 3.1 excludes, make the fix a possible mirror image and that std large), and (b) it
+    lies within ``range_m`` of every reference, up to 3 std of the range error and of the
+    fix's own error, since a node hears only references in range."""
+    refs = np.asarray(refs, float)
+    r = np.asarray(ranges, float)
+    try:
+        fix = multilaterate(refs, r)
+        cov = multilateration_covariance(refs, r, rel_std * r)
+    except (DegenerateGeometryError, InsufficientMeasurementsError):
+        return None
+    worst = float(np.linalg.eigvalsh(cov)[-1])
+    if worst > max_std**2:
+        return None
+    # its distance to a reference is uncertain by the range error and the fix's own error
+    if np.any(np.linalg.norm(refs - fix, axis=1) > range_m + 3.0 * np.sqrt((rel_std * range_m) ** 2 + worst)):
+        return None
+    return fix
 
 
 def _sample_gaussian(
