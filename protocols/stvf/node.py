@@ -75,7 +75,9 @@ class StvfParams(BaseModel):
     first_fix_refs: int = Field(
         3, ge=1, description="references needed to start the filter (prior from multilateration)"
     )
-    initial_std_m: float = Field(10.0, gt=0, description="std of q(mu_0) around a first fix (m)")
+    initial_std_m: float = Field(
+        10.0, gt=0, description="std of q(mu_0) around a first fix, and the most a fix may have in any direction (m)"
+    )
     keep_prior_across_gaps: bool = Field(
         False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting"
     )
