@@ -101,7 +101,7 @@ def test_refined_multilateration_matches_scipy_least_squares() -> None:
 
 
 def test_multilateration_covariance_matches_monte_carlo() -> None:
-    """First-order covariance of the linear fix against the sample covariance of 20 000 fixes
+    """First-order covariance of the linear fix against the sample covariance of 5 000 fixes
     from noisy ranges. The noise (0.1 m at 30-60 m) keeps the second-order bias below 1e-3 of
     the covariance; the sample covariance's own error is about sqrt(2 / 5000) = 2 %, so 8 %
     per entry (of the largest entry) is four of its standard errors."""
