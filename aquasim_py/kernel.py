@@ -386,6 +386,8 @@ class Simulation:
             loss_model=loss_model,
             streams=self.rng,
         )
+        # rows reach the packets table out of time order; the channel says which can still come
+        self.trace.table("packets").order_by_time(self.channel.packets_watermark)
         self.nodes: list[Node] = []
         self.groups: list[Group] = []
         self._cores: list[_NodeCore] = []

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -56,6 +56,7 @@ __all__ = [
     "summarize_runs",
     "sync_error_stats",
     "sync_errors",
+    "tables_read",
     "unknown_nodes",
 ]
 
@@ -220,21 +221,69 @@ def _fmt_pct(p: float) -> str:
     return f"{p:g}".replace(".", "_")
 
 
-def packet_counts(packets: pd.DataFrame | None) -> dict[str, int]:
-    """Packets sent (tx), received (rx) and dropped, the drops also split by ``reason``."""
+def packet_counts(packets: pd.DataFrame | Iterable[pd.DataFrame] | None) -> dict[str, int]:
+    """Packets sent (tx), received (rx) and dropped, the drops also split by ``reason``.
+
+    ``packets``: the ``packets`` table, or its ``event`` / ``reason`` columns in chunks
+    (:meth:`aquasim_py.trace.TraceFiles.chunks`), so that a long run's table need not be
+    held at once."""
     out = {"sent": 0, "received": 0, "dropped": 0}
-    if packets is None or len(packets) == 0:
+    if packets is None:
         return out
-    ev = packets["event"].astype(str)
-    out["sent"] = int((ev == "tx").sum())
-    out["received"] = int((ev == "rx").sum())
-    drops = packets[ev == "drop"]
-    out["dropped"] = len(drops)
-    if len(drops) and "reason" in drops.columns:
-        reasons = drops["reason"].fillna("unknown").astype(str).replace("", "unknown")
-        for reason, n in sorted(reasons.value_counts().items()):
-            out[f"dropped.{reason}"] = int(n)
+    reasons: dict[str, int] = {}
+    for chunk in [packets] if isinstance(packets, pd.DataFrame) else packets:
+        if len(chunk) == 0:
+            continue
+        ev = chunk["event"].astype(str)
+        out["sent"] += int((ev == "tx").sum())
+        out["received"] += int((ev == "rx").sum())
+        drops = chunk[ev == "drop"]
+        out["dropped"] += len(drops)
+        if len(drops) and "reason" in drops.columns:
+            why = drops["reason"].fillna("unknown").astype(str).replace("", "unknown")
+            for reason, n in why.value_counts().items():
+                reasons[str(reason)] = reasons.get(str(reason), 0) + int(n)
+    for reason in sorted(reasons):
+        out[f"dropped.{reason}"] = reasons[reason]
     return out
+
+
+#: the tables the generic metrics of :func:`summarize` read
+GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes")
+
+
+def tables_read(protocols: Iterable[type]) -> set[str] | None:
+    """The trace tables :func:`summarize` and the protocols' ``metrics`` / ``derived_tables``
+    / ``report`` read: the generic ones and each protocol's ``trace_tables``; None when a
+    protocol does not say (then every table)."""
+    out = set(GENERIC_TABLES)
+    for cls in protocols:
+        declared = getattr(cls, "trace_tables", None)
+        if declared is None:
+            return None
+        out.update(declared)
+    return out
+
+
+class _AfterWarmup(Mapping[str, Any]):
+    """``tables`` with the ``estimates`` and ``clocks`` rows before ``t0`` (s) left out, each
+    table filtered when asked for (a lazily read trace stays lazy)."""
+
+    def __init__(self, tables: Mapping[str, Any], t0: float) -> None:
+        self._tables, self._t0 = tables, t0
+
+    def __getitem__(self, name: str) -> Any:
+        v = self._tables[name]
+        return _after(v, self._t0) if name in ("estimates", "clocks") else v
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._tables
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._tables)
+
+    def __len__(self) -> int:
+        return len(self._tables)
 
 
 def positions_at(positions: pd.DataFrame, node: ArrayLike, time: ArrayLike) -> NDArray[np.float64]:
@@ -294,10 +343,12 @@ def summarize(
     metrics and the protocols' alike (one time window for every family).
     """
     out: dict[str, float] = {}
-    for k, v in packet_counts(tables.get("packets")).items():
+    chunks = getattr(tables, "chunks", None)  # a streamed run's files: count without loading
+    packets = chunks("packets", ["event", "reason"]) if chunks is not None and "packets" in tables else None
+    for k, v in packet_counts(packets if packets is not None else tables.get("packets")).items():
         out[f"packets.{k}"] = v
     if warmup_s > 0:
-        tables = {k: _after(v, warmup_s) if k in ("estimates", "clocks") else v for k, v in tables.items()}
+        tables = _AfterWarmup(tables, warmup_s)
     est = tables.get("estimates")
     nodes = tables.get("nodes")
     if nodes is not None and len(nodes) == 0:

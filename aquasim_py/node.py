@@ -151,7 +151,8 @@ class Node:
 
     Public attributes: ``id`` (int), ``role`` (:class:`Role`), ``params`` (an instance of the
     class's ``Params`` model), ``rng`` (this node's own numpy Generator), ``env`` (a
-    :class:`NodeEnv`). Class attributes for the registry: ``name``, ``Params``, ``metrics``.
+    :class:`NodeEnv`). Class attributes for the registry: ``name``, ``Params``, ``metrics``
+    (and ``trace_tables``, the tables it reads).
     """
 
     name: ClassVar[str] = "node"
@@ -163,6 +164,12 @@ class Node:
     #: receptions buffered by the modem while the protocol is not listening; the oldest are
     #: discarded beyond this (None = unbounded)
     inbox_capacity: ClassVar[int | None] = 4096
+
+    #: the trace tables this protocol's ``metrics``, ``derived_tables`` and ``report`` read.
+    #: A run keeps a table that ``[trace] tables`` does not write only when some reader needs
+    #: it (streamed to a scratch file; otherwise its rows are dropped as they come). None =
+    #: every table (safe, the default); reading a table not kept raises ``TableNotKept``.
+    trace_tables: ClassVar[tuple[str, ...] | None] = None
 
     def __init__(self, core: Any) -> None:
         # Everything with ground truth in it sits behind this one name-mangled attribute.

@@ -14,7 +14,9 @@ Every output directory the tool writes carries a manifest, :data:`MANIFEST`
   even then only the files this run writes are replaced;
 * every staging directory holds a marker, :data:`STAGING_MARKER`, with the owning process id;
   staging directories whose owner is dead (a SIGKILL, a power cut) are removed by the next run
-  that stages in the same place. Nothing without a marker is ever removed.
+  that stages in the same place. Nothing without a marker is ever removed. The scratch
+  directories of trace tables only metrics read (:func:`scratch_dir`, in ``TMPDIR``) follow
+  the same rule.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import signal
 import socket
 import tempfile
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path, PurePosixPath
@@ -40,6 +43,7 @@ __all__ = [
     "clean_stale",
     "is_own_output",
     "record_files",
+    "scratch_dir",
     "staged_output",
 ]
 
@@ -190,6 +194,28 @@ def clean_stale(where: Path) -> list[Path]:
         shutil.rmtree(p, ignore_errors=True)
         removed.append(p)
     return removed
+
+
+SCRATCH_PREFIX = ".aquasim-trace.tmp-"
+
+
+def scratch_dir() -> Path:
+    """A new private directory for a run's trace tables that nobody asked to keep (the ones
+    only metrics read), in the system's temporary directory (``TMPDIR``). It carries a staging
+    marker, so that one left by a killed run is removed by the next run (:func:`clean_stale`).
+    A kill between making it and marking it (or while removing it, after the marker) leaves
+    it empty and unmarked: such a one, older than a minute, is removed too (``rmdir`` only
+    removes an empty directory, and a live run marks its own within microseconds)."""
+    where = Path(tempfile.gettempdir())
+    clean_stale(where)
+    now = time.time()
+    for p in where.glob(SCRATCH_PREFIX + "*"):
+        with suppress(OSError):
+            if now - p.lstat().st_mtime > 60.0 and not p.is_symlink():
+                p.rmdir()
+    d = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=where))
+    (d / STAGING_MARKER).write_text(json.dumps(_marker()))
+    return d
 
 
 # --------------------------------------------------------------------------- staging

@@ -22,9 +22,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -42,8 +44,11 @@ __all__ = [
     "RunResult",
     "check_output_format",
     "compare",
+    "execute",
     "json_safe",
+    "relocate_results",
     "run_scenario",
+    "run_staged",
     "run_variants",
     "staged_output",
     "write_comparison",
@@ -59,14 +64,16 @@ Progress = bool | ProgressFn | None
 class RunResult:
     """One finished run: its trace tables, metrics and the exact scenario that produced them.
 
-    ``tables``: trace table name -> DataFrame (every table the run produced, whatever
-    ``[trace] tables`` selects for writing); ``metrics``: summary metrics (name -> number);
+    ``tables``: trace table name -> DataFrame, read from the files the run streamed when first
+    asked for (:class:`~aquasim_py.trace.TraceFiles`): the tables ``[trace] tables`` selects
+    and those the metrics read (the latter from a scratch directory that lives as long as this
+    result); a table neither needed was not kept. ``metrics``: summary metrics (name -> number);
     ``scenario``: the resolved scenario (defaults, variant, overrides and seed applied);
     ``variant``: the variant's name, or None for the file as written.
     """
 
     scenario: Scenario
-    tables: dict[str, pd.DataFrame]
+    tables: Mapping[str, pd.DataFrame]
     metrics: dict[str, Any]
     wall_time_s: float
     variant: str | None = None
@@ -148,20 +155,34 @@ class RunResult:
 
     def write_into(self, directory: str | Path, *, final: str | Path | None = None) -> None:
         """Write the outputs into an existing directory, unstaged. ``final``: the directory the
-        outputs will end up in (recorded as ``output.directory``); default ``directory``."""
-        from aquasim_py.trace import write_frames
+        outputs will end up in (recorded as ``output.directory``); default ``directory``.
+
+        A table the run already streamed into ``directory`` stays as it is; one streamed
+        elsewhere is copied (converted when its file format differs)."""
+        from aquasim_py.trace import TraceFiles, write_frames
 
         directory = Path(directory)
         final = Path(final) if final is not None else directory
         self.scenario.output.directory = str(final)  # the resolved scenario says where its outputs went
         self.out = final
         wanted = self.scenario.trace.tables
-        selected = self.tables if wanted is None else {k: v for k, v in self.tables.items() if k in wanted}
-        write_frames({**selected, **self.derived_tables()}, directory, self.scenario.trace.format)
+        fmt = self.scenario.trace.format
+        frames: dict[str, Any] = {}
+        for name in self.tables:
+            if wanted is not None and name not in wanted:
+                continue
+            src = self.tables.path(name) if isinstance(self.tables, TraceFiles) else None
+            dst = directory / f"{name}.{fmt}"
+            if src is None or src.suffix != dst.suffix:
+                frames[name] = self.tables[name]
+            elif src.resolve() != dst.resolve():
+                shutil.copyfile(src, dst)
+        write_frames({**frames, **self.derived_tables()}, directory, fmt)
         (directory / "summary.json").write_text(json.dumps(self.summary(), indent=2) + "\n")
 
     def __repr__(self) -> str:
-        tables = ", ".join(f"{k} ({len(v)} rows)" for k, v in self.tables.items())
+        rows = getattr(self.tables, "rows", lambda k: len(self.tables[k]))  # without reading the files
+        tables = ", ".join(f"{k} ({rows(k)} rows)" for k in self.tables)
         shown = [k for k in self.metrics if not k.startswith("packets.")][:4] or list(self.metrics)[:4]
         metrics = ", ".join(f"{k}={_short(self.metrics[k])}" for k in shown)
         more = len(self.metrics) - len(shown)
@@ -217,21 +238,111 @@ def run_scenario(
     """
     sc = _as_scenario(scenario_or_path, variant, seed, overrides)
     if out is not None:
-        check_output_format(sc)
-        with staged_output(out, sc.path, "out", overwrite=overwrite) as tmp:
-            res = _execute(sc, progress)
-            res.write_into(tmp, final=out)
-        return res
-    return _execute(sc, progress)
+        return run_staged(sc, out, overwrite=overwrite, progress=progress)
+    return execute(sc, progress)
 
 
-def _execute(sc: Scenario, progress: Progress) -> RunResult:
+def run_staged(
+    sc: Scenario, out: str | Path, *, key: str = "out", overwrite: bool = False, progress: Progress = None
+) -> RunResult:
+    """Run ``sc`` with its trace tables streamed into the staging directory of ``out`` and
+    moved into place when complete (``key``: the option or scenario key named in a refusal)."""
+    out = Path(out)
+    check_output_format(sc)
+    with staged_output(out, sc.path, key, overwrite=overwrite) as tmp:
+        res = execute(sc, progress, dest=tmp)
+        res.write_into(tmp, final=out)
+    relocate_results({"": res}, tmp, out)
+    return res
+
+
+def relocate_results(results: Mapping[str, RunResult], tmp: Path, final: Path) -> None:
+    """The staged files of ``results`` were moved from ``tmp`` into ``final``: their tables are
+    read from there from now on."""
+    from aquasim_py.trace import TraceFiles
+
+    for res in results.values():
+        if isinstance(res.tables, TraceFiles):
+            res.tables.relocate(tmp, final)
+
+
+@contextmanager
+def _streamed_trace(sim: Any, sc: Scenario, dest: Path | None) -> Iterator[Callable[[], Any]]:
+    """Route every trace table of ``sim`` to a file as the run goes: the tables ``[trace]
+    tables`` selects into ``dest`` (None: the scratch directory), those only the metrics read
+    (:func:`~aquasim_py.metrics.tables_read`) into a scratch directory, the others nowhere.
+    Gives a function that finishes the files and returns their
+    :class:`~aquasim_py.trace.TraceFiles`, which then owns the scratch directory; an error
+    or a signal inside the block removes it."""
+    from aquasim_py import metrics
+    from aquasim_py.outdir import scratch_dir
+    from aquasim_py.trace import TraceFiles
+
+    wanted = sc.trace.tables
+    needed = metrics.tables_read(sc.protocols())
+    fmt = sc.trace.format
+    if fmt == "parquet" and dest is None and not _has_pyarrow():
+        fmt = "csv"  # no file asked for: parquet only when it can be written (write() converts)
+    scratch = scratch_dir()
+
+    def route(name: str) -> Path | None:
+        if wanted is None or name in wanted:
+            return (dest if dest is not None else scratch) / f"{name}.{fmt}"
+        if needed is None or name in needed:
+            return scratch / f"{name}.{fmt}"
+        return None
+
+    def finish() -> TraceFiles:
+        done = sim.trace.close()
+        files = {k: p for k, (p, _) in done.items() if p is not None}
+        dropped = [k for k, (p, _) in done.items() if p is None]
+        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch)
+
+    try:
+        sim.trace.stream(route, fmt)
+        yield finish
+    except BaseException:
+        shutil.rmtree(scratch, ignore_errors=True)
+        raise
+
+
+def _has_pyarrow() -> bool:
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) -> RunResult:
+    """Build and run a resolved scenario, streaming its trace tables (those ``[trace] tables``
+    selects into the existing directory ``dest``, unstaged: callers stage), then compute the
+    metrics from the files written."""
     from aquasim_py import metrics
 
     sim = _scenario.build(sc)
+    with _streamed_trace(sim, sc, dest) as finish:
+        wall = _run(sim, sc, progress)
+        tables = finish()
+    errors: dict[str, str] = {}
+    m = metrics.summarize(
+        tables,
+        sc.protocols(),
+        percentiles=sc.metrics.percentiles,
+        warmup_s=sc.metrics.warmup_s,
+        unknown_roles=sc.metrics.unknown_roles,
+        errors=errors,
+    )
+    return RunResult(
+        scenario=sc, tables=tables, metrics=dict(m), wall_time_s=wall, variant=sc.variant, metric_errors=errors
+    )
+
+
+def _run(sim: Any, sc: Scenario, progress: Progress) -> float:
+    """Run ``sim`` for the scenario's duration with the progress display asked for; returns
+    the wall time (s)."""
     duration = sc.simulation.duration_s
-    variant = sc.variant
-    label = sc.name if variant is None else f"{sc.name}/{variant}"
+    label = sc.name if sc.variant is None else f"{sc.name}/{sc.variant}"
     started = time.perf_counter()
     if progress is None:
         progress = sys.stderr.isatty()
@@ -253,20 +364,7 @@ def _execute(sc: Scenario, progress: Progress) -> RunResult:
         sim.run(duration, progress=progress)
     else:
         sim.run(duration)
-    wall = time.perf_counter() - started
-    frames = sim.trace.frames()
-    errors: dict[str, str] = {}
-    m = metrics.summarize(
-        frames,
-        sc.protocols(),
-        percentiles=sc.metrics.percentiles,
-        warmup_s=sc.metrics.warmup_s,
-        unknown_roles=sc.metrics.unknown_roles,
-        errors=errors,
-    )
-    return RunResult(
-        scenario=sc, tables=dict(frames), metrics=dict(m), wall_time_s=wall, variant=variant, metric_errors=errors
-    )
+    return time.perf_counter() - started
 
 
 def run_variants(
@@ -302,6 +400,7 @@ def run_variants(
         check_output_format(sc)
     with staged_output(out, base.path, "out", overwrite=overwrite) as tmp:
         results = run_resolved_into(resolved, tmp, out, progress)
+    relocate_results(results, tmp, out)
     return results
 
 
@@ -329,11 +428,11 @@ def run_resolved_into(
     resolved: Mapping[str, Scenario], tmp: Path, final: Path, progress: Progress
 ) -> dict[str, RunResult]:
     """Run each resolved variant, writing it under ``tmp/NAME`` (recorded as ``final/NAME``),
-    then ``tmp/variants.csv``."""
+    then ``tmp/variants.csv``. Once ``tmp`` is moved into place, :func:`relocate_results`."""
     results: dict[str, RunResult] = {}
     for name, sc in resolved.items():
-        res = run_scenario(sc, progress=progress)
         (tmp / name).mkdir()
+        res = execute(sc, progress, dest=tmp / name)
         res.write_into(tmp / name, final=final / name)
         results[name] = res
     write_comparison(results, tmp / "variants.csv")

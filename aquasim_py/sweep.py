@@ -170,25 +170,31 @@ def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None
     has its one-line ``error`` and no metrics (the other runs go on). ``traces``: a directory
     to keep this run's trace tables in, under ``traces/<key>/`` (complete or absent).
     """
-    from aquasim_py.runner import run_scenario
+    from aquasim_py.runner import execute
 
     row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
     row["seed"] = job.seed
     row["key"] = job.key
     row["error"] = None
-    try:
-        res = run_scenario(_job_scenario(base, path, job), progress=False)
-    except Exception as e:  # a protocol's bug must not stop the sweep: record it in the row
-        row["error"] = _one_line(e)
-        return row
-    # plain Python numbers: a protocol's metrics may hand back numpy scalars
-    row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in res.metrics.items()})
-    if traces is not None:
+    tmp = final = None
+    if traces is not None:  # the tables stream into tmp as the run goes, renamed when complete
         final = Path(traces) / job.key
         tmp = Path(traces) / f".{job.key}.tmp-{os.getpid()}"
         shutil.rmtree(tmp, ignore_errors=True)
         tmp.mkdir(parents=True)
+    try:
+        res = execute(_job_scenario(base, path, job), dest=tmp)
+    except BaseException as e:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        if not isinstance(e, Exception):
+            raise
+        row["error"] = _one_line(e)  # a protocol's bug must not stop the sweep: record it in the row
+        return row
+    # plain Python numbers: a protocol's metrics may hand back numpy scalars
+    row.update({k: v.item() if isinstance(v, np.generic) else v for k, v in res.metrics.items()})
+    if tmp is not None and final is not None:
         res.write_into(tmp, final=final)
         shutil.rmtree(final, ignore_errors=True)  # a run repeated on --resume replaces its tables
         os.rename(tmp, final)

@@ -15,16 +15,18 @@ import json
 import math
 import os
 import re
+import shutil
+import weakref
 from array import array
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pandas as pd
 
-__all__ = ["SCHEMAS", "Table", "Trace", "TraceConfig", "load"]
+__all__ = ["SCHEMAS", "Table", "TableNotKept", "Trace", "TraceConfig", "TraceFiles", "load", "read_table"]
 
 #: Column kinds: "f" float64, "i" int64, "c" string category (None = missing), "o" any object.
 SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
@@ -107,12 +109,14 @@ class _Column:
 
     __slots__ = ("append", "cats", "data", "kind")
 
-    def __init__(self, kind: str, n_missing: int = 0) -> None:
+    def __init__(self, kind: str, n_missing: int = 0, streamed: int = 0) -> None:
+        """``n_missing`` rows held here without a value; ``streamed`` earlier rows already
+        handed to the table's sink (also without a value, and they count for the type)."""
         self.kind = kind
         self.cats: dict[Any, int] = {}
         if kind == "f":
             self.data: Any = array("d", [math.nan]) * n_missing
-        elif kind == "i" and not n_missing:
+        elif kind == "i" and not (n_missing or streamed):
             self.data = array("q")
         elif kind == "i":  # an int column with earlier missing rows starts as float (NaN)
             self.kind = "f"
@@ -233,6 +237,12 @@ class Table:
 
     The kernel's hot path (:meth:`append_fast`) buffers row tuples and moves them into the
     columns in batches (one C-level ``extend`` per column), so a row costs one list append.
+
+    Streaming (:meth:`stream_to`): once ``chunk_rows`` rows are held, they are handed to a sink
+    (a file written as the run goes, or nothing for a table nobody reads) and the columns start
+    empty again, keeping their types, so memory does not grow with the run's length. A table
+    whose rows arrive out of time order (``packets``) hands over only the rows no later row
+    can precede (:meth:`order_by_time`), so the file is sorted as :meth:`frame` sorts.
     """
 
     _BATCH = 4096
@@ -243,11 +253,29 @@ class Table:
         self.columns: dict[str, _Column] = {c: _Column(k) for c, k in schema}
         self._schema = tuple(self.columns)
         self._buf: list[tuple[Any, ...]] = []
+        self._sink: _Sink | None = None
+        self._chunk_rows = self._next_spill = 0
+        self._streamed = 0  # rows handed to the sink
+        self._watermark: Callable[[], float] | None = None
+        self._floor = -math.inf  # every row not yet handed over has time >= this
 
     @property
     def n(self) -> int:
-        """Number of rows."""
-        return self._n + len(self._buf)
+        """Number of rows (including those already streamed out)."""
+        return self._streamed + self._n + len(self._buf)
+
+    def order_by_time(self, watermark: Callable[[], float]) -> None:
+        """Rows arrive out of time order, but every row appended from now on has ``time >=
+        watermark()`` (s): when streaming, only rows earlier than that are handed over, in
+        stable time order (the order :meth:`frame` gives). A row that breaks the promise is an
+        error (the file could not be sorted), never a silently misordered file."""
+        self._watermark = watermark
+
+    def stream_to(self, sink: _Sink, chunk_rows: int) -> None:
+        """Hand rows to ``sink`` in chunks of about ``chunk_rows`` (rows held so far included)."""
+        self._sink = sink
+        self._chunk_rows = self._next_spill = max(1, int(chunk_rows))
+        self._maybe_spill()
 
     def _flush(self) -> None:
         if not self._buf:
@@ -260,6 +288,64 @@ class Table:
             for key in list(self.columns)[len(self._schema) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
+        self._maybe_spill()
+
+    def _maybe_spill(self) -> None:
+        if self._sink is not None and self._n >= self._next_spill:
+            self._spill(final=False)
+
+    def _spill(self, final: bool) -> None:
+        """Hand the rows held (for a time-ordered table: those before the watermark) to the sink."""
+        sink = self._sink
+        assert sink is not None
+        if not self._n:
+            return
+        df = self._held_frame()
+        keep = None
+        if self._watermark is not None:
+            t = df["time"].to_numpy(np.float64)
+            if t.min() < self._floor:
+                raise RuntimeError(
+                    f"trace table {self.name}: a row at t={t.min()!r} s came after rows up to "
+                    f"{self._floor!r} s were written (its writer broke order_by_time's promise)"
+                )
+            if not final:
+                self._floor = max(self._floor, float(self._watermark()))
+                early = t < self._floor
+                keep, df = df[~early], df[early]
+            df = df.sort_values("time", kind="mergesort", ignore_index=True)
+        self._reset_columns()
+        if keep is not None and len(keep):
+            self._push_frame(keep)
+        # rows kept back wait for the watermark: try again only when as many have come again
+        self._next_spill = self._chunk_rows + self._n
+        if len(df):
+            sink.write(df, {k: c.kind for k, c in self.columns.items()})
+            self._streamed += len(df)
+
+    def _held_frame(self) -> pd.DataFrame:
+        return pd.DataFrame({k: c.series(k) for k, c in self.columns.items()})
+
+    def _reset_columns(self) -> None:
+        """Empty every column, keeping its (possibly widened) type."""
+        self.columns = {k: _Column(c.kind) for k, c in self.columns.items()}
+        self._n = 0
+
+    def _push_frame(self, df: pd.DataFrame) -> None:
+        """Put rows taken from :meth:`_held_frame` back (the few a time-ordered table keeps)."""
+        for key, col in self.columns.items():
+            col.push_many(tuple(df[key].tolist()))
+        self._n = len(df)
+
+    def close(self) -> Path | None:
+        """Hand every remaining row to the sink and close it; returns the file written (None
+        without a sink, or for a table whose rows were dropped)."""
+        if self._sink is None:
+            return None
+        self._flush()
+        self._spill(final=True)
+        self._sink.close(self._held_frame())
+        return self._sink.path
 
     def append(self, **row: Any) -> None:
         """Append one row; unknown columns are created (earlier rows get missing values)."""
@@ -269,13 +355,14 @@ class Table:
         for key, v in row.items():
             col = cols.get(key)
             if col is None:
-                col = cols[key] = _Column(_kind_of(v), self._n)
+                col = cols[key] = _Column(_kind_of(v), self._n, self._streamed)
             col.push(v)
         if len(row) != len(cols):
             for key, col in cols.items():
                 if key not in row:
                     col.fill_missing()
         self._n += 1
+        self._maybe_spill()
 
     def row_buffer(self) -> list[tuple[Any, ...]]:
         """The list that :meth:`append_fast` appends to, for writers that append row tuples
@@ -305,43 +392,90 @@ class Table:
             arr = np.asarray(v)
             if col is None:
                 kind = "f" if arr.dtype.kind == "f" else "i" if arr.dtype.kind in "iu" else "o"
-                col = self.columns[key] = _Column(kind, self._n)
+                col = self.columns[key] = _Column(kind, self._n, self._streamed)
             col.extend(arr)
         for key, col in self.columns.items():
             if key not in cols:
                 col.fill_missing(m)
         self._n += m
+        self._maybe_spill()
 
     def frame(self) -> pd.DataFrame:
+        """The rows held in memory as a DataFrame (all of them unless streaming)."""
         self._flush()
         if not self.columns:
             return pd.DataFrame()
-        df = pd.DataFrame({k: c.series(k) for k, c in self.columns.items()})
+        df = self._held_frame()
         key = _SORT_BY.get(self.name)
         if key is not None and len(df):
             df = df.sort_values(key, kind="mergesort", ignore_index=True)
         return df
 
 
+#: rows a streamed table holds before handing them to its file (~2 MB of columns for
+#: ``packets``; formatting a chunk as CSV briefly takes several times that)
+CHUNK_ROWS = 16384
+
+
 class Trace:
-    """All event tables of a run. ``append(table, **row)`` from anywhere in the kernel."""
+    """All event tables of a run. ``append(table, **row)`` from anywhere in the kernel.
+
+    By default every table is kept in memory (:meth:`frames`). After :meth:`stream` each table
+    goes where ``route(name)`` says, as the run goes: a file (written in chunks) or nowhere;
+    :meth:`close` then finishes the files.
+    """
 
     def __init__(self, config: TraceConfig | None = None) -> None:
         self.config = config or TraceConfig()
         self.tables: dict[str, Table] = {name: Table(name, schema) for name, schema in SCHEMAS.items()}
+        self._route: Callable[[str], Path | None] | None = None
+        self._fmt = "csv"
+        self._chunk_rows = CHUNK_ROWS
 
     def table(self, name: str) -> Table:
         t = self.tables.get(name)
         if t is None:
             check_table_name(name)
             t = self.tables[name] = Table(name, SCHEMAS.get(name, ()))
+            if self._route is not None:
+                self._attach(t)
         return t
 
     def append(self, table: str, **row: Any) -> None:
         self.table(table).append(**row)
 
+    def stream(self, route: Callable[[str], Path | None], fmt: str = "csv", chunk_rows: int | None = None) -> None:
+        """Stream every table (those that exist and those made later): ``route(name)`` is the
+        file to write it to (``.csv`` or ``.parquet`` as ``fmt``), or None to keep none of
+        its rows. Rows go out in chunks of ``chunk_rows``; the files are byte for byte what
+        :meth:`write` gives for the same rows."""
+        if fmt not in ("csv", "parquet"):
+            raise ValueError(f"unknown trace format {fmt!r} (use 'csv' or 'parquet')")
+        self._route, self._fmt = route, fmt
+        self._chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+        for t in self.tables.values():
+            self._attach(t)
+
+    def _attach(self, t: Table) -> None:
+        assert self._route is not None
+        path = self._route(t.name)
+        sink: _Sink
+        if path is None:
+            sink = _Discard()
+        elif self._fmt == "csv":
+            sink = _CsvSink(path)
+        else:
+            sink = _ParquetSink(path, t.name)
+        t.stream_to(sink, self._chunk_rows)
+
+    def close(self) -> dict[str, tuple[Path | None, int]]:
+        """Finish streaming: table name -> (its file or None, its number of rows)."""
+        return {name: (t.close(), t.n) for name, t in self.tables.items()}
+
     def frames(self) -> dict[str, pd.DataFrame]:
         """Every table as a DataFrame (DESIGN.md columns first, extra columns after)."""
+        if self._route is not None:
+            raise RuntimeError("frames(): the tables are streamed to files; read those (trace.load)")
         return {name: t.frame() for name, t in self.tables.items()}
 
     def write(self, directory: str | os.PathLike[str], fmt: str = "csv") -> list[Path]:
@@ -389,6 +523,158 @@ def write_frames(frames: Mapping[str, pd.DataFrame], directory: str | os.PathLik
     return paths
 
 
+# --------------------------------------------------------------------------- streaming sinks
+class _Sink(Protocol):
+    """Where a streamed table's chunks go (:meth:`Trace.stream`)."""
+
+    @property
+    def path(self) -> Path | None:
+        """The file written (None: nothing is)."""
+        ...
+
+    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+        """Append the rows of ``df``; ``kinds``: every column's type so far (as :class:`_Column`)."""
+        ...
+
+    def close(self, empty: pd.DataFrame) -> None:
+        """Finish the file; ``empty``: the table's columns without rows (for a table never written)."""
+        ...
+
+
+class _Discard:
+    """A table nobody reads (not written, not used by a metric): its rows are dropped."""
+
+    path: Path | None = None
+
+    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+        pass
+
+    def close(self, empty: pd.DataFrame) -> None:
+        pass
+
+
+def _reformats(old: Mapping[str, str], new: Mapping[str, str]) -> bool:
+    """Whether text already written must change: a column added (a new header field and an
+    empty field on every earlier row) or an int column turned float ("3" becomes "3.0"). Any
+    other change (to "o", any object) keeps each value's text: pandas writes a float, an int
+    or a string in an object column as in a typed one."""
+    return any(k not in old for k in new) or any(old[k] == "i" and new[k] == "f" for k in old)
+
+
+class _CsvSink:
+    """A table appended to ``path`` chunk by chunk, byte for byte what :func:`write_frames`
+    writes for the whole table.
+
+    pandas formats each field from its value and its column's dtype alone, so chunks written
+    one after another give the whole table's bytes as long as each chunk has the column types
+    the table ends with. When a later chunk changes them in a way that changes earlier text
+    (:func:`_reformats`), the file written so far is rewritten once, chunk by chunk."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._kinds: dict[str, str] | None = None
+
+    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+        if self._kinds is not None and _reformats(self._kinds, kinds):
+            self._rewrite(kinds)
+        first = self._kinds is None
+        with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
+            df.to_csv(f, index=False, header=first, lineterminator="\n")
+        self._kinds = dict(kinds)
+
+    def _rewrite(self, kinds: Mapping[str, str]) -> None:
+        assert self._kinds is not None
+        widened = [k for k, kind in self._kinds.items() if kind == "i" and kinds[k] == "f"]
+        added = [k for k in kinds if k not in self._kinds]
+        tmp = self.path.with_name(self.path.name + ".rewrite")
+        with open(tmp, "w", encoding="utf-8", newline="") as f:
+            pd.DataFrame(columns=list(kinds)).to_csv(f, index=False, lineterminator="\n")
+            # every field read back as its exact text ("" = missing) and written again as is,
+            # except the widened ints, which become floats as an in-memory column does
+            chunks = pd.read_csv(self.path, dtype=str, keep_default_na=False, na_filter=False, chunksize=CHUNK_ROWS)
+            for chunk in chunks:
+                for k in widened:
+                    chunk[k] = pd.to_numeric(chunk[k].mask(chunk[k] == "")).astype(np.float64)
+                for k in added:
+                    chunk[k] = ""
+                chunk[list(kinds)].to_csv(f, index=False, header=False, lineterminator="\n")
+        os.replace(tmp, self.path)
+
+    def close(self, empty: pd.DataFrame) -> None:
+        if self._kinds is None:  # no rows at all: the header alone, as write_frames gives
+            empty.to_csv(self.path, index=False, lineterminator="\n")
+
+
+class _ParquetSink:
+    """A table written to ``path`` as one Parquet row group per chunk (pyarrow). Column types
+    are inferred as ``DataFrame.to_parquet`` infers them for the whole table; a chunk that
+    widens them (int to float, a new column, a type for a column all missing so far) rewrites
+    the row groups written so far once, row group by row group."""
+
+    def __init__(self, path: Path, name: str) -> None:
+        self.path = path
+        self.name = name
+        self._file = path  # the file being written (another name while rewriting)
+        self._writer: Any = None
+        self._schema: Any = None
+
+    @staticmethod
+    def _arrow(df: pd.DataFrame) -> Any:
+        import pyarrow as pa
+
+        return pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
+
+    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        t = self._arrow(df)
+        if self._writer is None:
+            self._schema = t.schema
+            self._writer = pq.ParquetWriter(self._file, t.schema)
+        elif not t.schema.equals(self._schema):
+            try:
+                schema = pa.unify_schemas([self._schema, t.schema], promote_options="permissive")
+            except (pa.ArrowInvalid, pa.ArrowTypeError) as e:
+                raise RuntimeError(f"trace table {self.name}: a column changed type mid-run ({e})") from None
+            if not schema.equals(self._schema):
+                self._rewrite(schema)
+            t = _conform(t, self._schema)
+        self._writer.write_table(t)
+
+    def _rewrite(self, schema: Any) -> None:
+        import pyarrow.parquet as pq
+
+        self._writer.close()
+        old = self._file
+        self._file = self.path.with_name(self.path.name + ".rewrite") if old == self.path else self.path
+        self._writer = pq.ParquetWriter(self._file, schema)
+        src = pq.ParquetFile(old)
+        for i in range(src.num_row_groups):
+            self._writer.write_table(_conform(src.read_row_group(i), schema))
+        src.close()
+        old.unlink()
+        self._schema = schema
+
+    def close(self, empty: pd.DataFrame) -> None:
+        import pyarrow.parquet as pq
+
+        if self._writer is None:  # no rows at all
+            pq.write_table(self._arrow(empty), self.path)
+            return
+        self._writer.close()
+        if self._file != self.path:
+            os.replace(self._file, self.path)
+
+
+def _conform(t: Any, schema: Any) -> Any:
+    """Arrow table ``t`` with ``schema``'s columns (missing ones null) and types."""
+    import pyarrow as pa
+
+    cols = [t.column(f.name).cast(f.type) if f.name in t.column_names else pa.nulls(len(t), f.type) for f in schema]
+    return pa.Table.from_arrays(cols, schema=schema)
+
+
 def _pandas_version() -> tuple[int, int]:
     major, minor = pd.__version__.split(".")[:2]
     return int(major), int("".join(ch for ch in minor if ch.isdigit()) or 0)
@@ -398,6 +684,13 @@ def _pandas_version() -> tuple[int, int]:
 # 6.40422650443282e-273 one ulp off, ~30% of random doubles); "round_trip" hands every field to
 # Python's correctly rounded parser. 3.1 made that the default and deprecates the option.
 _READ_CSV_KW: dict[str, Any] = {"float_precision": "round_trip"} if _pandas_version() < (3, 1) else {}
+
+
+def _csv_header(path: Path) -> pd.Index | None:
+    try:
+        return pd.read_csv(path, nrows=0).columns
+    except pd.errors.EmptyDataError:
+        return None
 
 
 def _read_csv(path: Path, name: str) -> pd.DataFrame:
@@ -410,9 +703,8 @@ def _read_csv(path: Path, name: str) -> pd.DataFrame:
     :meth:`Table.frame` makes; "f" float64 and "i" int64 in an empty table (with rows they read
     as written: an int column with missing values was written as floats)."""
     kinds = dict(SCHEMAS.get(name, ()))
-    try:
-        header = pd.read_csv(path, nrows=0).columns
-    except pd.errors.EmptyDataError:  # a table without columns is written as an empty line
+    header = _csv_header(path)
+    if header is None:  # a table without columns is written as an empty line
         return pd.DataFrame()
     # categories as text: "007" or "1.50" must not become numbers
     dtype = {c: str for c in header if kinds.get(c) == "c"}
@@ -429,6 +721,15 @@ def _read_csv(path: Path, name: str) -> pd.DataFrame:
     return df
 
 
+def read_table(path: str | os.PathLike[str], name: str | None = None) -> pd.DataFrame:
+    """One table file (``.csv`` or ``.parquet``) as :func:`load` reads it; ``name``: its table
+    name (default the file's stem), which gives the schema's dtypes."""
+    p = Path(path)
+    if p.suffix == ".parquet":
+        return pd.read_parquet(p)
+    return _read_csv(p, p.stem if name is None else name)
+
+
 def load(directory: str | os.PathLike[str]) -> dict[str, pd.DataFrame]:
     """Read every ``*.csv`` / ``*.parquet`` table of a trace directory (``summary.json`` as a dict
     under the key ``"summary"`` is left to the caller: only tables are returned).
@@ -438,13 +739,102 @@ def load(directory: str | os.PathLike[str]) -> dict[str, pd.DataFrame]:
     d = Path(directory)
     if not d.is_dir():
         raise FileNotFoundError(f"trace directory {d} does not exist")
-    frames: dict[str, pd.DataFrame] = {}
-    for p in sorted(d.iterdir()):
-        if p.suffix == ".csv":
-            frames[p.stem] = _read_csv(p, p.stem)
-        elif p.suffix == ".parquet":
-            frames[p.stem] = pd.read_parquet(p)
-    return frames
+    return {p.stem: read_table(p) for p in sorted(d.iterdir()) if p.suffix in (".csv", ".parquet")}
+
+
+class TableNotKept(LookupError):
+    """A table the run did not keep: not written and read by no metric (``Node.trace_tables``)."""
+
+
+class TraceFiles(Mapping[str, pd.DataFrame]):
+    """The tables of a streamed run (:meth:`Trace.stream`), each read from its file the first
+    time it is asked for and then kept (:meth:`clear` lets go).
+
+    ``files``: table name -> file, in the run's table order; ``rows``: their row counts;
+    ``dropped``: the tables whose rows were not kept (asking for one raises
+    :class:`TableNotKept`, not a silent ``None``); ``scratch``: a directory of files nobody
+    asked to keep, removed with this object (or at exit).
+    """
+
+    def __init__(
+        self,
+        files: Mapping[str, Path],
+        rows: Mapping[str, int] | None = None,
+        dropped: Iterable[str] = (),
+        scratch: Path | None = None,
+    ) -> None:
+        self._files = dict(files)
+        self._rows = dict(rows or {})
+        self._dropped = set(dropped) - set(self._files)
+        self._cache: dict[str, pd.DataFrame] = {}
+        if scratch is not None:
+            weakref.finalize(self, shutil.rmtree, scratch, True)
+
+    def __getitem__(self, name: str) -> pd.DataFrame:
+        df = self._cache.get(name)
+        if df is None:
+            path = self._files.get(name)
+            if path is None:
+                if name in self._dropped:
+                    raise TableNotKept(
+                        f"trace table {name!r} was not kept: add it to [trace] tables, or to the "
+                        "trace_tables of the protocol whose metrics read it"
+                    )
+                raise KeyError(name)
+            df = self._cache[name] = read_table(path, name)
+        return df
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._files
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._files)
+
+    def __len__(self) -> int:
+        return len(self._files)
+
+    def path(self, name: str) -> Path:
+        """The file table ``name`` was written to."""
+        return self._files[name]
+
+    def rows(self, name: str) -> int:
+        """Number of rows of table ``name`` (without reading it)."""
+        return self._rows[name] if name in self._rows else len(self[name])
+
+    def chunks(self, name: str, columns: Sequence[str], chunk_rows: int = CHUNK_ROWS) -> Iterator[pd.DataFrame]:
+        """Table ``name``'s ``columns`` (those it has), ``chunk_rows`` rows at a time: for a
+        statistic over a table too long to hold (the packet counts)."""
+        if name in self._cache:
+            df = self._cache[name]
+            yield df[[c for c in columns if c in df.columns]]
+            return
+        path = self.path(name)
+        if path.suffix == ".parquet":
+            import pyarrow.parquet as pq
+
+            f = pq.ParquetFile(path)
+            have = [c for c in columns if c in f.schema_arrow.names]
+            for batch in f.iter_batches(batch_size=chunk_rows, columns=have):
+                yield batch.to_pandas()
+            return
+        header = _csv_header(path)
+        have = [c for c in columns if header is not None and c in header]
+        if not have:
+            return
+        # every field as its text, "" missing: counts and comparisons need nothing more
+        yield from pd.read_csv(
+            path, usecols=have, dtype=str, keep_default_na=False, na_values=[""], chunksize=chunk_rows
+        )
+
+    def relocate(self, old: Path, new: Path) -> None:
+        """The files under ``old`` now live under ``new`` (a staged output moved into place)."""
+        for name, p in self._files.items():
+            if p.is_relative_to(old):
+                self._files[name] = new / p.relative_to(old)
+
+    def clear(self) -> None:
+        """Forget the tables read so far (they are read again when asked for)."""
+        self._cache.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:

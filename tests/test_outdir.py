@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -267,7 +268,11 @@ def _alive(pid: int) -> bool:
 def test_sigterm_to_a_run(tmp_path):
     sc = scenario(tmp_path, duration=LONG)  # long: still running when the signal arrives
     out = tmp_path / "res"
-    p = subprocess.Popen([*_command(), str(sc), "--out", str(out), "--quiet"], stderr=subprocess.PIPE, text=True)
+    tmpdir = tmp_path / "tmpdir"  # where the run's trace scratch folder goes
+    tmpdir.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmpdir)}
+    cmd = [*_command(), str(sc), "--out", str(out), "--quiet"]
+    p = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
     try:
         assert _wait_for(lambda: bool(_staging(tmp_path))), "the run never started staging"
         p.send_signal(signal.SIGTERM)
@@ -276,7 +281,8 @@ def test_sigterm_to_a_run(tmp_path):
         p.kill()
     assert p.returncode == 143
     assert err.splitlines() == ["error: interrupted by SIGTERM (no output written)"]
-    assert listing(tmp_path) == ["scen.toml"]
+    assert listing(tmp_path) == ["scen.toml", "tmpdir"]
+    assert listing(tmpdir) == []
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc as on Linux")
@@ -305,6 +311,28 @@ def test_sigkill_of_a_sweep_parent_leaves_no_worker_and_no_stale_folder(tmp_path
     assert sorted(p.name for p in _staging(tmp_path)) == [".unrelated.tmp-zzz"]
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc as on Linux")
+def test_sigkill_of_a_run_leaves_nothing_after_the_next_run(tmp_path, monkeypatch):
+    """A SIGKILLed run cannot clean up: its staging folder and its trace scratch folder (in
+    TMPDIR) stay behind, and the next run removes both."""
+    tmpdir = tmp_path / "tmpdir"
+    tmpdir.mkdir()
+    sc = scenario(tmp_path, duration=LONG)
+    out = tmp_path / "res"
+    env = {**os.environ, "TMPDIR": str(tmpdir)}
+    p = subprocess.Popen([*_command(), str(sc), "--out", str(out), "--quiet"], env=env, stderr=subprocess.DEVNULL)
+    try:
+        assert _wait_for(lambda: bool(_staging(tmp_path)) and bool(_staging(tmpdir))), "the run never started"
+    finally:
+        p.kill()
+        p.wait(timeout=10)
+    assert len(_staging(tmp_path)) == 1 and len(_staging(tmpdir)) == 1  # what the kill left
+    monkeypatch.setattr(tempfile, "tempdir", str(tmpdir))
+    assert run_quick(sc, out) == 0
+    assert _staging(tmp_path) == [] and _staging(tmpdir) == []
+    assert (out / "estimates.csv").is_file()
+
+
 def run_quick(sc: Path, out: Path) -> int:
     return cli.main([str(sc), "--out", str(out), "--quiet", "--set", "simulation.duration_s=5"])
 
@@ -329,6 +357,23 @@ def test_sigterm_to_a_sweep(tmp_path):
     ]
     assert _wait_for(lambda: not any(_alive(w) for w in workers), timeout=5.0)
     assert listing(tmp_path) == ["scen.toml"]
+
+
+def test_scratch_dir_removes_only_what_a_killed_run_left(tmp_path, monkeypatch):
+    """A run killed between making its trace scratch folder and marking it leaves it empty:
+    the next one removes such a folder once it is a minute old, and nothing else."""
+    from aquasim_py.outdir import SCRATCH_PREFIX, scratch_dir
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    old, fresh, full = (tmp_path / f"{SCRATCH_PREFIX}{n}" for n in ("old", "fresh", "full"))
+    for d in (old, fresh, full):
+        d.mkdir()
+    (full / "x.csv").write_text("someone's")
+    for d in (old, full):
+        os.utime(d, (time.time() - 120, time.time() - 120))
+    mine = scratch_dir()
+    assert (mine / STAGING_MARKER).is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([fresh.name, full.name, mine.name])
 
 
 def test_clean_stale_keeps_live_and_foreign(tmp_path):

@@ -104,7 +104,8 @@ class ChannelConfig:
         pressure (``channel.pressure``, eq 6 of MSWPF) plus N(0, pressure_noise_std^2) drawn from
         the receiver's ("node", id, "pressure") stream; None = off.
     pressure_source_level, pressure_exponent: S and k of h = S / D^k.
-    obstacles: obstructed links' extra loss and excess delay (``channel.obstacles``); None = none.
+    obstacles: obstructed links' extra loss and excess delay (``channel.obstacles``; the random
+        part of the delay is drawn per packet from each link's own stream); None = none.
     sound_speed_std_mps, sound_speed_corr_s: sound-speed uncertainty (channel/uncertainty.py):
         std (m/s) of the path-mean speed around the profile, and its per-link correlation time
         (s; 0 = independent per packet). std 0 leaves the channel exactly as without it.
@@ -281,7 +282,11 @@ class AcousticChannel:
         if obs is not None and obs.active:
             if streams is None:
                 raise ValueError("AcousticChannel: obstacles need the run's keyed random streams (streams=)")
-            self._obstacles = ObstacleField(obs, lambda a, b: float(streams("obstacle", a, b).random()))
+            self._obstacles = ObstacleField(
+                obs,
+                lambda a, b: float(streams("obstacle", a, b).random()),
+                lambda a, b: streams("obstacle", a, b, "delay"),
+            )
 
         # sound-speed uncertainty hook: its own keyed stream, so no other draw moves
         self._sound_speed: SoundSpeedUncertainty | None = None
@@ -291,6 +296,8 @@ class AcousticChannel:
             self._sound_speed = SoundSpeedUncertainty(
                 config.sound_speed_std_mps, config.sound_speed_corr_s, streams("channel", "sound_speed")
             )
+        # a static network's arrivals are cached per sender, unless a hook draws per packet
+        self._cacheable = self._sound_speed is None and not (obs is not None and obs.per_packet)
 
     # -- nodes ------------------------------------------------------------------------------------
 
@@ -304,6 +311,14 @@ class AcousticChannel:
         """How many past signals the channel still keeps at ``node`` for collision checks
         (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
         return len(self._modems[node].rx_log)
+
+    def packets_watermark(self) -> float:
+        """A true time (s) no ``packets`` row written from now on precedes: a reception's row
+        (time: its first bit's arrival) is written when its last bit arrives, at most the longest
+        packet queued so far later; every other row is written at or before its time. Twice that
+        plus 1 us, so the rounding of event times can never make the promise wrong (the trace
+        streams the rows before it, sorted, :meth:`aquasim_py.trace.Table.order_by_time`)."""
+        return self._env.now - 2.0 * self._max_duration - 1e-6
 
     # -- transmit ---------------------------------------------------------------------------------
 
@@ -424,7 +439,7 @@ class AcousticChannel:
         n = len(modems)
         if n != self._layout_n:
             self._new_layout(n)
-        static = self._static and self._sound_speed is None  # drawn per packet: no cache
+        static = self._static and self._cacheable
         if static:
             hit = self._static_links.get(src)
             if hit is not None and hit[0] == n:

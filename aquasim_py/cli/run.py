@@ -16,9 +16,10 @@ from aquasim_py.runner import (
     check_output_format,
     comparison_columns,
     console,
+    relocate_results,
     resolve_variants,
     run_resolved_into,
-    run_scenario,
+    run_staged,
     staged_output,
 )
 from aquasim_py.scenario import Scenario
@@ -82,10 +83,7 @@ def command(argv: Sequence[str]) -> int:
     else:
         out, key = common.output_dir(sc, args.out)
     sc.output.directory = str(out)  # the resolved scenario says where its outputs went
-    check_output_format(sc)
-    with staged_output(out, sc.path, key, overwrite=args.overwrite) as tmp:
-        res = run_scenario(sc, progress=progress)
-        res.write_into(tmp, final=out)
+    res = run_staged(sc, out, key=key, overwrite=args.overwrite, progress=progress)
     _warn_missing(res)
     if not args.quiet:
         con = console()
@@ -106,6 +104,7 @@ def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> i
         check_output_format(sc)
     with staged_output(out, base.path, key, overwrite=args.overwrite) as tmp:
         results = run_resolved_into(resolved, tmp, out, progress)
+    relocate_results(results, tmp, out)
     for res in results.values():
         _warn_missing(res)
     if not args.quiet:

@@ -235,6 +235,7 @@ def _obstacles(o: Any) -> Any:
         extra_loss_db=o.extra_loss_db,
         excess_delay_s=o.excess_delay_s,
         excess_delay_ratio=o.excess_delay_ratio,
+        excess_delay_sigma_ratio=o.excess_delay_sigma_ratio,
     )
 
 

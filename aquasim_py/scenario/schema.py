@@ -157,6 +157,10 @@ class ObstacleSpec(Strict):
     extra_loss_db: NonNegFloat = Field(0.0, description="extra propagation loss of an obstructed link (dB)")
     excess_delay_s: NonNegFloat = Field(0.0, description="fixed excess delay of an obstructed link (s)")
     excess_delay_ratio: NonNegFloat = Field(0.0, description="excess delay as a fraction of the time of flight")
+    excess_delay_sigma_ratio: NonNegFloat = Field(
+        0.0,
+        description="random excess delay |N(0, (this x time of flight)^2)| (half-normal: late only), per packet",
+    )
 
 
 class ChannelSpec(Strict):

@@ -39,6 +39,7 @@ class BeaconNode(Node):
     """Anchors and buoys broadcast beacons; everyone else logs one-way ToA ranges."""
 
     name = "beacon"
+    trace_tables = ("ranges", "packets", "positions")  # what metrics / derived_tables / report read
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False)

@@ -118,6 +118,14 @@ class ReqResNode(Node):
     """Base of ITMTL, TSHL, MU-Sync and Mobi-Sync nodes (see module docstring)."""
 
     name: ClassVar[str] = "_reqres"
+    trace_tables = (
+        "nodes",
+        "clocks",
+        "estimates",
+        "packets",
+        "reqres_rounds",
+        "reqres_replies",
+    )  # what metrics / derived_tables / report read
     Params = ReqResParams
 
     # -- state ----------------------------------------------------------------------------------

@@ -88,6 +88,7 @@ class MswpfNode(Node):
     """Target (emits), sensors (quantize and report) and fusion centre (MSWPF + PCRLB selection)."""
 
     name = "mswpf"
+    trace_tables = ("mswpf_steps", "mswpf_timing", "nodes", "positions")  # what metrics / derived_tables / report read
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False)

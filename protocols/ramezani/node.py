@@ -59,6 +59,7 @@ class RamezaniNode(Node):
     """Anchors ping in TDMA slots; targets localize (GNA) or track (EKF) from the ToFs."""
 
     name = "ramezani"
+    trace_tables = ("estimates", "positions", "nodes")  # what metrics / derived_tables / report read
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False)

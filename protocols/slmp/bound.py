@@ -71,6 +71,7 @@ class MultilaterationBoundNode(PeriodicBeaconNode):
     """Beacons (anchor) broadcast; unknown nodes (ordinary) multilaterate every period on all."""
 
     name = "multilateration_bound"
+    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
     Params = MultilaterationBoundParams
     beacon_kind = KIND
 

@@ -81,6 +81,7 @@ class SlmpNode(PeriodicBeaconNode):
     re-localize when the prediction misses."""
 
     name = "slmp"
+    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
     Params = SlmpParams
     beacon_kind = KIND
 

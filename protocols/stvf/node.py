@@ -92,6 +92,7 @@ class StvfNode(PeriodicBeaconNode):
     """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "stvf"
+    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
     Params = StvfParams
     beacon_kind = KIND
 

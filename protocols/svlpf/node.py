@@ -22,11 +22,13 @@ One protocol, three roles:
 
 Training (SVMs per sensor, LSSVR per selected subset) happens during the run, seeded by
 ``train_seed`` and cached (math.TrainingCache). The "propagation loss" of the diagnosis is
-TIL - RIL with RIL = received SNR + the known noise level (``noise_band_db``): the Reception's
-``snr_db`` is noise-free, so this observable is exact (docs/svlpf.md).
+TIL - RIL with RIL = the sensor's SNR estimate (``Reception.snr_db``: the true SNR plus the
+modem's estimation error, 1 dB std by default) + the known noise level (``noise_band_db``).
+Neither the sensors nor the fusion node know which links are obstructed: the diagnosis infers
+it from that loss (docs/svlpf.md measures how the SNR estimate noise affects it).
 
 Nothing here reads ground truth: distances come from MAC stamps, positions from the nodes'
-own position fixes, losses from the received SNR.
+own position fixes, losses from the received SNR estimate.
 """
 
 from __future__ import annotations
@@ -124,6 +126,7 @@ class SvlpfNode(Node):
     """An SVL-PF node: target (requests), anchor (sensor) or buoy (fusion node) by role."""
 
     name = "svlpf"
+    trace_tables = ("svlpf", "packets", "positions", "nodes")  # what metrics / derived_tables / report read
     Params = SvlpfParams
 
     def setup(self) -> None:
@@ -333,7 +336,8 @@ class _Estimator:
         self, node: SvlpfNode, t_req: float, S: np.ndarray, Rs: np.ndarray, snr: np.ndarray, ids: tuple[int, ...]
     ) -> dict[str, Any]:
         p: SvlpfParams = node.params
-        n_flagged, iterations, converged = 0, 0, True
+        flagged_ids: list[int] = []
+        iterations, converged = 0, True
         z = np.full(3, np.nan)
         algo = self.algorithm
         if algo == "consensus":
@@ -350,7 +354,7 @@ class _Estimator:
                 if algo == "svlpf":
                     loss = p.source_level_db - (snr + p.noise_band_db)  # TIL - RIL (eq 23)
                     flagged = sv.diagnose(loss, Rs, p_hat=p.p_hat, beta_db_per_km=p.beta_db_per_km)
-                    n_flagged = int(flagged.sum())
+                    flagged_ids = [ids[j] for j in np.flatnonzero(flagged)]
                     delta = sv.delta_weights(Rs, model.mean_input, flagged)
                     res = sv.iterative_regression(
                         model, Rs, S, delta, eps_b=p.eps_b_m, eps_step=p.eps_step_m, max_iter=p.max_iter
@@ -369,7 +373,8 @@ class _Estimator:
             "obs_x": float(z[0]),
             "obs_y": float(z[1]),
             "obs_z": float(z[2]),
-            "n_flagged": n_flagged,
+            "n_flagged": len(flagged_ids),
+            "flagged": " ".join(map(str, flagged_ids)),
             "iterations": iterations,
             "converged": converged,
         }

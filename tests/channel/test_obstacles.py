@@ -1,5 +1,6 @@
 """Obstacle model: obstructed links get exactly the configured extra loss and excess delay,
-each link is decided from its own stream, and without obstacles the channel is unchanged."""
+the random part of the delay is half-normal per packet from the link's own stream, each link
+is decided from its own stream, and without obstacles the channel is unchanged."""
 
 from __future__ import annotations
 
@@ -16,13 +17,15 @@ from aquasim_py.channel.ssp import Constant
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node
 
+PINGS = 3
+
 
 class _Pinger(Node):
     name = "test_obstacle_pinger"
 
     def run(self) -> Generator[Any, Any, None]:
         if self.id == 0:
-            for _ in range(3):
+            for _ in range(PINGS):
                 yield self.broadcast("ping", bits=100)
                 yield self.sleep(1.0)
 
@@ -54,6 +57,33 @@ def test_obstructed_link_gets_exactly_the_excess_delay_and_loss():
     assert got[~blocked].reset_index(drop=True).equals(base[base["node"] != 2].reset_index(drop=True))
 
 
+def test_random_excess_delay_varies_per_packet_on_its_own_link_stream():
+    base = _packets(None)
+    one = _packets(ObstacleConfig(links=((2, 0),), extra_loss_db=25.0, excess_delay_sigma_ratio=0.25))
+    two = _packets(ObstacleConfig(links=((2, 0), (3, 0)), extra_loss_db=25.0, excess_delay_sigma_ratio=0.25))
+    assert one.equals(_packets(ObstacleConfig(links=((2, 0),), extra_loss_db=25.0, excess_delay_sigma_ratio=0.25)))
+    at2 = one["node"] == 2
+    late = one.loc[at2, "tof"].to_numpy() - base.loc[base["node"] == 2, "tof"].to_numpy()
+    # late, never early, and drawn anew for each of the pings of a static network (no cache)
+    assert late.size == PINGS and (late > 0).all() and np.unique(late).size == PINGS
+    # node 2's draws do not move when another link is obstructed too; clear links untouched
+    np.testing.assert_array_equal(two.loc[two["node"] == 2, "tof"].to_numpy(), one.loc[at2, "tof"].to_numpy())
+    assert one[~at2].reset_index(drop=True).equals(base[base["node"] != 2].reset_index(drop=True))
+
+
+def test_random_excess_delay_is_half_normal_with_the_configured_scale():
+    # eq: delay = T (1 + ratio + sigma |g|); KS test of (delay / T - 1 - ratio) / sigma against
+    # the half-normal (scipy's halfnorm); a Gaussian (signed) or mis-scaled draw fails at n = 4000
+    cfg = ObstacleConfig(links=((0, 1),), excess_delay_ratio=0.1, excess_delay_sigma_ratio=0.25)
+    field = ObstacleField(cfg, lambda a, b: 0.0, lambda a, b: np.random.default_rng([5, a, b]))
+    T = np.array([0.02, 0.03])
+    u = np.array([field.apply(0, np.array([1, 2]), T, np.zeros(2))[0] for _ in range(4000)])
+    np.testing.assert_array_equal(u[:, 1], T[1])  # link {0, 2} is clear
+    g = (u[:, 0] / T[0] - 1.1) / 0.25
+    assert stats.kstest(g, stats.halfnorm.cdf).pvalue > 1e-3
+    assert stats.kstest(np.abs(g) * 1.2, stats.halfnorm.cdf).pvalue < 1e-6  # the test can tell the scale
+
+
 def test_link_decisions_come_from_per_link_streams():
     def uniform(a: int, b: int) -> float:
         return float(np.random.default_rng([11, a, b]).random())
@@ -73,7 +103,14 @@ def test_link_decisions_come_from_per_link_streams():
 
 
 @pytest.mark.parametrize(
-    "kwargs", [dict(probability=1.5), dict(extra_loss_db=-1.0), dict(links=((3, 3),)), dict(excess_delay_s=np.inf)]
+    "kwargs",
+    [
+        dict(probability=1.5),
+        dict(extra_loss_db=-1.0),
+        dict(links=((3, 3),)),
+        dict(excess_delay_s=np.inf),
+        dict(excess_delay_sigma_ratio=-0.25),
+    ],
 )
 def test_bad_obstacle_config_is_rejected(kwargs):
     with pytest.raises(ValueError, match="obstacles"):

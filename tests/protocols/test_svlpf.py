@@ -59,20 +59,26 @@ def test_same_seed_same_trace_and_sensors_report_every_request():
     assert not (pk["event"] == "drop").any()
 
 
+def _ids(cell) -> set[int]:
+    return {int(i) for i in str(cell).split() if i.isdigit()}
+
+
 def test_diagnosis_flags_exactly_the_obstructed_selected_links():
+    # Scenario 2's obstacles (30 dB, half-normal 25 % excess delay per packet) on three given
+    # links; the diagnosis sees them only through the reported (noisy, 1 dB) SNR estimates
     obstructed = {3, 6, 12}
     links = "[" + ", ".join(f"[1, {i}]" for i in sorted(obstructed)) + "]"
     frames, _ = _run(
         "scenarios/svlpf.toml",
         "channel.obstacles.probability=0.0",
         f"channel.obstacles.links={links}",
-        "nodes.2.params.excess_noise_ratio=0.0",
         "simulation.duration_s=30.9",
     )
     sv = frames["svlpf"]
-    expect = [len(obstructed & {int(i) for i in str(s).split()}) for s in sv["selected"]]
-    assert sum(expect) > 0
-    assert sv["n_flagged"].tolist() == expect
+    expect = [obstructed & _ids(s) for s in sv["selected"]]
+    assert sum(map(len, expect)) > 0
+    assert [_ids(f) for f in sv["flagged"]] == expect
+    assert sv["n_flagged"].tolist() == [len(e) for e in expect]
 
 
 def test_no_obstacles_means_no_flags_and_the_lssvr_observation():
