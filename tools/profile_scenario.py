@@ -6,7 +6,9 @@ process's peak RSS. One run per mode (the profilers slow each other down).
     python tools/profile_scenario.py scenarios/stvf.toml --variant stvf --mode mem --set simulation.duration_s=100
     python tools/profile_scenario.py scenarios/stvf.toml --variant stvf --mode rss    # plain run: wall, CPU, peak RSS
 
-The run goes through :func:`aquasim_py.run_scenario` (tables and metrics, no files written).
+The run goes through :func:`aquasim_py.run_scenario`: without ``--out`` every table is kept in
+memory; with ``--out DIR`` the run writes there as the CLI does (tables stream to files and the
+ones nobody reads are not kept).
 """
 
 from __future__ import annotations
@@ -29,12 +31,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--set", dest="sets", action="append", default=[], help="KEY.PATH=VALUE, as the CLI's --set")
     ap.add_argument("--mode", choices=("cpu", "mem", "rss"), default="rss")
     ap.add_argument("--top", type=int, default=15)
+    ap.add_argument("--out", default=None, help="write the run's files there (replacing an earlier output)")
     a = ap.parse_args(argv)
 
     def run() -> None:
-        res = run_scenario(a.scenario, variant=a.variant, seed=a.seed, overrides=a.sets, progress=False)
-        rows = {k: len(v) for k, v in res.tables.items()}
-        print("rows per table:", rows)
+        res = run_scenario(
+            a.scenario, variant=a.variant, seed=a.seed, overrides=a.sets, progress=False, out=a.out, overwrite=True
+        )
+        print("tables:", sorted(res.tables))
 
     t0, c0 = time.perf_counter(), time.process_time()
     if a.mode == "cpu":
@@ -44,7 +48,7 @@ def main(argv: list[str] | None = None) -> None:
         st.sort_stats("tottime").print_stats(a.top)
         st.sort_stats("cumulative").print_stats(a.top)
     elif a.mode == "mem":
-        tracemalloc.start(6)
+        tracemalloc.start(1)
         run()
         cur, peak = tracemalloc.get_traced_memory()
         print(f"tracemalloc: current {cur / 2**20:.1f} MiB, peak {peak / 2**20:.1f} MiB")
