@@ -17,7 +17,8 @@ import gc
 import hashlib
 import math
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from types import GeneratorType
 from typing import Any
@@ -33,7 +34,7 @@ from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import Trace, TraceConfig
 
-__all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig"]
+__all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig", "quiet_gc"]
 
 ClockSpec = Sequence[Any] | Callable[[int, np.random.Generator], Any] | None
 MobilitySpec = Any  # a Mobility object, or a callable rng -> Mobility
@@ -332,6 +333,33 @@ class _NodeCore:
             error=err,
             **extra,
         )
+
+
+#: young-generation threshold of the garbage collector while a simulation runs (Python's
+#: default is 700): see quiet_gc
+RUN_GC_THRESHOLD = 20_000
+
+
+@contextmanager
+def quiet_gc() -> Iterator[None]:
+    """The garbage collector's settings for a run (restored afterwards, so nothing leaks).
+
+    Objects that exist before the run (imported modules, the scenario, earlier tables) are
+    frozen out of the collector's scans: a long run triggers many of them, and rescanning a
+    large, unchanging heap each time costs more than the events. And the young generation is
+    collected every RUN_GC_THRESHOLD allocations instead of 700: the run's garbage is freed by
+    reference counting (SimPy breaks its event-process cycles when an event is processed), so
+    the collections mostly rescan the live signal records, queue entries and packets, whose
+    number grows with the network: at 5000 nodes they cost about a fifth of the run
+    (tools/bench_kernel.py, docs/performance.md)."""
+    gc.freeze()
+    old = gc.get_threshold()
+    gc.set_threshold(max(old[0], RUN_GC_THRESHOLD), *old[1:])
+    try:
+        yield
+    finally:
+        gc.set_threshold(*old)
+        gc.unfreeze()
 
 
 def _perfect_clock() -> Any:
@@ -660,14 +688,7 @@ class Simulation:
                 self.env.process(self._sample_positions(float(interval)))
         if progress is not None:
             self.env.process(self._progress(until, progress))
-        # Objects that exist before the run (imported modules, the scenario, earlier tables) are
-        # kept out of the garbage collector's full scans while it runs: a long run triggers many
-        # of them, and rescanning a large, unchanging heap each time costs more than the events.
-        # unfreeze() hands them back afterwards, so nothing is leaked.
-        gc.freeze()
-        try:
+        with quiet_gc():
             self.env.run(until=until)
-        finally:
-            gc.unfreeze()
         if progress is not None:
             progress(until, until)

@@ -436,6 +436,9 @@ def run_resolved_into(
         res.write_into(tmp / name, final=final / name)
         results[name] = res
     write_comparison(results, tmp / "variants.csv")
+    paper = paper_comparison(results)
+    if paper is not None:
+        paper.to_csv(tmp / "paper.csv", index=False)
     return results
 
 
@@ -461,6 +464,32 @@ def comparison_columns(results: Mapping[str, RunResult]) -> tuple[list[str], lis
     n = len(results)
     common = [k for k, c in order.items() if 2 * c > n]
     return common, [k for k in order if k not in common]
+
+
+def paper_comparison(results: Mapping[str, RunResult]) -> pd.DataFrame | None:
+    """What the protocols' papers report beside the same statistics of these variants: each
+    protocol class's optional ``paper_comparison(results) -> DataFrame | None`` (one row per
+    claim: figure, quantity, statistic, ours, paper), rows concatenated; None when no protocol
+    gives one. A comparison that fails gives one row saying so (the runs' outputs are kept)."""
+    import pandas as pd
+
+    frames, seen = [], set()
+    for res in results.values():
+        for cls in res.scenario.protocols():
+            fn = getattr(cls, "paper_comparison", None)
+            if not callable(fn) or getattr(fn, "__func__", fn) in seen:
+                continue
+            seen.add(getattr(fn, "__func__", fn))
+            try:
+                df = fn(results)
+            except Exception as e:
+                name = getattr(cls, "name", cls.__name__)
+                df = pd.DataFrame(
+                    [{"quantity": f"{name}: paper comparison failed", "ours": f"{type(e).__name__}: {e}"}]
+                )
+            if df is not None and len(df):
+                frames.append(df)
+    return pd.concat(frames, ignore_index=True) if frames else None
 
 
 def write_comparison(results: Mapping[str, RunResult], path: str | Path) -> None:

@@ -143,7 +143,28 @@ def _variant_of(job: Job) -> str | None:
 
 def _job_scenario(base: dict[str, Any], path: str | None, job: Job) -> _scenario.Scenario:
     overrides = [(_scenario.parse_key_path(k), v) for k, v in job.point if k != VARIANT_KEY]
-    return _scenario.load_dict(base, path, overrides=overrides, seed=job.seed)
+    return _scenario.load_dict(_free_implied_counts(base, overrides), path, overrides=overrides, seed=job.seed)
+
+
+def _free_implied_counts(base: dict[str, Any], overrides: Sequence[tuple[Any, Any]]) -> dict[str, Any]:
+    """``base`` with the count of each group whose placement is swept (and count is not) left
+    to the new placement, when the old one implied it (explicit, grid): resolving the file
+    filled that count in, and a swept placement with another number of positions would
+    otherwise contradict it."""
+    groups = base.get("nodes") or []
+    n = len(groups)
+
+    def swept(key: str) -> set[int]:
+        return {
+            loc[1] % n
+            for loc, _ in overrides
+            if len(loc) >= 3 and loc[0] == "nodes" and loc[2] == key and isinstance(loc[1], int) and -n <= loc[1] < n
+        }
+
+    free = {i for i in swept("placement") - swept("count") if groups[i]["placement"]["kind"] in ("explicit", "grid")}
+    if not free:
+        return base
+    return {**base, "nodes": [{**g, "count": None} if i in free else g for i, g in enumerate(groups)]}
 
 
 def check_points(sc: _scenario.Scenario, jobs: Sequence[Job]) -> None:

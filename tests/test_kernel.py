@@ -207,3 +207,18 @@ def test_same_seed_gives_byte_identical_csv(tmp_path):
     assert set(a) >= {"packets.csv", "positions.csv", "estimates.csv", "clocks.csv", "nodes.csv"}
     assert a == b
     assert a["packets.csv"] != c["packets.csv"]
+
+
+def test_quiet_gc_restores_the_collector_even_on_error() -> None:
+    import gc
+
+    from aquasim_py.kernel import RUN_GC_THRESHOLD, quiet_gc
+
+    before = gc.get_threshold()
+    frozen = gc.get_freeze_count()
+    with pytest.raises(RuntimeError), quiet_gc():
+        assert gc.get_threshold()[0] >= RUN_GC_THRESHOLD
+        assert gc.get_freeze_count() >= frozen
+        raise RuntimeError("boom")
+    assert gc.get_threshold() == before
+    assert gc.get_freeze_count() == frozen

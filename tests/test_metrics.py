@@ -263,24 +263,34 @@ def _shifted(raw: dict, dx: float, dy: float) -> list:
     return ov
 
 
-def _run(name: str, duration: float, offset: tuple[float, float] | None = None) -> dict:
+def _run(name: str, duration: float, offset: tuple[float, float] | None = None) -> dict[str, dict]:
+    """Every variant of the file: variant -> its metrics and the cells of its derived tables
+    (``table.column.row``), plus ``"paper"`` -> the paper comparison's rows as text."""
     import tomllib
 
-    from aquasim_py import scenario
+    from aquasim_py import runner
 
     path = ROOT / name
     raw = tomllib.loads(path.read_text())
     assert all(g.get("mobility", {}).get("model") != "meandering_jet" for g in raw["nodes"])
-    ov: list = [(["simulation", "duration_s"], duration)]
+    # the short runs are evaluated from their start (stvf_quick skips 20 s otherwise)
+    ov: list = [(["simulation", "duration_s"], duration), (["metrics", "warmup_s"], 0.0)]
     if offset is not None:
         ov += _shifted(raw, *offset)
-    sc = scenario.load_dict(raw, path, overrides=ov)
-    sim = scenario.build(sc)
-    sim.run(sc.simulation.duration_s)
-    return metrics.summarize(sim.trace.frames(), sc.protocols())
+    results = runner.run_variants(path, overrides=ov, progress=False)
+    out = {v: dict(r.metrics) for v, r in results.items()}
+    for v, r in results.items():  # the tables behind what the reports print (ITMTL's per-round one)
+        for t, df in r.derived_tables().items():
+            num = df.select_dtypes("number")
+            out[v].update({f"{t}.{c}.{i}": float(x) for c in num for i, x in enumerate(num[c])})
+    paper = runner.paper_comparison(results)
+    if paper is not None:
+        out["paper"] = dict(zip(paper["figure"], paper["ours"]))
+    return out
 
 
-# short runs: ITMTL's first rounds (about five fixes), STVF's first beacon periods
+# short runs: ITMTL's first rounds (about five fixes, every variant of the main job), STVF's
+# first beacon periods
 RUNS = {"itmtl.toml": 30.0, "stvf_quick.toml": 2.5}
 
 
@@ -290,18 +300,22 @@ def runs():
 
 
 def test_family_metrics_equal_the_generic_ones(runs):
-    itmtl, _ = runs["itmtl.toml"]
-    assert itmtl["localization.estimates"] > 0
+    variants, _ = runs["itmtl.toml"]
+    assert set(variants) == {"itmtl", "wsc", "tshl", "mu_sync", "mobi_sync", "paper"}
     pairs = [
-        ("itmtl.loc_rmse_m", "localization.rmse_m"),
-        ("itmtl.loc_final_rmse_m", "localization.final_rmse_m"),
-        ("itmtl.loc_nmse", "localization.nmse"),
-        ("itmtl.coverage", "localization.coverage"),
-        ("itmtl.sync_final_mean_all_s", "sync.final_mean_abs_error_s"),
+        ("loc_rmse_m", "localization.rmse_m"),
+        ("loc_final_rmse_m", "localization.final_rmse_m"),
+        ("loc_nmse", "localization.nmse"),
+        ("coverage", "localization.coverage"),
+        ("sync_final_mean_all_s", "sync.final_mean_abs_error_s"),
     ]
-    for fam, gen in pairs:
-        assert itmtl[fam] == itmtl[gen], (fam, gen)
-    stvf, _ = runs["stvf_quick.toml"]
+    protocols = {"itmtl": "itmtl", "wsc": "itmtl", "tshl": "tshl", "mu_sync": "mu_sync", "mobi_sync": "mobi_sync"}
+    for variant, proto in protocols.items():
+        m = variants[variant]
+        assert m["localization.estimates"] > 0, variant
+        for fam, gen in pairs:
+            assert m[f"{proto}.{fam}"] == m[gen], (variant, fam, gen)
+    stvf = runs["stvf_quick.toml"][0]["stvf"]
     assert stvf["stvf.share_promoted"] > 0  # promoted rows exist, and both sides count them
     for fam, gen in [
         ("stvf.rmse_m", "localization.rmse_m"),
@@ -316,11 +330,17 @@ def test_moving_the_whole_scenario_changes_no_metric(runs, name):
     # Counts must be equal; real-valued metrics differ only by the rounding of coordinates
     # near 1e3 m (ulp ~ 1e-13 m) carried through the solvers: measured <= 2e-11 relative on
     # these runs (1e-9 at 100 s of ITMTL); 1e-6 leaves margin. A frame-dependent definition
-    # (NMSE over ||x||^2) changes by O(1) here.
+    # (NMSE over ||x||^2) changes by O(1) here. Every variant, and the paper comparison the
+    # main job prints (its numbers rounded to 3-4 digits), are checked.
     a, b = runs[name]
     assert a.keys() == b.keys()
-    for k, v in a.items():
-        if isinstance(v, float) and math.isnan(v):
-            assert math.isnan(b[k]), k
-        else:
-            assert b[k] == pytest.approx(v, rel=1e-6, abs=1e-15), k
+    for variant in a:
+        if variant == "paper":
+            assert a["paper"] == b["paper"]
+            continue
+        assert a[variant].keys() == b[variant].keys(), variant
+        for k, v in a[variant].items():
+            if isinstance(v, float) and math.isnan(v):
+                assert math.isnan(b[variant][k]), (variant, k)
+            else:
+                assert b[variant][k] == pytest.approx(v, rel=1e-6, abs=1e-15), (variant, k)

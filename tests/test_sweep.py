@@ -116,6 +116,26 @@ def test_sweep_prints_summary(scen, tmp_path, capsys):
     assert "4 runs" in out and "beacon.range_rmse_m" in out
 
 
+def test_swept_explicit_placement_sets_its_own_count(scen):
+    # the anchors' count (2) is implied by their explicit placement; a swept placement with
+    # another number of positions implies its own (the ITMTL Fig. 10 sweep over references)
+    three = {"kind": "explicit", "positions": [[0.0, 0.0, 5.0], [800.0, 800.0, 5.0], [800.0, 0.0, 5.0]]}
+    sc = scenario.load(scen, overrides=[f'sweep.grid={{"nodes.0.placement"=[{_toml(three)}]}}'])
+    job = sweep.plan(sc)[0]
+    built = sweep._job_scenario(sweep.bases(sc, [job])[None], str(scen), job)
+    assert built.nodes[0].count == 3
+    # a count swept with it still has to agree
+    sc = scenario.load(scen, overrides=[f'sweep.grid={{"nodes.0.placement"=[{_toml(three)}], "nodes.0.count"=[2]}}'])
+    job = sweep.plan(sc)[0]
+    with pytest.raises(scenario.ScenarioError, match="count"):
+        sweep._job_scenario(sweep.bases(sc, [job])[None], str(scen), job)
+
+
+def _toml(placement: dict) -> str:
+    pos = ", ".join("[" + ", ".join(str(c) for c in p) + "]" for p in placement["positions"])
+    return f'{{kind="explicit", positions=[{pos}]}}'
+
+
 def test_sweep_without_sweep_table(tmp_path, capsys):
     p = tmp_path / "nosweep.toml"
     p.write_text(SCENARIO[: SCENARIO.index("[sweep]")])

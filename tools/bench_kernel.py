@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import ChannelConfig
-from aquasim_py.kernel import Simulation
+from aquasim_py.kernel import Simulation, quiet_gc
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
 
@@ -113,11 +113,16 @@ def first_tx_phases(n: int, seed: int) -> np.ndarray:
     return np.array([sim.rng("node", i, "protocol").uniform(0.0, PERIOD) for i in range(n)])
 
 
-def build_bare(pos: np.ndarray, rng_m: float, phases: np.ndarray) -> tuple[simpy.Environment, list[int]]:
-    """The same deliveries with plain SimPy: one process per node, one timeout per delivery."""
+def build_bare(
+    pos: np.ndarray, rng_m: float, phases: np.ndarray, senders: int | None = None
+) -> tuple[simpy.Environment, list[int]]:
+    """The same deliveries with plain SimPy: one process per sending node (the first
+    ``senders``, default all), one timeout per delivery."""
     nbrs = neighbour_lists(pos, rng_m)
+    n_send = len(pos) if senders is None else senders
     delays = [
-        (np.linalg.norm(pos[nb] - pos[i], axis=-1) / SPEED + BITS / BITRATE).tolist() for i, nb in enumerate(nbrs)
+        (np.linalg.norm(pos[nb] - pos[i], axis=-1) / SPEED + BITS / BITRATE).tolist()
+        for i, nb in enumerate(nbrs[:n_send])
     ]
     env = simpy.Environment()
     count = [0]
@@ -132,41 +137,61 @@ def build_bare(pos: np.ndarray, rng_m: float, phases: np.ndarray) -> tuple[simpy
                 env.timeout(dl).callbacks.append(arrive)
             yield env.timeout(PERIOD)
 
-    for i in range(len(pos)):
+    for i in range(n_send):
         env.process(node(i))
     return env, count
 
 
 def run_both(
-    pos: np.ndarray, rng_m: float, until: float, listen: bool, seed: int, speed: float, chunk: float = 2.0
+    pos: np.ndarray,
+    rng_m: float,
+    until: float,
+    listen: bool,
+    seed: int,
+    speed: float,
+    chunk: float = 1.0,
+    warmup: float = 2.0 * PERIOD,
 ) -> dict[str, float]:
     """Advance the kernel and the bare loop alternately, ``chunk`` simulated seconds at a time,
-    summing each one's CPU time: load from other jobs then hits both alike."""
+    summing each one's CPU time: load from other jobs then hits both alike.
+
+    Besides the totals, the "steady" figures count only the chunks after ``warmup`` simulated
+    seconds: by then every node has sent (process start-up, a static sender's first link
+    computation, the neighbour index's build are behind), so what is left is the cost that
+    recurs with every reception, the one to compare across network sizes. Receptions decided
+    per chunk are counted exactly: rows added to the packets table minus transmissions."""
     sim = build_kernel(pos, rng_m, listen, seed, speed)
     env, count = build_bare(pos, rng_m, first_tx_phases(len(pos), seed))
+    table = sim.trace.table("packets")
     gc.collect()
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     cpu_k = cpu_b = wall_k = 0.0
+    steady = {"cpu_k": 0.0, "cpu_b": 0.0, "rec": 0, "deliv": 0}
     t = 0.0
     while t < until:
-        t = min(until, t + chunk)
+        t_prev, t = t, min(until, t + chunk)
+        rows0, tx0, n0 = table.n, sim.channel._uid, count[0]
         w0, c0 = time.perf_counter(), time.process_time()
         sim.run(t)
         c1 = time.process_time()
         wall_k += time.perf_counter() - w0
-        gc.freeze()  # the same garbage-collector treatment Simulation.run gives the kernel
-        env.run(t)
-        gc.unfreeze()
+        with quiet_gc():  # the same garbage-collector treatment Simulation.run gives the kernel
+            env.run(t)
         c2 = time.process_time()
         cpu_k += c1 - c0
         cpu_b += c2 - c1
+        if t_prev >= warmup:
+            steady["cpu_k"] += c1 - c0
+            steady["cpu_b"] += c2 - c1
+            steady["rec"] += (table.n - rows0) - (sim.channel._uid - tx0)
+            steady["deliv"] += count[0] - n0
     rss1 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t1 = time.perf_counter()
     p = sim.trace.frames()["packets"]
     t_frames = time.perf_counter() - t1
     ev = p["event"].astype(str)
     decided = int((ev == "rx").sum() + (ev == "drop").sum())
-    return {
+    out = {
         "wall_s": wall_k,
         "cpu_s": cpu_k,
         "receptions": decided,
@@ -178,7 +203,13 @@ def run_both(
         "bare_cpu_s": cpu_b,
         "bare_deliveries": count[0],
         "bare_rate": count[0] / cpu_b,
+        "steady_receptions": steady["rec"],
     }
+    if steady["rec"] and steady["deliv"]:
+        out["steady_us_per_reception"] = 1e6 * steady["cpu_k"] / steady["rec"]
+        out["steady_bare_us_per_delivery"] = 1e6 * steady["cpu_b"] / steady["deliv"]
+        out["steady_ratio"] = out["steady_bare_us_per_delivery"] / out["steady_us_per_reception"]
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -216,6 +247,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(f"CPU per reception: {1e6 * k['cpu_s'] / k['receptions']:.2f} us")
     print(f"ratio kernel / bare SimPy: {k['rate'] / k['bare_rate']:.3f} (target >= 0.25)")
+    if "steady_ratio" in k:
+        print(
+            f"steady state (after {2.0 * PERIOD:g} s, {k['steady_receptions']} receptions): "
+            f"{k['steady_us_per_reception']:.2f} us per reception, bare {k['steady_bare_us_per_delivery']:.2f} us "
+            f"per delivery, ratio {k['steady_ratio']:.3f}"
+        )
     return 0
 
 

@@ -21,7 +21,8 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    packet survives if its SNR exceeds the total power of the overlapping signals by
    ``capture_threshold_db``).
 
-Each delivery is one timeout callback, scheduled at the instant the last bit arrives: by then
+Each delivery is decided at the instant its last bit arrives (the deliveries of one
+transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`): by then
 every signal that can overlap the reception and every transmission of the receiver that can
 cut it are known (they started before that instant), so the verdict needs no second event.
 
@@ -36,12 +37,14 @@ from bisect import bisect_left, insort
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
+from heapq import heappush
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, cast
 
 import numpy as np
 import simpy
 from numpy.typing import NDArray
+from simpy.events import NORMAL
 
 from ..packet import Packet, Reception
 from ..radio import NetworkView, PacketLog, RadioPort
@@ -74,13 +77,15 @@ PATH_NAMES = {
     int(PathKind.BOTTOM): "bottom",
 }
 
+_DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
 _ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
 _Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
 _MAX_ITER = 50
-_FLOAT_FIELDS = tuple(f for f in Eigenray.__dataclass_fields__ if f != "path")
+_FIELDS = tuple(Eigenray.__dataclass_fields__)
+_FLOAT_FIELDS = tuple(f for f in _FIELDS if f != "path")
 
 
 @dataclass(frozen=True)
@@ -173,26 +178,28 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     The same terms in the same order as ``loss.snr_db`` (so the same bits), with the two that
     depend only on the config (ambient noise N(f) and 10 log10 B) computed once per config:
     the noise sum is the costliest part and this runs once per transmission."""
-    from . import loss
-
-    noise, band, alpha = _snr_constants(config)
-    return (
-        np.asarray(config.source_level_db, dtype=float)
-        - loss.path_loss_db(ray.length, config.frequency_khz, config.spreading, absorption_db_per_km=alpha)
-        - noise
-        - band
-    )
+    noise, band, alpha, k10 = _snr_constants(config)
+    # loss.path_loss_db(l, f, k, l0 = 1, alpha) term by term (the same operations, so the same
+    # bits): 10 k log10(max(l, l0) / l0) + (max(l, l0) - l0) 1e-3 alpha, with l / 1.0 = l and
+    # no divide-by-zero guard needed since max(l, 1) >= 1 (NaN stays NaN)
+    length = np.maximum(np.asarray(ray.length, dtype=float), 1.0)
+    loss_db = k10 * np.log10(length) + (length - 1.0) * 1e-3 * alpha
+    return config.source_level_db - loss_db - noise - band
 
 
 @lru_cache(maxsize=64)
-def _snr_constants(config: ChannelConfig) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km) of a channel
-    config (alpha is what ``loss.path_loss_db`` computes itself when not given: the same bits)."""
+def _snr_constants(
+    config: ChannelConfig,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+    """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km, 10 k) of a
+    channel config (alpha is what ``loss.path_loss_db`` computes itself when not given, 10 k
+    the factor ``loss.spreading_loss_db`` applies: the same bits)."""
     from . import loss
 
     noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
     alpha = loss.thorp_absorption_db_per_km(config.frequency_khz)
-    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha
+    k10 = 10.0 * loss._spreading_k(config.spreading)
+    return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha, k10
 
 
 def default_loss_model() -> LossModel:
@@ -228,6 +235,29 @@ class _Modem:
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
         self.log_cap = 8  # prune tx_log beyond this length (see _prune)
+
+
+class _Deliveries:
+    """The deliveries of one transmission, as one entry at a time on SimPy's event queue.
+
+    ``sigs`` are the signal records in order of their last bit's arrival; the entry for
+    delivery k is pushed when delivery k - 1 has been decided, at the true time
+    t0 + (end_k - t0) (the instant a Timeout of delay end_k - t0 made at t0 would fire). So
+    the queue holds one entry per transmission in flight, not one per receiver: at 5000 nodes
+    with 16 neighbours the heap is 16 times smaller, and a delivery costs one heap push and no
+    Timeout. Between deliveries of different transmissions at the same instant the order
+    follows the push, so it can differ from one-Timeout-per-delivery only for exactly equal
+    float times; it is deterministic either way. The object carries what
+    ``Environment.step`` uses of an event (``callbacks``, ``_ok``)."""
+
+    __slots__ = ("callbacks", "k", "sigs", "t0")
+    _ok = True
+
+    def __init__(self, sigs: list[_Signal], t0: float, callbacks: list[Callable[[_Deliveries], None]]) -> None:
+        self.callbacks = callbacks
+        self.sigs = sigs
+        self.t0 = t0
+        self.k = 0
 
 
 class AcousticChannel:
@@ -267,6 +297,7 @@ class AcousticChannel:
         self._static_links: dict[int, tuple[int, Any]] = {}
         self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
         self._static = False
+        self._all_moving = False
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
@@ -275,6 +306,13 @@ class AcousticChannel:
         self._destructive = config.collision == "destructive"
         self._capture = config.collision == "capture"
         self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
+        # deliveries go straight onto SimPy's queue (see _Deliveries) when its layout is the
+        # known one: a list heap of (time, priority, sequence number, event) and a counter
+        self._next_cb: list[Callable[[_Deliveries], None]] = [self._next_delivery]
+        self._queue: list[Any] = getattr(env, "_queue", None)  # type: ignore[assignment]
+        self._eid: Any = getattr(env, "_eid", None)
+        known = isinstance(self._queue, list) and hasattr(self._eid, "__next__")
+        self._push = self._push_queue if known else self._push_schedule
 
         # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
         obs = config.obstacles
@@ -392,20 +430,20 @@ class AcousticChannel:
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
         forget = t0 - 2.0 * self._max_duration
-        finish = self._on_delivery
+        sigs: list[_Signal] = []
         if dst is None:
             for rx, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
                 # one tuple is both the receiver's signal record (sorted by arrival) and the
-                # delivery's context, riding as the timeout's value (cheaper than a closure)
+                # delivery's context
                 sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
                     log = rx.rx_log
                     insort(log, sig, key=_ARRIVAL)
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
-                env.timeout(end - t0, sig).callbacks.append(finish)
+                sigs.append(sig)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
             for rx, T, path, s in heard:
@@ -421,15 +459,18 @@ class AcousticChannel:
                     if log[0][0] < forget:
                         del log[: bisect_left(log, forget, key=_ARRIVAL)]
                 if intended:
-                    env.timeout(end - t0, sig).callbacks.append(finish)
+                    sigs.append(sig)
+        if sigs:  # heard is sorted by delay, so sigs are in order of arrival
+            self._push(_Deliveries(sigs, t0, self._next_cb), t0 + (sigs[0][1] - t0))
         return tx_local
 
     def _links(
         self, src: int, t0: float
-    ) -> tuple[frozenset[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
 
-        heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver;
+        heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver,
+        sorted by delay;
         lost: (id, "no_path" | "snr", delay, path name, SNR) of those that do not. When no node
         moves the answer never changes, so it is cached per sender (recomputed if nodes are
         added; the loss model must be a pure function of the eigenray and the config).
@@ -458,29 +499,22 @@ class AcousticChannel:
             p_cand = pos[cand]
             v_cand = None
         else:
-            # the k-d tree's superset of the nodes in range, then the same exact test on it alone
+            # the sender and the k-d tree's superset of the nodes in range around it, then the
+            # same exact test on that superset alone
+            near = index.neighbourhood(src, t0, n, net.positions)
             if static:
-                pos = net.positions(t0)
-                p_src = pos[src]
-                near = index.candidates(p_src, t0, n, net.positions)
-                near = near[near != src]
-                p_near = pos[near]
+                p_near = net.positions(t0)[near]
                 v_near = None
             else:
-                # one trajectory evaluation (positions and velocities at t0) for the sender and
-                # the candidates around its position in the tree
-                near = index.candidates_of(src, t0, n, net.positions)
+                # one trajectory evaluation (positions and velocities at t0) for all of them
                 p_near, v_near = self._states(near, t0)
-                is_src = near == src
-                p_src = p_near[is_src][0]
-                other = ~is_src
-                near, p_near, v_near = near[other], p_near[other], v_near[other]
-            diff = p_near - p_src
+            p_src = p_near[0]
+            diff = p_near[1:] - p_src
             keep = np.einsum("ij,ij->i", diff, diff) <= self._range2
-            cand = near[keep]
-            p_cand = p_near[keep]
+            cand = near[1:][keep]
+            p_cand = p_near[1:][keep]
             if v_near is not None:
-                v_cand = v_near[keep]
+                v_cand = v_near[1:][keep]
         heard: list[tuple[_Modem, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
@@ -490,14 +524,30 @@ class AcousticChannel:
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
             thr = self.config.snr_threshold_db
-            for rid, T, p, s in zip(cand.tolist(), times.tolist(), paths.tolist(), snr.tolist()):
-                if T != T:  # NaN: no eigenray (shadow zone)
-                    lost.append((rid, "no_path", T, PATH_NAMES[p], s))
-                elif s < thr:  # NaN SNR (no loss model) compares False: never dropped on SNR
-                    lost.append((rid, "snr", T, PATH_NAMES[p], s))
-                else:
-                    heard.append((modems[rid], T, PATH_NAMES[p], s))
-        out = (frozenset(cand.tolist()), heard, lost)
+            ids = cand.tolist()
+            # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
+            # no loss model, compares False: never dropped on SNR)
+            if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
+                heard = list(
+                    zip(
+                        map(modems.__getitem__, ids),
+                        times.tolist(),
+                        map(PATH_NAMES.__getitem__, paths.tolist()),
+                        snr.tolist(),
+                    )
+                )
+            else:
+                for rid, T, p, s in zip(ids, times.tolist(), paths.tolist(), snr.tolist()):
+                    if T != T:
+                        lost.append((rid, "no_path", T, PATH_NAMES[p], s))
+                    elif s < thr:
+                        lost.append((rid, "snr", T, PATH_NAMES[p], s))
+                    else:
+                        heard.append((modems[rid], T, PATH_NAMES[p], s))
+            heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
+        else:
+            ids = []
+        out = (ids, heard, lost)
         if static:
             self._static_links[src] = (n, out)
         return out
@@ -508,6 +558,7 @@ class AcousticChannel:
         net = self._net
         self._layout_n = n
         self._static = not bool(net.is_moving().any())
+        self._all_moving = bool(net.is_moving().all())
         bound = getattr(net, "max_speed", None)
         vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
         self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
@@ -540,8 +591,12 @@ class AcousticChannel:
         ssp = self.ssp
         refl = self.config.reflections
         net = self._net
-        moving = net.is_moving()[cand]
-        if not moving.any():
+        fast = None
+        if self._all_moving and v_rx is not None and isinstance(ssp, Constant):
+            fast = _straight_moving(ssp, p_src, p_rx, v_rx, t0, lambda t: net.positions_at(cand, t))
+        if fast is not None:
+            ray = fast
+        elif not (moving := net.is_moving()[cand]).any():
             ray = eigenray(ssp, p_src, p_rx, reflections=refl)
         else:
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
@@ -574,12 +629,18 @@ class AcousticChannel:
             for _ in range(_MAX_ITER):
                 if active.size == 0:
                     break
-                p_new = net.positions_at(cand[active], t0 + time[active])
+                # every receiver active (the usual first step): whole arrays, no gathers
+                whole = active.size == time.size
+                t_act = time if whole else time[active]
+                p_new = net.positions_at(cand if whole else cand[active], t0 + t_act)
                 r = straight(p_new) if straight is not None else eigenray(ssp, p_src, p_new, reflections=refl)
-                step = np.abs(r.time - time[active])
-                for f in fields:
-                    fields[f][active] = getattr(r, f)
-                time[active] = r.time
+                step = np.abs(r.time - t_act)
+                if whole:
+                    fields = {f: np.asarray(getattr(r, f)) for f in _FIELDS}
+                    time = fields["time"]
+                else:
+                    for f in _FIELDS:
+                        fields[f][active] = getattr(r, f)
                 # converged (or lost the path: NaN stays NaN and leaves the loop)
                 active = active[step > FIXED_POINT_TOL_S]
             ray = Eigenray(**fields)
@@ -590,9 +651,30 @@ class AcousticChannel:
 
     # -- receive ----------------------------------------------------------------------------------
 
-    def _on_delivery(self, ev: simpy.Event) -> None:
+    def _next_delivery(self, ev: _Deliveries) -> None:
+        """Decide the transmission's current delivery, then queue its next one."""
+        sigs = ev.sigs
+        k = ev.k
+        self._on_delivery(sigs[k])
+        k += 1
+        if k < len(sigs):
+            ev.k = k
+            ev.callbacks = self._next_cb  # Environment.step set it to None
+            t0 = ev.t0
+            self._push(ev, t0 + (sigs[k][1] - t0))
+
+    def _push_queue(self, ev: _Deliveries, at: float) -> None:
+        """Queue ``ev`` at true time ``at`` exactly, as ``Environment.schedule`` would with
+        priority NORMAL (same entry layout, next sequence number)."""
+        heappush(self._queue, (at, NORMAL, next(self._eid), ev))
+
+    def _push_schedule(self, ev: _Deliveries, at: float) -> None:
+        """Fallback for a SimPy without ``_queue`` / ``_eid``: the public ``schedule`` (its
+        time now + (at - now) can differ from ``at`` by an ulp early in a run)."""
+        self._env.schedule(cast(simpy.Event, ev), NORMAL, at - self._env.now)
+
+    def _on_delivery(self, sig: _Signal) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        sig = cast(_Signal, ev.value)  # the timeout's value: the record made in _start
         arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
         for a, b in rx.tx_log:
@@ -729,6 +811,15 @@ def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArr
         if not src_ok:
             ok[...] = False
         bad = ~ok
+        if not bad.any():  # the usual case: the np.where below would change nothing
+            return Eigenray(
+                time=dist / c,
+                length=dist,
+                launch_angle=ang,
+                arrival_angle=ang.copy(),  # own array: the fixed point writes rows of each field
+                turning_depth=np.full(dist.shape, np.nan),
+                path=np.full(dist.shape, direct),
+            )
         return Eigenray(
             time=np.where(bad, np.nan, dist / c),
             length=np.where(bad, np.nan, dist),
@@ -739,6 +830,55 @@ def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArr
         )
 
     return rays
+
+
+def _straight_moving(
+    ssp: Constant,
+    p_src: NDArray[np.float64],
+    p_rx: NDArray[np.float64],
+    v: NDArray[np.float64],
+    t0: float,
+    positions_at: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+) -> Eigenray | None:
+    """Constant profile, every receiver moving: the eigenrays to the receivers at their arrival
+    instants, or None when anything is unusual (a point out of the water, a receiver faster
+    than c/2, a step of the exact iteration larger than the tolerance: the general fixed point
+    in ``_arrivals`` then runs, with the same result).
+
+    The same operations, in the same order, as the general path's usual course (the
+    closed-form start of ``_constant_start``, one exact step, the ray of ``_straight_rays``),
+    so the same bits, with the per-row checks done as a few reductions over the whole
+    neighbourhood instead of masks and gathers: this runs once per transmission.
+    positions_at(times): the receivers' true positions (k, 3) at true times (k,)."""
+    c = ssp.speed_mps
+    bottom = ssp.bottom
+    z_s = float(p_src[2])
+    if not (z_s >= 0.0 and (bottom is None or z_s <= bottom) and math.isfinite(float(p_src.sum()))):
+        return None
+    z = p_rx[:, 2]
+    if not (z.min() >= 0.0 and (bottom is None or z.max() <= bottom)):  # NaN fails too
+        return None
+    t = _constant_moving_root(c, p_rx - p_src, v)  # NaN / inf for a non-finite receiver or speed
+    if not math.isfinite(float(t.sum())):
+        return None
+    p_new = positions_at(t0 + t)
+    diff = p_new - p_src
+    dist = np.sqrt(np.add.reduce(diff * diff, axis=-1))  # np.linalg.norm(diff, axis=-1), same bits
+    z = p_new[:, 2]
+    if not (math.isfinite(float(dist.sum())) and z.min() >= 0.0 and (bottom is None or z.max() <= bottom)):
+        return None
+    time = dist / c
+    if not bool((np.abs(time - t) <= FIXED_POINT_TOL_S).all()):
+        return None
+    ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
+    return Eigenray(
+        time=time,
+        length=dist,
+        launch_angle=ang,
+        arrival_angle=ang.copy(),
+        turning_depth=np.full(dist.shape, np.nan),
+        path=np.full(dist.shape, np.int8(PathKind.DIRECT)),
+    )
 
 
 def _constant_start(
@@ -767,6 +907,8 @@ def _constant_start(
     if not np.isfinite(t).all():
         return None
     n = len(p_rx)
+    if active.size == n:  # every row is overwritten by the first exact step, which reads only time
+        return {"time": t}, active
     # every row is filled below: traced (rest) or overwritten by the first exact step (active)
     fields: dict[str, NDArray[Any]] = {f: np.empty(n) for f in _FLOAT_FIELDS}
     fields["path"] = np.empty(n, dtype=np.int8)

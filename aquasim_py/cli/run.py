@@ -16,6 +16,7 @@ from aquasim_py.runner import (
     check_output_format,
     comparison_columns,
     console,
+    paper_comparison,
     relocate_results,
     resolve_variants,
     run_resolved_into,
@@ -110,7 +111,11 @@ def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> i
     if not args.quiet:
         con = console()
         con.print(comparison_table(results, base, width=con.width))
-        con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}", soft_wrap=True)
+        paper = paper_comparison(results)
+        if paper is not None:
+            con.print(paper_table(paper))
+        more = f", the papers' numbers: {out / 'paper.csv'}" if paper is not None else ""
+        con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}{more}", soft_wrap=True)
     _report(out, args)
     return 0
 
@@ -156,6 +161,19 @@ def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: in
         t.add_column(name, justify="right")
     for j, c in enumerate(cols):
         t.add_row(c, *(cells[name][j] for name in results))
+    return t
+
+
+def paper_table(paper: Any) -> Any:
+    """The protocols' papers beside this run (:func:`aquasim_py.runner.paper_comparison`):
+    one row per claim, with what the paper's number is a statistic of."""
+    from rich.table import Table
+
+    t = Table(title="the paper beside this run (same statistic; paper.csv)")
+    for c in paper.columns:
+        t.add_column("ours (this run)" if c == "ours" else c, overflow="fold")
+    for row in paper.itertuples(index=False):
+        t.add_row(*("" if isinstance(v, float) and v != v else str(v) for v in row))
     return t
 
 

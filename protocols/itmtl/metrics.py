@@ -55,7 +55,7 @@ def _rows(df: pd.DataFrame | None, name: str, ids: np.ndarray) -> pd.DataFrame:
 
 
 def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
-    """Per round: mean and p95 |sync error| (s), RMSE of position (m), nodes reporting."""
+    """Per round: mean and p95 |sync error| (s), RMSE (m) and NMSE of position, nodes reporting."""
     ids = _ordinary(tables, name)
     clk = _rows(tables.get("clocks"), name, ids)
     est = _rows(tables.get("estimates"), name, ids)
@@ -71,6 +71,7 @@ def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
     if len(est) and "round" in est:
         g = est.assign(se=est["error"] ** 2).groupby("round")
         out["loc_rmse_m"] = np.sqrt(g["se"].mean())
+        out["loc_nmse"] = _per_round_nmse(est, tables.get("nodes"), name)
         out["nodes"] = g["node"].nunique()
         if "is_reference" in est:
             out["promoted"] = est[est["is_reference"].astype(bool)].groupby("round")["node"].nunique()
@@ -219,16 +220,8 @@ def mac_metrics(tables: Mapping[str, pd.DataFrame], name: str, res_kind: str = "
     return out
 
 
-def per_round_nmse(tables: Mapping[str, pd.DataFrame], name: str) -> pd.Series:
-    """Per round: localization NMSE of the ordinary nodes' estimates logged in that round
-    (sum of squared errors / sum of squared true positions, :func:`aquasim_py.metrics.nmse`'s
-    definition), the paper's Fig. 12 ordinate."""
-    ids = _ordinary(tables, name)
-    est = _rows(tables.get("estimates"), name, ids)
-    if len(est) == 0 or "round" not in est:
-        return pd.Series(dtype=float, name="loc_nmse")
-    x = est[["true_x", "true_y", "true_z"]].to_numpy(float)
-    d = est[["x", "y", "z"]].to_numpy(float) - x
-    g = pd.DataFrame({"round": est["round"].to_numpy(), "se": (d * d).sum(axis=1), "ss": (x * x).sum(axis=1)})
-    s = g.groupby("round")[["se", "ss"]].sum()
-    return (s["se"] / s["ss"]).rename("loc_nmse")
+def _per_round_nmse(est: pd.DataFrame, nodes: pd.DataFrame | None, name: str) -> pd.Series:
+    """Per round: :func:`aquasim_py.metrics.nmse` (origin-free) of the ordinary nodes'
+    estimates logged in that round, the paper's Fig. 12 ordinate; NaN for a round whose rows
+    have no spread (one node)."""
+    return pd.Series({r: generic.nmse(g, nodes, protocol=name) for r, g in est.groupby("round")}, dtype=float)

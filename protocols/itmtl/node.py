@@ -31,9 +31,11 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+from collections.abc import Mapping
 from typing import Any, ClassVar, Literal
 
 import numpy as np
+import pandas as pd
 from pydantic import Field
 
 from aquasim_py.estimation.errors import EstimationError
@@ -45,6 +47,8 @@ from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
 from aquasim_py.registry import register
 
 from .math import DelayModel, fix_confidence, initial_clock, position_fix
+from .paper import CLAIMS
+from .paper import comparison as paper_comparison
 from .reqres import ReqResNode, ReqResParams, Round
 
 __all__ = ["ItmtlNode"]
@@ -106,15 +110,13 @@ class ItmtlNode(ReqResNode):
 
     name: ClassVar[str] = "itmtl"
     Params = ItmtlParams
-    paper: ClassVar[dict[str, str]] = {
-        "sync error": "lowest of ITMTL, ITMTL-wsc, Mobi-Sync, TSHL (Fig. 9)",
-        "sync error vs ITMTL-wsc": "wsc higher, by up to 56.67 % (largest per-iteration difference, Fig. 11)",
-        "NMSE vs ITMTL-wsc": "about 25.8 % lower than wsc's at the same iteration (Fig. 12)",
-        "NMSE vs number of references": "lowest of the four at every count (Fig. 10)",
-        "range, 30 % vs 10 % anchors": "about 1.8x at density 10 (Fig. 15)",
-        "sync error, anchor share": "up to 48.07 % lower with more anchors (Fig. 16)",
-        "NMSE, 30 % vs 10 % anchors": "about 7.6x lower at density 3 (Fig. 17)",
-    }
+    paper: ClassVar[dict[str, str]] = {f"{c.quantity} ({c.figure})": f"{c.paper}; {c.statistic}" for c in CLAIMS}
+
+    @classmethod
+    def paper_comparison(cls, results: Mapping[str, Any]) -> pd.DataFrame | None:
+        """The paper's numbers beside the same statistics of the variants of one network and
+        seed (variant name -> run result), for the variants runner (:mod:`.paper`)."""
+        return paper_comparison(results)
 
     def setup(self) -> None:
         super().setup()

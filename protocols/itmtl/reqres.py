@@ -125,7 +125,7 @@ class ReqResNode(Node):
         "packets",
         "reqres_rounds",
         "reqres_replies",
-    )  # what metrics / derived_tables / report read
+    )  # what metrics / derived_tables / report / paper_comparison read
     Params = ReqResParams
 
     # -- state ----------------------------------------------------------------------------------
@@ -372,8 +372,8 @@ class ReqResNode(Node):
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
 
-    #: What the ITMTL paper (seed 004) reports for this protocol, metric -> claim; for a
-    #: variants runner to print beside the measured comparison (``paper`` column).
+    #: What the ITMTL paper (seed 004) reports for this protocol, quantity -> claim, listed by
+    #: the report of a single run (the variants runner prints them with our values: paper.py).
     paper: ClassVar[dict[str, str]] = {}
 
     @classmethod
@@ -392,7 +392,8 @@ class ReqResNode(Node):
             f"rounds retried {m['retry_fraction']:.3f}",
         ]
         if cls.paper:
-            # printed here until the variants runner shows a ``paper`` column of its own
-            lines.append(f"{cls.name} in the ITMTL paper (Gao et al.; compare with the variants table):")
+            lines.append(
+                f"{cls.name} in the ITMTL paper (Gao et al.; our values of these statistics: run every variant, paper.csv):"
+            )
             lines += [f"  {k}: {v}" for k, v in cls.paper.items()]
         return "\n".join(lines)

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.channel.neighbours import NeighbourIndex
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity
@@ -44,34 +44,33 @@ def test_candidates_contain_every_node_in_range(
 ) -> None:
     mob = _moving(60, vmax, seed)
     index = NeighbourIndex(range_m, vmax, staleness_s=20.0)
-    index.candidates(mob.position(t_build)[0], t_build, mob.n, mob.position)  # builds at t_build
+    index.neighbourhood(0, t_build, mob.n, mob.position)  # builds at t_build
     t = t_build + age_frac * 20.0
     pos = mob.position(t)
     for src in range(0, mob.n, 7):
         d = np.linalg.norm(pos - pos[src], axis=1)
         truth = set(np.flatnonzero(d <= range_m).tolist())
-        around = index.candidates(pos[src], t, mob.n, mob.position)
-        of = index.candidates_of(src, t, mob.n, mob.position)
-        assert truth <= set(around.tolist())
-        assert truth <= set(of.tolist())
-        assert np.all(np.diff(around) > 0) and np.all(np.diff(of) > 0)  # sorted, no repeats
+        hood = index.neighbourhood(src, t, mob.n, mob.position)
+        assert truth <= set(hood.tolist())
+        assert hood[0] == src and src not in hood[1:].tolist()  # the sender first, once
+        assert np.all(np.diff(hood[1:]) > 0)  # sorted, no repeats
     assert index.rebuilds == 1  # never rebuilt within the staleness bound
 
 
 def test_rebuilds_when_stale_or_grown() -> None:
     mob = _moving(10, 2.0, 1)
     index = NeighbourIndex(300.0, 2.0)
-    assert index.staleness_s == pytest.approx(0.05 * 300.0 / 2.0)
-    index.candidates_of(0, 0.0, 10, mob.position)
-    index.candidates_of(0, index.staleness_s, 10, mob.position)
+    assert index.staleness_s == pytest.approx(0.025 * 300.0 / 2.0)
+    index.neighbourhood(0, 0.0, 10, mob.position)
+    index.neighbourhood(0, index.staleness_s, 10, mob.position)
     assert index.rebuilds == 1
-    index.candidates_of(0, index.staleness_s * 1.01, 10, mob.position)
+    index.neighbourhood(0, index.staleness_s * 1.01, 10, mob.position)
     assert index.rebuilds == 2
-    index.candidates_of(0, index.staleness_s * 1.01, 11, lambda t: np.vstack([mob.position(t), [[0.0, 0.0, 1.0]]]))
+    index.neighbourhood(0, index.staleness_s * 1.01, 11, lambda t: np.vstack([mob.position(t), [[0.0, 0.0, 1.0]]]))
     assert index.rebuilds == 3
     static = NeighbourIndex(300.0, 0.0)
-    static.candidates_of(0, 0.0, 10, mob.position)
-    static.candidates_of(0, 1e9, 10, mob.position)
+    static.neighbourhood(0, 0.0, 10, mob.position)
+    static.neighbourhood(0, 1e9, 10, mob.position)
     assert static.rebuilds == 1
     with pytest.raises(ValueError):
         NeighbourIndex(300.0, float("inf"))
@@ -112,3 +111,48 @@ def test_channel_packets_identical_with_and_without_index(monkeypatch: pytest.Mo
     without = _packets(3, False, monkeypatch)
     assert (with_index["event"] == "rx").sum() > 200  # the test exercises real receptions
     pd.testing.assert_frame_equal(with_index, without)
+
+
+def test_deliveries_of_a_transmission_take_one_queue_entry() -> None:
+    """A broadcast heard by many nodes keeps one entry on SimPy's queue (the next delivery),
+    and the receptions are still decided at their arrival instants, in time order."""
+    n = 30
+    rng = np.random.default_rng(5)
+    pos = np.column_stack([rng.uniform(0.0, 1500.0, n), rng.uniform(0.0, 1500.0, n), rng.uniform(10.0, 90.0, n)])
+
+    class _Once(Node):
+        name = "test_neighbours_once"
+
+        def run(self) -> Any:
+            if self.id == 0:
+                yield self.broadcast("hello", None, 32)
+
+    sim = Simulation(1, ssp=Constant(1500.0), volume=BOX, channel=ChannelConfig(max_range_m=5000.0, bitrate_bps=2000.0))
+    sim.add_group(_Once, n, positions=pos)
+    sim.run(1e-6)  # node 0 has transmitted
+    # 29 receptions pending, yet only the first delivery, node 0's end of transmission, the
+    # position sampler and run()'s stop event are queued
+    assert len(sim.env._queue) <= 4
+    sim.run(10.0)
+    p = sim.trace.frames()["packets"]
+    rx = p[p["event"] != "tx"]
+    assert len(rx) == n - 1
+    dist = np.linalg.norm(pos[rx["node"].to_numpy()] - pos[0], axis=1)
+    np.testing.assert_allclose(rx["time"].to_numpy(), dist / 1500.0, rtol=0.0, atol=1e-12)
+    assert np.all(np.diff(rx["time"].to_numpy()) >= 0.0)
+
+
+def test_public_schedule_fallback_gives_the_same_packets(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without SimPy's queue internals the channel schedules through ``Environment.schedule``:
+    the same receptions, times equal to within an ulp of the run time."""
+    direct = _packets(4, True, monkeypatch)
+    orig = AcousticChannel.__init__
+
+    def no_queue(self: AcousticChannel, *a: Any, **k: Any) -> None:
+        orig(self, *a, **k)
+        self._push = self._push_schedule
+
+    monkeypatch.setattr(AcousticChannel, "__init__", no_queue)
+    fallback = _packets(4, True, monkeypatch)
+    assert (direct["event"] == "rx").sum() > 200
+    pd.testing.assert_frame_equal(direct, fallback, check_exact=False, rtol=1e-14, atol=1e-12)
