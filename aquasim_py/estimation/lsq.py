@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, InsufficientMeasurementsError
 
-__all__ = ["TDOAResult", "multilaterate", "tdoa_ls"]
+__all__ = ["TDOAResult", "multilaterate", "multilateration_covariance", "tdoa_ls"]
 
 Array = NDArray[np.float64]
 
@@ -89,6 +89,30 @@ def multilaterate(
         if np.linalg.norm(step) < 1e-6:
             break
     return x
+
+
+def multilateration_covariance(anchors: ArrayLike, ranges: ArrayLike, range_std: ArrayLike, *, pivot: int = 0) -> Array:
+    """First-order covariance (m^2, (d, d)) of :func:`multilaterate`'s linear fix (no depth, no
+    refinement) for independent range errors of std ``range_std`` (m, scalar or (N,)).
+
+    The linear system M y = b has b_i = |a_i - a_p|^2 - r_i^2 + r_p^2, so a range error moves
+    b by J dr with J_ii = -2 r_i, J_ip = 2 r_p; the fix moves by pinv(M) J dr. Collinear
+    (coplanar) anchors make M singular and this covariance unbounded in the direction across
+    the line: the mirror ambiguity of the fix. Raises like :func:`multilaterate` when M is
+    rank deficient."""
+    A = _anchors(anchors)
+    r = np.asarray(ranges, dtype=float).reshape(-1)
+    if r.size != A.shape[0]:
+        raise ValueError(f"{A.shape[0]} anchors but {r.size} ranges")
+    sd = np.broadcast_to(np.asarray(range_std, dtype=float), r.shape)
+    M = 2.0 * np.delete(A - A[pivot], pivot, axis=0)
+    others = np.delete(np.arange(r.size), pivot)
+    J = np.zeros((r.size - 1, r.size))
+    J[np.arange(r.size - 1), others] = -2.0 * r[others]
+    J[:, pivot] = 2.0 * r[pivot]
+    _solve(M, np.zeros(M.shape[0]), "multilateration")  # the fix's checks: too few anchors, rank
+    G = np.linalg.pinv(M) @ (J * sd)
+    return G @ G.T
 
 
 def _multi(A: Array, r2: Array, pivot: int) -> Array:

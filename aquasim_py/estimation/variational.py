@@ -23,11 +23,15 @@ from typing import cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import DegenerateGeometryError, InsufficientMeasurementsError
+from .lsq import multilaterate, multilateration_covariance
+
 __all__ = [
     "POS",
     "STVFPrior",
     "VariationalResult",
     "gamma_update",
+    "initial_fix",
     "initial_prior",
     "localization_confidence",
     "mean_update",
@@ -104,9 +108,13 @@ class VariationalResult:
         return self.state[POS]
 
 
+_F64 = NDArray[np.float64]  # module level: a subscripted alias in a hot cast costs typing work per call
+
+
 def _inv(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Inverse of one matrix or of a stack (each matrix inverted exactly as on its own)."""
     # numpy's stubs widen inv's result to NDArray[floating]; for float64 input it is float64
-    return cast(NDArray[np.float64], np.linalg.inv(m))
+    return cast(_F64, np.linalg.inv(m))
 
 
 def _sym(m: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -119,8 +127,8 @@ def predict(
     """Variational prediction of q(mu_t) (eq 11): mu^p = mu*_{t-1},
     Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions)."""
     mu_p = np.array(mu_prev, dtype=float)
-    cov = _inv(np.asarray(mu_precision_prev, float)) + _inv(np.asarray(transition, float))
-    return mu_p, _sym(_inv(cov))
+    prev_cov, trans_cov = _inv(np.stack((np.asarray(mu_precision_prev, float), np.asarray(transition, float))))
+    return mu_p, _sym(_inv(prev_cov + trans_cov))
 
 
 def initial_prior(position: ArrayLike, std: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -131,6 +139,34 @@ def initial_prior(position: ArrayLike, std: float) -> tuple[NDArray[np.float64],
     p = np.asarray(position, float)
     mu = np.array([p[0], 0.0, p[1], 0.0])
     return mu, np.eye(4) / std**2
+
+
+def initial_fix(
+    refs: ArrayLike, ranges: ArrayLike, rel_std: float, max_std: float, range_m: float
+) -> NDArray[np.float64] | None:
+    """A coarse (x, y) (m) for :func:`initial_prior` with std ``max_std``, or None when the
+    references cannot give one that good.
+
+    The linear multilateration fix on ``ranges`` (m) to ``refs`` (N, 2), kept only if (a) its
+    first-order covariance for range errors of std ``rel_std`` x range has std at most
+    ``max_std`` in its worst direction (q(mu_0) is isotropic; references near one line, which
+    Sec. 3.1 excludes, make the fix a possible mirror image and that std large), and (b) it
+    lies within ``range_m`` of every reference, up to 3 std of the range error and of the
+    fix's own error, since a node hears only references in range."""
+    refs = np.asarray(refs, float)
+    r = np.asarray(ranges, float)
+    try:
+        fix = multilaterate(refs, r)
+        cov = multilateration_covariance(refs, r, rel_std * r)
+    except (DegenerateGeometryError, InsufficientMeasurementsError):
+        return None
+    worst = float(np.linalg.eigvalsh(cov)[-1])
+    if worst > max_std**2:
+        return None
+    # its distance to a reference is uncertain by the range error and the fix's own error
+    if np.any(np.linalg.norm(refs - fix, axis=1) > range_m + 3.0 * np.sqrt((rel_std * range_m) ** 2 + worst)):
+        return None
+    return fix
 
 
 def _sample_gaussian(
@@ -224,6 +260,22 @@ def mean_update(
     return mu, prec
 
 
+def _wishart_matrix(
+    second_moment: ArrayLike, state: ArrayLike, mu: ArrayLike, mu_second_moment: ArrayLike, scale_inv: ArrayLike
+) -> NDArray[np.float64]:
+    """<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1, symmetrized: W*^-1 of eq 18."""
+    s = np.asarray(state, float)
+    m = np.asarray(mu, float)
+    mat = (
+        np.asarray(second_moment, float)
+        - np.outer(s, m)
+        - np.outer(m, s)
+        + np.asarray(mu_second_moment, float)
+        + scale_inv
+    )
+    return _sym(mat)
+
+
 def wishart_update(
     second_moment: ArrayLike,
     state: ArrayLike,
@@ -236,13 +288,8 @@ def wishart_update(
     """Wishart scale of q(lam_t) (eqs 14, 18):
     W* = (<ss^T> - <s><mu>^T - <mu><s>^T + <mu mu^T> + W^-1)^-1 (dof n* = n + 1).
     ``scale_inv`` (W^-1) may be passed to save an inversion per iteration."""
-    s = np.asarray(state, float)
-    m = np.asarray(mu, float)
     w_inv = _inv(np.asarray(scale, float)) if scale_inv is None else scale_inv
-    mat = (
-        np.asarray(second_moment, float) - np.outer(s, m) - np.outer(m, s) + np.asarray(mu_second_moment, float) + w_inv
-    )
-    return _sym(_inv(_sym(mat)))
+    return _sym(_inv(_wishart_matrix(second_moment, state, mu, mu_second_moment, w_inv)))
 
 
 def variational_update(
@@ -271,13 +318,14 @@ def variational_update(
     mu_prec = 2.0 * lp
     mu = mu_p.copy()
     w_inv = _inv(prior.wishart_scale)
-    w_star = _sym(_inv(_inv(2.0 * lp) + w_inv))
+    mu_cov = _inv(mu_prec)  # (2 Lambda^p)^-1, used twice below
+    w_star = _sym(_inv(mu_cov + w_inv))
     shape = prior.noise_shape + 0.5 * nr
     rate = 0.5 * prior.noise_rate
     speed = prior.speed
     lam = dof * w_star
     zeta = shape / rate
-    mu_mu = np.outer(mu, mu) + _inv(mu_prec)
+    mu_mu = np.outer(mu, mu) + mu_cov
 
     eps_s = rng.standard_normal((prior.n_state_samples, 4))
     eps_v = rng.standard_normal(prior.n_speed_samples)
@@ -293,11 +341,13 @@ def variational_update(
         speed = speed_moment(s1[POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale)
         # Parameters from the current expectations, then the expectations (Algorithm 1 order).
         new_mu, mu_prec = mean_update(lam, s1, mu_p, lp)
-        w_star = wishart_update(s2, s1, mu, mu_mu, prior.wishart_scale, scale_inv=w_inv)
+        # W* (eq 18) and <mu mu^T> need two 4x4 inverses: one call on the stack of both
+        w_star_inv, mu_cov = _inv(np.stack((_wishart_matrix(s2, s1, mu, mu_mu, w_inv), mu_prec)))
+        w_star = _sym(w_star_inv)
         shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed, prior.z_scale)
         step = float(np.linalg.norm(new_mu[POS] - mu[POS]))
         mu = new_mu
-        mu_mu = np.outer(mu, mu) + _inv(mu_prec)
+        mu_mu = np.outer(mu, mu) + mu_cov
         lam = dof * w_star
         zeta = shape / rate
         if step < prior.tol:

@@ -19,6 +19,11 @@ class PeriodicBeaconNode(Node):
 
     beacon_kind: str = "beacon"
     is_beacon: bool
+    # An unknown node empties its inbox once a period (at most one beacon per reference in
+    # range: 35 at Table 1's density 16); beacons never read theirs, so with the kernel's
+    # default of 4096 each of Table 1's 40 anchors would hold its last 4096 receptions, about
+    # 100 MiB at the end of a 500-s run (docs/performance.md). 256 keeps every period's beacons.
+    inbox_capacity = 256
 
     def beacon_payload(self) -> dict[str, Any] | None:
         """What this node broadcasts this period, or None if it is not a reference."""

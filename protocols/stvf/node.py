@@ -20,6 +20,7 @@ from depth gauges, delays from MAC stamps.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -27,8 +28,6 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.estimation import variational as vf
-from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
-from aquasim_py.estimation.lsq import multilaterate
 from aquasim_py.estimation.promotion import promote
 from aquasim_py.node import Role
 from aquasim_py.registry import register
@@ -70,11 +69,15 @@ class StvfParams(BaseModel):
         description="reuse one set of importance samples for every pass of a localization (Algorithm 1 draws new ones)",
     )
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (measurement model)")
-    range_m: float = Field(80.0, gt=0, description="modem range (m): a first fix must lie within it of every reference")
+    range_m: float = Field(
+        80.0, gt=0, description="modem range (m): a first fix must lie within it (up to 3 std) of every reference"
+    )
     first_fix_refs: int = Field(
         3, ge=1, description="references needed to start the filter (prior from multilateration)"
     )
-    initial_std_m: float = Field(10.0, gt=0, description="std of q(mu_0) around a first fix (m)")
+    initial_std_m: float = Field(
+        10.0, gt=0, description="std of q(mu_0) around a first fix, and the most a fix may have in any direction (m)"
+    )
     keep_prior_across_gaps: bool = Field(
         False, description="after a missed period keep q(mu) (inflated by Lambda per period) instead of restarting"
     )
@@ -173,13 +176,16 @@ class StvfNode(PeriodicBeaconNode):
             # twice): wait rather than start the filter on a mirror image.
             self.missed += 1
             return
-        if fresh:
-            fix = self.first_fix(z, refs)
+        fix = self.first_fix(z, refs) if fresh else None
+        if fresh and fix is None:
+            # no fix as good as q(mu_0) claims (e.g. references near one line): wait
+            self.missed += 1
+            return
         gamma = vf.measurement_confidence(eta, z, speed, (p.c1, p.c2, p.c3), penalize=p.penalize_far_fast)
         sel = vf.select_references(gamma, p.n_ref)
         z, refs, eta = z[sel], refs[sel], eta[sel]
 
-        if fresh:
+        if fix is not None:
             self.mu, self.mu_precision = vf.initial_prior(fix, p.initial_std_m)
             gaps = 1
         else:
@@ -208,20 +214,14 @@ class StvfNode(PeriodicBeaconNode):
             period_s=p.period_s,
         )
 
-    def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray:
-        """Coarse (x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given): multilateration on the
-        nominal-speed ranges to every reference heard, kept only if it lies within ``range_m``
-        of each (a node hears only references in range); otherwise their centroid."""
+    def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray | None:
+        """(x, y) for q(mu_0) (Algorithm 1 takes mu*_0 as given), or None to wait:
+        :func:`~aquasim_py.estimation.variational.initial_fix` on the nominal-speed ranges to
+        every reference heard, judged with the node's own error model (ToA ``noise_ratio`` and
+        the sound-speed prior's std, relative to the range) against the std q(mu_0) claims."""
         p: StvfParams = self.params
-        r = z * p.speed_mps / 1e3
-        if len(r) >= 3:
-            try:
-                fix = multilaterate(refs, r)
-            except (DegenerateGeometryError, InsufficientMeasurementsError):
-                fix = None
-            if fix is not None and np.all(np.linalg.norm(refs - fix, axis=1) <= p.range_m):
-                return fix
-        return refs.mean(axis=0)
+        rel_std = math.hypot(p.noise_ratio, 1.0 / (math.sqrt(p.speed_precision) * p.speed_mps))
+        return vf.initial_fix(refs, z * p.speed_mps / 1e3, rel_std, p.initial_std_m, p.range_m)
 
     # -- metrics -----------------------------------------------------------------------------
 

@@ -346,3 +346,61 @@ def test_filter_keeps_up_with_a_drifting_node():
     stuck = replace(vf.STVFPrior(), transition=1e4 * np.eye(4))
     err_s, _, lag_s = _drifting_node_errors(stuck, seeds=range(2))
     assert lag_s > 1.0 and err_s > ls_err
+
+
+# --- q(mu_0): the first fix ---------------------------------------------------------------------
+
+REL_STD = float(np.hypot(0.02, 10.0 / 1500.0))  # Table 1's ToA error and sound-speed std
+
+
+def _heard(rng, node, n, range_m=80.0):
+    """n references uniformly in the disc of radius range_m around node, and noisy ranges."""
+    ang = rng.uniform(0, 2 * np.pi, n)
+    rad = range_m * np.sqrt(rng.uniform(0, 1, n))
+    refs = node + rad[:, None] * np.c_[np.cos(ang), np.sin(ang)]
+    r = np.linalg.norm(refs - node, axis=1)
+    return refs, r * (1.0 + REL_STD * rng.standard_normal(n))
+
+
+def test_initial_fix_is_as_good_as_the_prior_it_seeds():
+    """Every fix initial_fix returns seeds q(mu_0) with std 10 m; over 3000 random
+    neighbourhoods (3-6 references anywhere in range, Table 1's ranging error) the fixes it
+    accepts must be that good: error beyond 5 std (50 m) has probability 4e-6 for an honest
+    2-D Gaussian of std 10 m per axis, and the 95th percentile of an isotropic one is 24.5 m;
+    the linearization is first order, so allow 30 m. It must also accept most draws (the
+    refusals are near-collinear sets)."""
+    rng = np.random.default_rng(11)
+    node = np.array([100.0, 100.0])
+    errs, refused = [], 0
+    for _ in range(3000):
+        refs, r = _heard(rng, node, int(rng.integers(3, 7)))
+        fix = vf.initial_fix(refs, r, REL_STD, 10.0, 80.0)
+        if fix is None:
+            refused += 1
+        else:
+            errs.append(np.linalg.norm(fix - node))
+    errs = np.array(errs)
+    assert errs.max() < 50.0
+    assert np.quantile(errs, 0.95) < 30.0
+    assert refused < 0.5 * 3000
+
+
+def test_initial_fix_near_the_edge_of_range():
+    """A node at the edge of the network: every reference on one side, 75-80 m away, so the
+    noisy ranges exceed the 80-m range; the fix is still found near the node (the fix this
+    replaced fell back to the references' centroid, about 70 m away)."""
+    node = np.array([48.0, 6.0])
+    refs = np.array([[103.1, 61.4], [106.0, 60.9], [110.3, 41.0], [72.0, 67.6], [122.7, 11.9], [68.9, 79.8]])
+    r = np.linalg.norm(refs - node, axis=1) * np.array([1.02, 1.015, 1.01, 1.0, 0.99, 1.01])
+    assert r.max() > 80.0
+    fix = vf.initial_fix(refs, r, REL_STD, 10.0, 80.0)
+    assert fix is not None and np.linalg.norm(fix - node) < 10.0
+
+
+def test_initial_fix_refuses_nearly_collinear_references():
+    """Three references 1 m off one line: the two range circles' crossings are mirror images
+    across it, and the fix is refused rather than started on one of them."""
+    node = np.array([30.0, 40.0])
+    refs = np.array([[0.0, 0.0], [50.0, 1.0], [100.0, 0.0]])
+    r = np.linalg.norm(refs - node, axis=1)
+    assert vf.initial_fix(refs, r, REL_STD, 10.0, 80.0) is None

@@ -1,0 +1,48 @@
+"""STVF's variational update alone: CPU per update and a hash of the outputs, to time changes
+of aquasim_py/estimation/variational.py and check that they are bit-identical.
+
+    python tools/bench_stvf_update.py     # 1500 updates, Table 1's prior, Nr = 3, Ns = Nv = 100
+
+Prints ms per update (process CPU time) and the first 16 hex digits of a SHA-256 over every
+update's <s>, Lambda*, <v>, pass count and confidence, and over 600 predictions.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import time
+
+import numpy as np
+
+from aquasim_py.estimation import variational as vf
+
+
+def main() -> None:
+    prior = vf.STVFPrior(n_state_samples=100, n_speed_samples=100)
+    rng = np.random.default_rng(1)
+    cases = []
+    for _ in range(1500):
+        node = rng.uniform(0, 200, 2)
+        refs = node + rng.uniform(-50, 50, (3, 2))
+        z = 1e3 * np.linalg.norm(refs - node, axis=1) / 1500 * (1 + 0.02 * rng.standard_normal(3))
+        mu, prec = vf.initial_prior(node + rng.normal(0, 5, 2), 10.0)
+        cases.append((z, refs, *vf.predict(mu, prec, prior.transition)))
+    h = hashlib.sha256()
+    draws = np.random.default_rng(7)
+    t = time.process_time()
+    for z, refs, mp, lp in cases:
+        o = vf.variational_update(z, refs, mp, lp, prior, draws)
+        conf = vf.localization_confidence([1.0, 1.0, 1.0], o.position, refs, z, o.speed)
+        for a in (o.state, o.mu_precision, np.float64(o.speed), np.int64(o.iterations), np.float64(conf)):
+            h.update(np.asarray(a).tobytes())
+    dt = time.process_time() - t
+    for _z, _refs, mp, lp in cases[:300]:
+        for gaps in (1, 2):
+            m, p = vf.predict(mp, lp, prior.transition / gaps)
+            h.update(m.tobytes())
+            h.update(p.tobytes())
+    print(f"{dt / len(cases) * 1e3:.3f} ms per update, hash {h.hexdigest()[:16]}")
+
+
+if __name__ == "__main__":
+    main()
