@@ -40,7 +40,8 @@ from aquasim_py import metrics as generic
 REFERENCE_ROLES = ("buoy", "anchor")
 
 
-def _ordinary(tables: Mapping[str, pd.DataFrame], name: str) -> np.ndarray:
+def ordinary_nodes(tables: Mapping[str, pd.DataFrame], name: str) -> np.ndarray:
+    """Ids of the ordinary nodes that run protocol ``name`` (from the ``nodes`` table)."""
     nodes = tables.get("nodes")
     if nodes is None or len(nodes) == 0:
         return np.empty(0, dtype=int)
@@ -48,7 +49,8 @@ def _ordinary(tables: Mapping[str, pd.DataFrame], name: str) -> np.ndarray:
     return nodes.loc[sel, "node"].to_numpy(int)
 
 
-def _rows(df: pd.DataFrame | None, name: str, ids: np.ndarray) -> pd.DataFrame:
+def protocol_rows(df: pd.DataFrame | None, name: str, ids: np.ndarray) -> pd.DataFrame:
+    """The rows of ``df`` that protocol ``name`` logged for the nodes ``ids``."""
     if df is None or len(df) == 0:
         return pd.DataFrame()
     return df[(df["protocol"].astype(str) == name) & df["node"].isin(ids)]
@@ -56,9 +58,9 @@ def _rows(df: pd.DataFrame | None, name: str, ids: np.ndarray) -> pd.DataFrame:
 
 def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
     """Per round: mean and p95 |sync error| (s), RMSE (m) and NMSE of position, nodes reporting."""
-    ids = _ordinary(tables, name)
-    clk = _rows(tables.get("clocks"), name, ids)
-    est = _rows(tables.get("estimates"), name, ids)
+    ids = ordinary_nodes(tables, name)
+    clk = protocol_rows(tables.get("clocks"), name, ids)
+    est = protocol_rows(tables.get("estimates"), name, ids)
     out = pd.DataFrame()
     if len(clk) and "round" in clk:
         c = clk.assign(abs_err=clk["error"].abs())

@@ -22,7 +22,7 @@ import pandas as pd
 
 from aquasim_py import metrics as generic
 
-from .metrics import _ordinary, _rows
+from .metrics import ordinary_nodes, protocol_rows
 
 #: the paper's names, in the order the tables list them
 ALGORITHMS = ("ITMTL", "ITMTL-wsc", "TSHL", "MU-Sync", "Mobi-Sync")
@@ -45,9 +45,9 @@ def node_rounds(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
     """One row per (node, round) in which an ordinary node running ``name`` logged a position
     estimate: the estimate's columns and ``abs_err``, |sync error| (s) of that round's
     ``clocks`` row."""
-    ids = _ordinary(tables, name)
-    est = _rows(tables.get("estimates"), name, ids)
-    clk = _rows(tables.get("clocks"), name, ids)
+    ids = ordinary_nodes(tables, name)
+    est = protocol_rows(tables.get("estimates"), name, ids)
+    clk = protocol_rows(tables.get("clocks"), name, ids)
     if len(est) == 0 or len(clk) == 0 or "round" not in est or "round" not in clk:
         return pd.DataFrame(columns=["node", "round", "abs_err"])
     c = clk[["node", "round"]].assign(abs_err=clk["error"].abs().to_numpy())
