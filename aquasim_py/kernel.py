@@ -595,11 +595,16 @@ class Simulation:
             if batched is not None:
                 return np.asarray(batched(idx - group.start, times), dtype=float)
         out = np.empty((len(idx), 3))
+        ts = np.asarray(times, dtype=float)
         gids = self._group_of[idx]
-        for g in np.unique(gids).tolist():
-            group = self.groups[g]
+        for g, group in enumerate(self.groups):  # a pass per group (a handful): no sort of the ids
             sel = np.flatnonzero(gids == g)
+            if not sel.size:
+                continue
             mob = group.mobility
+            if isinstance(mob, Mobility) and ts.shape == np.shape(idx):
+                out[sel] = mob._position_at(idx[sel] - group.start, ts[sel])  # as above
+                continue
             batched = getattr(mob, "position_at", None)
             if batched is not None:
                 # Mobility.position_at: every (node, time) pair of the group in one vectorized call
