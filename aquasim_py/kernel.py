@@ -425,6 +425,7 @@ class Simulation:
         self._pos_cache = np.zeros((0, 3))
         self._static_pos: np.ndarray | None = None
         self._sampler_started = False
+        self._one_call_states = True  # every group's model a Mobility (states_at per group)
 
     # -- randomness -------------------------------------------------------------------------------
 
@@ -546,6 +547,7 @@ class Simulation:
         self._group_of = np.concatenate([self._group_of, np.full(count, len(self.groups) - 1)])
         self._static_pos = None
         self._pos_t = math.nan
+        self._one_call_states = all(isinstance(g.mobility, Mobility) for g in self.groups)
         for node in new:
             gen = node.run()
             if not isinstance(gen, GeneratorType):  # what inspect.isgenerator tests, keeping the type
@@ -621,6 +623,16 @@ class Simulation:
         if len(self.groups) == 1 and isinstance(self.groups[0].mobility, Mobility):
             group = self.groups[0]
             return group.mobility._state_at(idx - group.start, np.full(len(idx), float(t)))
+        if self._one_call_states:
+            # several groups: one trajectory evaluation per group for the nodes asked for,
+            # instead of positions_at and then every node's velocity
+            pos, vel = np.empty((len(idx), 3)), np.empty((len(idx), 3))
+            gids = self._group_of[idx]
+            for g, group in enumerate(self.groups):
+                sel = np.flatnonzero(gids == g)
+                if sel.size:
+                    pos[sel], vel[sel] = group.mobility._state_at(idx[sel] - group.start, np.full(sel.size, float(t)))
+            return pos, vel
         return self.positions_at(idx, np.full(len(idx), float(t))), self.velocities_at(idx, t)
 
     def velocities_at(self, idx: np.ndarray, t: float) -> np.ndarray:
