@@ -19,7 +19,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import GeneratorType
 from typing import Any
 
@@ -70,6 +70,10 @@ class Group:
     start: int
     count: int
     static: bool
+    # the group's positions at the last true time a node asked for its own (_NodeCore.position):
+    # nodes of a group often ask at one instant (a period's depth readings and estimates)
+    pos_t: float = field(default=math.nan, repr=False)
+    pos: Any = field(default=None, repr=False)
 
 
 class _NodeCore:
@@ -145,7 +149,10 @@ class _NodeCore:
     # -- truth ------------------------------------------------------------------------------------
 
     def position(self, t: float) -> np.ndarray:
-        return self.group.mobility.position(t)[self.slot]
+        g = self.group
+        if t != g.pos_t:  # one trajectory evaluation per group and instant
+            g.pos, g.pos_t = g.mobility.position(t), t
+        return g.pos[self.slot]
 
     def local(self, t: float) -> float:
         """The node's clock reading at true time ``t`` (no jitter)."""
