@@ -377,6 +377,8 @@ def variational_update_batch(
     n, nr = z.shape
     if len(rngs) != n or len({id(r) for r in rngs}) != n:
         raise ValueError("variational_update_batch: one distinct generator per node is needed")
+    if prior.max_iter < 1:
+        raise ValueError(f"variational_update_batch: max_iter must be >= 1, got {prior.max_iter}")
     dof = prior.wishart_dof + 1.0
     ns, nv = prior.n_state_samples, prior.n_speed_samples
 

@@ -247,7 +247,9 @@ class StvfNode(PeriodicBeaconNode):
         assert self.mu is not None and self.mu_precision is not None
         mu_p, lp = vf.predict(self.mu, self.mu_precision, self.prior.transition / gaps)
         done = partial(self._localized, z=z, refs=refs, eta=eta, now=now, depth=depth, fresh=fresh, n_heard=len(heard))
-        if self.batch_updates:
+        # Deferred to the end of this instant, unless the next period starts at it (listen_s >=
+        # period_s): the node then reads its own confidence for its beacon at this instant.
+        if self.batch_updates and p.listen_s < p.period_s:
             self.out_of_band.setdefault(_BATCH, _UpdateBatch()).add(_Job(self, z, refs, mu_p, lp, done))
         else:
             done(vf.variational_update(z, refs, mu_p, lp, self.prior, self.rng))
