@@ -19,7 +19,7 @@ import math
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import GeneratorType
 from typing import Any
 
@@ -70,6 +70,10 @@ class Group:
     start: int
     count: int
     static: bool
+    # the group's positions at the last true time a node asked for its own (_NodeCore.position):
+    # nodes of a group often ask at one instant (a period's depth readings and estimates)
+    pos_t: float = field(default=math.nan, repr=False)
+    pos: Any = field(default=None, repr=False)
 
 
 class _NodeCore:
@@ -145,7 +149,10 @@ class _NodeCore:
     # -- truth ------------------------------------------------------------------------------------
 
     def position(self, t: float) -> np.ndarray:
-        return self.group.mobility.position(t)[self.slot]
+        g = self.group
+        if t != g.pos_t:  # one trajectory evaluation per group and instant
+            g.pos, g.pos_t = g.mobility.position(t), t
+        return g.pos[self.slot]
 
     def local(self, t: float) -> float:
         """The node's clock reading at true time ``t`` (no jitter)."""
@@ -425,6 +432,7 @@ class Simulation:
         self._pos_cache = np.zeros((0, 3))
         self._static_pos: np.ndarray | None = None
         self._sampler_started = False
+        self._one_call_states = True  # every group's model a Mobility (states_at per group)
 
     # -- randomness -------------------------------------------------------------------------------
 
@@ -546,6 +554,7 @@ class Simulation:
         self._group_of = np.concatenate([self._group_of, np.full(count, len(self.groups) - 1)])
         self._static_pos = None
         self._pos_t = math.nan
+        self._one_call_states = all(isinstance(g.mobility, Mobility) for g in self.groups)
         for node in new:
             gen = node.run()
             if not isinstance(gen, GeneratorType):  # what inspect.isgenerator tests, keeping the type
@@ -595,11 +604,16 @@ class Simulation:
             if batched is not None:
                 return np.asarray(batched(idx - group.start, times), dtype=float)
         out = np.empty((len(idx), 3))
+        ts = np.asarray(times, dtype=float)
         gids = self._group_of[idx]
-        for g in np.unique(gids).tolist():
-            group = self.groups[g]
+        for g, group in enumerate(self.groups):  # a pass per group (a handful): no sort of the ids
             sel = np.flatnonzero(gids == g)
+            if not sel.size:
+                continue
             mob = group.mobility
+            if isinstance(mob, Mobility) and ts.shape == np.shape(idx):
+                out[sel] = mob._position_at(idx[sel] - group.start, ts[sel])  # as above
+                continue
             batched = getattr(mob, "position_at", None)
             if batched is not None:
                 # Mobility.position_at: every (node, time) pair of the group in one vectorized call
@@ -616,6 +630,16 @@ class Simulation:
         if len(self.groups) == 1 and isinstance(self.groups[0].mobility, Mobility):
             group = self.groups[0]
             return group.mobility._state_at(idx - group.start, np.full(len(idx), float(t)))
+        if self._one_call_states:
+            # several groups: one trajectory evaluation per group for the nodes asked for,
+            # instead of positions_at and then every node's velocity
+            pos, vel = np.empty((len(idx), 3)), np.empty((len(idx), 3))
+            gids = self._group_of[idx]
+            for g, group in enumerate(self.groups):
+                sel = np.flatnonzero(gids == g)
+                if sel.size:
+                    pos[sel], vel[sel] = group.mobility._state_at(idx[sel] - group.start, np.full(sel.size, float(t)))
+            return pos, vel
         return self.positions_at(idx, np.full(len(idx), float(t))), self.velocities_at(idx, t)
 
     def velocities_at(self, idx: np.ndarray, t: float) -> np.ndarray:

@@ -12,7 +12,7 @@ the node's own clock (local seconds): a node has no perfect timer.
 from __future__ import annotations
 
 import math
-from collections.abc import Generator, Iterable, Mapping
+from collections.abc import Callable, Generator, Iterable, Mapping
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any, ClassVar
@@ -26,6 +26,10 @@ __all__ = ["BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors
 
 #: ``dst`` of a broadcast packet
 BROADCAST = None
+
+#: priority of :meth:`NodeEnv.at_instant_end`'s events: SimPy orders its queue by (time,
+#: priority, insertion), so one after NORMAL comes after every other event of its instant
+LATE = EventPriority(NORMAL + 1)
 
 
 class Role(str, Enum):
@@ -133,6 +137,17 @@ class NodeEnv:
 
     def any_of(self, events: Iterable[simpy.Event]) -> simpy.AnyOf:
         return simpy.AnyOf(self, list(events))  # type: ignore[arg-type]
+
+    def at_instant_end(self, callback: Callable[[simpy.Event], Any]) -> simpy.Event:
+        """An event that calls ``callback(event)`` after every other event of the current
+        instant, including those scheduled while the instant runs: e.g. to run what several
+        nodes hand in at one instant as one vectorized batch."""
+        event = simpy.Event(self)  # type: ignore[arg-type]
+        event._ok = True  # already triggered, as a Timeout is when it is made
+        event._value = None
+        event.callbacks.append(callback)
+        self.schedule(event, LATE)
+        return event
 
     def adopt(self, event: simpy.Event) -> simpy.Event:
         """Hand a kernel/channel event to the node: its ``env`` becomes this view (kernel use)."""

@@ -355,3 +355,26 @@ def test_a_guessed_truth_attribute_says_what_a_node_can_use() -> None:
     with pytest.raises(AttributeError, match=r"no attribute 'position'.*known_position\(\)"):
         node.position()  # type: ignore[attr-defined]
     assert not hasattr(node, "now")  # still an AttributeError, so hasattr() keeps working
+
+
+def test_at_instant_end_runs_after_every_other_event_of_its_instant():
+    """The hook comes after the events of its instant scheduled after it (zero timeouts made
+    later in the same instant), and before the next instant."""
+    log = []
+
+    class R(Node):
+        name = "r"
+
+        def run(self):
+            yield self.sleep(1.0)
+            self.env.at_instant_end(lambda _ev: log.append(("end", self.local_time())))
+            for step in "abc":
+                log.append((step, self.local_time()))
+                yield self.env.timeout(0.0)
+            yield self.sleep(1e-9)
+            log.append(("d", self.local_time()))
+
+    sim = _sim(R, [])
+    sim.run(5.0)
+    assert [k for k, _ in log] == ["a", "b", "c", "end", "d"]
+    assert [t for _, t in log[:4]] == [1.0] * 4 and log[4][1] > 1.0

@@ -17,6 +17,7 @@ measurement confidence used to rank references (eqs 27-29) and reference promoti
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import cast
 
@@ -42,6 +43,7 @@ __all__ = [
     "speed_moment",
     "state_moments",
     "variational_update",
+    "variational_update_batch",
     "wishart_update",
 ]
 
@@ -172,9 +174,10 @@ def initial_fix(
 def _sample_gaussian(
     mean: NDArray[np.float64], precision: NDArray[np.float64], eps: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision)."""
+    """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision): ``mean``
+    (..., 4), ``precision`` (..., 4, 4), ``eps`` (..., Ns, 4), leading axes a batch."""
     chol_cov = np.linalg.cholesky(_sym(_inv(precision)))
-    return mean + eps @ chol_cov.T
+    return mean[..., None, :] + eps @ chol_cov.swapaxes(-1, -2)
 
 
 def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -182,12 +185,24 @@ def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
     return w / w.sum(axis=-1, keepdims=True)
 
 
+def _row_sq(res: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sum of squares over the last axis; leading axes are a batch (each node's rows keep the
+    memory layout they have when the node is alone, so einsum sums them in the same order)."""
+    return np.einsum("...ki,...ki->...k", res, res)
+
+
+def _vec_dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a . b over the last axis, one BLAS dot per leading index (the bits of ``a @ b`` for 1-D)."""
+    return (a[..., None, :] @ b[..., :, None])[..., 0, 0]
+
+
 def _delays(
     positions: NDArray[np.float64], refs: NDArray[np.float64], speed: ArrayLike, z_scale: float
 ) -> NDArray[np.float64]:
-    """Predicted delays z_scale * ||A(s - s_i)|| / v for positions (..., 2), refs (Nr, 2)."""
-    r = np.linalg.norm(positions[..., None, :] - refs, axis=-1)
-    return z_scale * r / np.asarray(speed)[..., None]
+    """Predicted delays z_scale * ||A(s - s_i)|| / v: ``positions`` and ``refs`` (..., 2) and
+    ``speed`` broadcast against each other (the callers line up the axes)."""
+    r = np.linalg.norm(positions - refs, axis=-1)
+    return z_scale * r / np.asarray(speed)
 
 
 def state_moments(
@@ -195,21 +210,26 @@ def state_moments(
     precision: ArrayLike,
     z: ArrayLike,
     refs: ArrayLike,
-    speed: float,
-    zeta: float,
+    speed: ArrayLike,
+    zeta: ArrayLike,
     eps: NDArray[np.float64],
     z_scale: float = 1e3,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Importance-sampling moments of q(s) (eq 21).
 
     Proposal N(mean, precision) (4-D), weights prod_i N(z_i | z_scale r_i(s)/<v>, <zeta>);
-    ``eps`` (Ns, 4) standard normals. Returns <s> (4,) and <s s^T> (4, 4)."""
+    ``eps`` (Ns, 4) standard normals. Returns <s> (4,) and <s s^T> (4, 4). Leading axes of
+    every argument (``speed``, ``zeta``: shape (...)) are a batch of independent nodes."""
     mean = np.asarray(mean, float)
     s = _sample_gaussian(mean, np.asarray(precision, float), eps)
-    res = np.asarray(z, float) - _delays(s[:, POS], np.asarray(refs, float), speed, z_scale)
-    w = _normalized_weights(-0.5 * zeta * np.einsum("ki,ki->k", res, res))
-    m1 = w @ s
-    m2 = (s * w[:, None]).T @ s
+    pos = s[..., POS]
+    delay = _delays(
+        pos[..., None, :], np.asarray(refs, float)[..., None, :, :], np.asarray(speed)[..., None, None], z_scale
+    )
+    res = np.asarray(z, float)[..., None, :] - delay
+    w = _normalized_weights(-0.5 * np.asarray(zeta)[..., None] * _row_sq(res))
+    m1 = (w[..., None, :] @ s)[..., 0, :]
+    m2 = (s * w[..., :, None]).swapaxes(-1, -2) @ s
     return m1, _sym(m2)
 
 
@@ -219,17 +239,18 @@ def speed_moment(
     refs: ArrayLike,
     speed_mean: float,
     speed_precision: float,
-    zeta: float,
+    zeta: ArrayLike,
     eps: NDArray[np.float64],
     z_scale: float = 1e3,
-) -> float:
+) -> NDArray[np.float64]:
     """Importance-sampling mean of q(v) (eq 20): v_k ~ N(v0, V), weights
-    prod_i N(z_i | z_scale r_i(<s>)/v_k, <zeta>); ``eps`` (Nv,) standard normals."""
+    prod_i N(z_i | z_scale r_i(<s>)/v_k, <zeta>); ``eps`` (Nv,) standard normals. Leading axes
+    (``zeta``: shape (...)) are a batch; one node gives a numpy scalar."""
     v = speed_mean + eps / np.sqrt(speed_precision)
-    r = z_scale * np.linalg.norm(np.asarray(position, float) - np.asarray(refs, float), axis=-1)
-    res = np.asarray(z, float)[None, :] - r[None, :] / v[:, None]
-    w = _normalized_weights(-0.5 * zeta * np.einsum("ki,ki->k", res, res))
-    return float(w @ v)
+    r = z_scale * np.linalg.norm(np.asarray(position, float)[..., None, :] - np.asarray(refs, float), axis=-1)
+    res = np.asarray(z, float)[..., None, :] - r[..., None, :] / v[..., :, None]
+    w = _normalized_weights(-0.5 * np.asarray(zeta)[..., None] * _row_sq(res))
+    return _vec_dot(w, v)
 
 
 def gamma_update(
@@ -238,26 +259,32 @@ def gamma_update(
     z: ArrayLike,
     refs: ArrayLike,
     position: ArrayLike,
-    speed: float,
+    speed: ArrayLike,
     z_scale: float = 1e3,
-) -> tuple[float, float]:
+) -> tuple[float, NDArray[np.float64]]:
     """Gamma update of q(zeta) (eq 22): alpha* = alpha + Nr/2,
-    beta* = beta + 1/2 sum_i (z_i - z_scale r_i(<s>)/<v>)^2."""
+    beta* = beta + 1/2 sum_i (z_i - z_scale r_i(<s>)/<v>)^2. Leading axes are a batch."""
     z = np.asarray(z, float)
-    res = z - _delays(np.asarray(position, float), np.asarray(refs, float), speed, z_scale)
-    return shape + 0.5 * z.size, rate + 0.5 * float(res @ res)
+    pos = np.asarray(position, float)[..., None, :]
+    res = z - _delays(pos, np.asarray(refs, float), np.asarray(speed)[..., None], z_scale)
+    return shape + 0.5 * z.shape[-1], np.float64(rate) + 0.5 * _vec_dot(res, res)
 
 
 def mean_update(
     lam: ArrayLike, state: ArrayLike, mu_p: ArrayLike, mu_p_precision: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """q(mu_t) = N(mu*, Lambda*) (eqs 13, 18): Lambda* = <lam> + Lambda^p,
-    mu* = Lambda*^-1 (<lam> <s> + Lambda^p mu^p)."""
+    mu* = Lambda*^-1 (<lam> <s> + Lambda^p mu^p). Leading axes are a batch."""
     lam = np.asarray(lam, float)
     lp = np.asarray(mu_p_precision, float)
     prec = _sym(lam + lp)
-    mu = np.linalg.solve(prec, lam @ np.asarray(state, float) + lp @ np.asarray(mu_p, float))
-    return mu, prec
+    rhs = lam @ np.asarray(state, float)[..., None] + lp @ np.asarray(mu_p, float)[..., None]
+    return np.linalg.solve(prec, rhs)[..., 0], prec
+
+
+def _outer(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """a b^T over the last axis (``np.outer``'s products, with leading batch axes)."""
+    return a[..., :, None] * b[..., None, :]
 
 
 def _wishart_matrix(
@@ -267,11 +294,7 @@ def _wishart_matrix(
     s = np.asarray(state, float)
     m = np.asarray(mu, float)
     mat = (
-        np.asarray(second_moment, float)
-        - np.outer(s, m)
-        - np.outer(m, s)
-        + np.asarray(mu_second_moment, float)
-        + scale_inv
+        np.asarray(second_moment, float) - _outer(s, m) - _outer(m, s) + np.asarray(mu_second_moment, float) + scale_inv
     )
     return _sym(mat)
 
@@ -307,13 +330,57 @@ def variational_update(
     Initialization as printed in Algorithm 1 (Lambda* = 2 Lambda^p,
     W* = [(2 Lambda^p)^-1 + W^-1]^-1, beta* = beta / 2, <v> = v0); then <s>, <ss^T> and <v>
     by importance sampling and the closed-form updates, until the position part of mu* moves
-    less than ``prior.tol`` m or ``prior.max_iter`` passes."""
+    less than ``prior.tol`` m or ``prior.max_iter`` passes. A batch of one of
+    :func:`variational_update_batch`."""
+    one = variational_update_batch(
+        np.asarray(z, float)[None],
+        np.asarray(refs, float)[None],
+        np.asarray(mu_p, float)[None],
+        np.asarray(mu_p_precision, float)[None],
+        prior,
+        [rng],
+    )
+    return one[0]
+
+
+def _draw(rngs: list[np.random.Generator], rows: NDArray[np.intp], ns: int, nv: int) -> tuple[_F64, _F64]:
+    """This pass's standard normals of the nodes ``rows``: each node's (Ns, 4) state draws, then
+    its (Nv,) speed draws, from its own generator (the order of a node run alone)."""
+    eps_s = np.empty((rows.size, ns, 4))
+    eps_v = np.empty((rows.size, nv))
+    for j, i in enumerate(rows.tolist()):
+        rngs[i].standard_normal(out=eps_s[j])
+        rngs[i].standard_normal(out=eps_v[j])
+    return eps_s, eps_v
+
+
+def variational_update_batch(
+    z: ArrayLike,
+    refs: ArrayLike,
+    mu_p: ArrayLike,
+    mu_p_precision: ArrayLike,
+    prior: STVFPrior,
+    rngs: Sequence[np.random.Generator],
+) -> list[VariationalResult]:
+    """:func:`variational_update` for n nodes at once, each node's result bit-identical to its
+    update run alone (same operations, elementwise or one BLAS/LAPACK call per node).
+
+    ``z`` (n, Nr), ``refs`` (n, Nr, 2), ``mu_p`` (n, 4), ``mu_p_precision`` (n, 4, 4); ``rngs``
+    one distinct generator per node, from which the node draws exactly what it would alone.
+    Every numpy call covers the nodes still iterating: a node leaves the batch at the pass where
+    its own tolerance is met (or at ``prior.max_iter``), so its draws and pass count are its own."""
     z = np.asarray(z, float)
     refs = np.asarray(refs, float)
     mu_p = np.asarray(mu_p, float)
     lp = np.asarray(mu_p_precision, float)
-    nr = z.size
+    rngs = list(rngs)
+    n, nr = z.shape
+    if len(rngs) != n or len({id(r) for r in rngs}) != n:
+        raise ValueError("variational_update_batch: one distinct generator per node is needed")
+    if prior.max_iter < 1:
+        raise ValueError(f"variational_update_batch: max_iter must be >= 1, got {prior.max_iter}")
     dof = prior.wishart_dof + 1.0
+    ns, nv = prior.n_state_samples, prior.n_speed_samples
 
     mu_prec = 2.0 * lp
     mu = mu_p.copy()
@@ -321,51 +388,60 @@ def variational_update(
     mu_cov = _inv(mu_prec)  # (2 Lambda^p)^-1, used twice below
     w_star = _sym(_inv(mu_cov + w_inv))
     shape = prior.noise_shape + 0.5 * nr
-    rate = 0.5 * prior.noise_rate
-    speed = prior.speed
+    rate = np.full(n, 0.5 * prior.noise_rate)
+    speed = np.full(n, prior.speed)
     lam = dof * w_star
     zeta = shape / rate
-    mu_mu = np.outer(mu, mu) + mu_cov
+    mu_mu = _outer(mu, mu) + mu_cov
 
-    eps_s = rng.standard_normal((prior.n_state_samples, 4))
-    eps_v = rng.standard_normal(prior.n_speed_samples)
-    converged = False
-    it = 0
-    s1 = mu.copy()
-    s2 = mu_mu
+    rows = np.arange(n)  # the nodes still iterating; every array below has one row per node of it
+    results: list[VariationalResult | None] = [None] * n
+    eps_s, eps_v = _draw(rngs, rows, ns, nv)
     for it in range(1, prior.max_iter + 1):
         if not prior.common_random_numbers and it > 1:
-            eps_s = rng.standard_normal((prior.n_state_samples, 4))
-            eps_v = rng.standard_normal(prior.n_speed_samples)
+            eps_s, eps_v = _draw(rngs, rows, ns, nv)
         s1, s2 = state_moments(mu, lam, z, refs, speed, zeta, eps_s, prior.z_scale)
-        speed = speed_moment(s1[POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale)
+        speed = speed_moment(s1[:, POS], z, refs, prior.speed, prior.speed_precision, zeta, eps_v, prior.z_scale)
         # Parameters from the current expectations, then the expectations (Algorithm 1 order).
         new_mu, mu_prec = mean_update(lam, s1, mu_p, lp)
-        # W* (eq 18) and <mu mu^T> need two 4x4 inverses: one call on the stack of both
+        # W* (eq 18) and <mu mu^T> need two 4x4 inverses per node: one call on the stack of all
         w_star_inv, mu_cov = _inv(np.stack((_wishart_matrix(s2, s1, mu, mu_mu, w_inv), mu_prec)))
         w_star = _sym(w_star_inv)
-        shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[POS], speed, prior.z_scale)
-        step = float(np.linalg.norm(new_mu[POS] - mu[POS]))
+        shape, rate = gamma_update(prior.noise_shape, prior.noise_rate, z, refs, s1[:, POS], speed, prior.z_scale)
+        d = new_mu[:, POS] - mu[:, POS]
+        step = np.sqrt(_vec_dot(d, d))  # np.linalg.norm of each node's 2-vector: sqrt(x.dot(x))
         mu = new_mu
-        mu_mu = np.outer(mu, mu) + mu_cov
+        mu_mu = _outer(mu, mu) + mu_cov
         lam = dof * w_star
         zeta = shape / rate
-        if step < prior.tol:
-            converged = True
-            break
-    return VariationalResult(
-        state=s1,
-        state_second_moment=s2,
-        mu=mu,
-        mu_precision=mu_prec,
-        lam=lam,
-        speed=speed,
-        zeta=zeta,
-        noise_shape=shape,
-        noise_rate=rate,
-        iterations=it,
-        converged=converged,
-    )
+        done = step < prior.tol
+        last = it == prior.max_iter
+        if last or done.any():
+            for j in np.flatnonzero(done | last).tolist():
+                results[rows[j]] = VariationalResult(
+                    state=s1[j],
+                    state_second_moment=s2[j],
+                    mu=mu[j],
+                    mu_precision=mu_prec[j],
+                    lam=lam[j],
+                    speed=float(speed[j]),
+                    zeta=float(zeta[j]),
+                    noise_shape=shape,
+                    noise_rate=float(rate[j]),
+                    iterations=it,
+                    converged=bool(done[j]),
+                )
+            if last:
+                break
+            keep = ~done
+            rows = rows[keep]
+            if rows.size == 0:
+                break
+            z, refs, mu_p, lp = z[keep], refs[keep], mu_p[keep], lp[keep]
+            mu, mu_mu, lam, zeta, speed = mu[keep], mu_mu[keep], lam[keep], zeta[keep], speed[keep]
+            if prior.common_random_numbers:
+                eps_s, eps_v = eps_s[keep], eps_v[keep]
+    return cast(list[VariationalResult], results)
 
 
 def localization_confidence(

@@ -21,7 +21,9 @@ from depth gauges, delays from MAC stamps.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -38,6 +40,55 @@ from .metrics import localization_metrics
 __all__ = ["StvfNode"]
 
 KIND = "stvf_beacon"
+_BATCH = "stvf_update_batch"  # key of the run's _UpdateBatch in Node.out_of_band
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One node's update, handed in: its inputs and what to call with the result."""
+
+    node: StvfNode
+    z: np.ndarray
+    refs: np.ndarray
+    mu_p: np.ndarray
+    lp: np.ndarray
+    done: Callable[[vf.VariationalResult], None]
+
+
+class _UpdateBatch:
+    """Algorithm 1's updates handed in at one instant, run together after the instant's other
+    events (``NodeEnv.at_instant_end``) by ``variational_update_batch``: with a common period
+    every unknown node localizes at the same instant, and one numpy call for all of them costs
+    about what one node's costs alone (docs/performance.md). Each node's result has the bits of
+    its update alone, drawn from its own stream; no node sees another's data. The nodes then
+    finish in the order they handed in, so rows are logged as with one update per node."""
+
+    def __init__(self) -> None:
+        self.jobs: list[_Job] = []
+
+    def add(self, job: _Job) -> None:
+        if not self.jobs:
+            job.node.env.at_instant_end(self._run)
+        self.jobs.append(job)
+
+    def _run(self, _event: object) -> None:
+        jobs, self.jobs = self.jobs, []
+        groups: dict[tuple[int, int], list[_Job]] = {}  # one batch per parameter set and Nr
+        for job in jobs:
+            groups.setdefault((id(job.node.params), job.z.size), []).append(job)
+        outs: dict[int, vf.VariationalResult] = {}
+        for part in groups.values():
+            res = vf.variational_update_batch(
+                np.stack([j.z for j in part]),
+                np.stack([j.refs for j in part]),
+                np.stack([j.mu_p for j in part]),
+                np.stack([j.lp for j in part]),
+                part[0].node.prior,
+                [j.node.rng for j in part],
+            )
+            outs.update((id(j), r) for j, r in zip(part, res))
+        for job in jobs:
+            job.done(outs[id(job)])
 
 
 class StvfParams(BaseModel):
@@ -93,6 +144,9 @@ class StvfNode(PeriodicBeaconNode):
 
     name = "stvf"
     trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
+    #: run the updates of one instant as one batch (_UpdateBatch; same results, faster);
+    #: False runs each node's update inline
+    batch_updates = True
     Params = StvfParams
     beacon_kind = KIND
 
@@ -192,7 +246,28 @@ class StvfNode(PeriodicBeaconNode):
             gaps = self.missed + 1
         assert self.mu is not None and self.mu_precision is not None
         mu_p, lp = vf.predict(self.mu, self.mu_precision, self.prior.transition / gaps)
-        out = vf.variational_update(z, refs, mu_p, lp, self.prior, self.rng)
+        done = partial(self._localized, z=z, refs=refs, eta=eta, now=now, depth=depth, fresh=fresh, n_heard=len(heard))
+        # Deferred to the end of this instant, unless the next period starts at it (listen_s >=
+        # period_s): the node then reads its own confidence for its beacon at this instant.
+        if self.batch_updates and p.listen_s < p.period_s:
+            self.out_of_band.setdefault(_BATCH, _UpdateBatch()).add(_Job(self, z, refs, mu_p, lp, done))
+        else:
+            done(vf.variational_update(z, refs, mu_p, lp, self.prior, self.rng))
+
+    def _localized(
+        self,
+        out: vf.VariationalResult,
+        *,
+        z: np.ndarray,
+        refs: np.ndarray,
+        eta: np.ndarray,
+        now: float,
+        depth: float,
+        fresh: bool,
+        n_heard: int,
+    ) -> None:
+        """The rest of a localization once Algorithm 1's update ``out`` is in."""
+        p: StvfParams = self.params
         self.mu, self.mu_precision = out.mu, out.mu_precision
         self.missed = 0
         xy = out.position
@@ -209,7 +284,7 @@ class StvfNode(PeriodicBeaconNode):
             is_reference=is_ref,
             iterations=out.iterations,
             converged=out.converged,
-            n_heard=len(heard),
+            n_heard=n_heard,
             fresh=fresh,
             period_s=p.period_s,
         )

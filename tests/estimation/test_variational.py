@@ -404,3 +404,47 @@ def test_initial_fix_refuses_nearly_collinear_references():
     refs = np.array([[0.0, 0.0], [50.0, 1.0], [100.0, 0.0]])
     r = np.linalg.norm(refs - node, axis=1)
     assert vf.initial_fix(refs, r, REL_STD, 10.0, 80.0) is None
+
+
+# --- the batched update (many nodes per numpy call) -----------------------------------------------
+
+
+_FIELDS = ("state", "state_second_moment", "mu", "mu_precision", "lam", "speed", "zeta", "noise_rate")
+
+
+@pytest.mark.parametrize("crn", [False, True])
+def test_batch_gives_each_node_the_bits_of_its_update_alone(crn):
+    """variational_update_batch against variational_update node by node: every output bit
+    equal, each node's generator left in the same state (it drew the same samples), and the
+    pass counts varied (nodes leave the batch at different passes; max_iter 6 stops some)."""
+    prior = replace(vf.STVFPrior(n_state_samples=60, n_speed_samples=40, max_iter=6), common_random_numbers=crn)
+    rng = np.random.default_rng(11)
+    n = 24
+    node = rng.uniform(0, 300, (n, 2))
+    refs = node[:, None, :] + rng.uniform(-60, 60, (n, 3, 2))
+    z = Z * np.linalg.norm(refs - node[:, None, :], axis=-1) / 1500 * (1 + 0.02 * rng.standard_normal((n, 3)))
+    pred = [vf.predict(*vf.initial_prior(p + rng.normal(0, 6, 2), 10.0), prior.transition) for p in node]
+    mu_p, lp = np.stack([m for m, _ in pred]), np.stack([q for _, q in pred])
+    gens = [np.random.default_rng(100 + k) for k in range(n)]
+    batch = vf.variational_update_batch(z, refs, mu_p, lp, prior, gens)
+    iters = set()
+    for k in range(n):
+        alone_rng = np.random.default_rng(100 + k)
+        alone = vf.variational_update(z[k], refs[k], mu_p[k], lp[k], prior, alone_rng)
+        for f in _FIELDS:
+            assert np.array_equal(getattr(batch[k], f), getattr(alone, f)), (k, f)
+        assert (batch[k].iterations, batch[k].converged) == (alone.iterations, alone.converged)
+        assert gens[k].bit_generator.state == alone_rng.bit_generator.state
+        iters.add(alone.iterations)
+    assert len(iters) >= 3 and (6 in iters)
+
+
+def test_batch_needs_one_generator_per_node():
+    prior = vf.STVFPrior(n_state_samples=10, n_speed_samples=10)
+    mu_p, lp = vf.predict(*vf.initial_prior([0.0, 0.0], 10.0), prior.transition)
+    refs = np.array([[[50.0, 0.0], [0.0, 50.0], [-50.0, 0.0]]] * 2)
+    g = np.random.default_rng(0)
+    with pytest.raises(ValueError, match="generator"):
+        vf.variational_update_batch(
+            np.full((2, 3), 33.0), refs, np.stack([mu_p] * 2), np.stack([lp] * 2), prior, [g, g]
+        )
