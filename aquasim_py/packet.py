@@ -33,17 +33,22 @@ def copy_payload(obj: Any) -> Any:
     if t in _ATOMS or isinstance(obj, np.generic):
         return obj
     if t is dict:
-        # atoms inline: the usual payload is a small dict of numbers and tuples of numbers
-        return {k: v if type(v) in _ATOMS else copy_payload(v) for k, v in obj.items()}
+        out = obj.copy()  # keys and atoms shared; the rest replaced by copies (rarely needed)
+        for k, v in obj.items():
+            if type(v) not in _ATOMS:
+                c = copy_payload(v)
+                if c is not v:
+                    out[k] = c
+        return out
     if t is list:
         return [v if type(v) in _ATOMS else copy_payload(v) for v in obj]
     if t is tuple or t is frozenset:
         # A tuple whose items all come back as themselves holds nothing mutable, so no
         # receiver can change it: shared, not rebuilt (per reception, the common case).
-        items = [v if type(v) in _ATOMS else copy_payload(v) for v in obj]
-        if all(a is b for a, b in zip(items, obj)):
-            return obj
-        return t(items)
+        for v in obj:
+            if type(v) not in _ATOMS and copy_payload(v) is not v:
+                return t([copy_payload(u) for u in obj])
+        return obj
     if t is np.ndarray and obj.dtype != object:
         return obj.copy()
     if t is set:
