@@ -177,7 +177,7 @@ def _readonly(a: Array) -> Array:
 
 
 class _Table:
-    """Growable array of per-knot states (K, n, 3) with capacity doubling."""
+    """Growable array of per-knot states (K, n, ...) with capacity doubling."""
 
     __slots__ = ("count", "data")
 
@@ -783,12 +783,12 @@ class _CurrentDrift(Mobility):
 
     Trajectories are integrated once, in fixed chunks of ``_CHUNK`` table steps from t = 0
     (scipy DOP853, rtol 1e-12, all nodes in one state vector), into a table of positions and
-    velocities every ``time_scale / steps_per_unit`` seconds (packed: one row (2, 3) per knot
+    velocities every ``time_scale / steps_per_unit`` seconds (packed: one (2, 3) row per knot
     and node, so a batch of queries gathers each knot's position and velocity at once), and
-    read back by cubic Hermite
-    interpolation: ``position`` is C1, ``velocity`` its exact derivative, a query costs
-    microseconds and the result does not depend on the order of queries. The field acts on the
-    unconstrained path, which is then folded into the box (mirror walls). Depth is constant.
+    read back by cubic Hermite interpolation: ``position`` is C1, ``velocity`` its exact
+    derivative, a query costs microseconds and the result does not depend on the order of
+    queries. The field acts on the unconstrained path, which is then folded into the box
+    (mirror walls). Depth is constant.
     """
 
     _CHUNK = 256

@@ -7,8 +7,9 @@ receiver, and receivers cannot write into each other's packets (either would be 
 distance-free side channel). Cost: both are a deep copy, O(payload size) per send and per
 reception; immutable parts (None, numbers, strings, bytes, numpy scalars, and tuples and
 frozensets made only of those) are shared, not copied, so the usual payloads (small dicts of
-numbers, tuples of numbers, short lists, 3-vectors) cost a few microseconds. Built-in containers (dict, list, tuple, set) and numpy arrays are copied by hand
-(fast path); anything else goes through :func:`copy.deepcopy`.
+numbers, tuples of numbers, short lists, 3-vectors) cost a few microseconds. Built-in
+containers (dict, list, tuple, set, frozenset) and numpy arrays are copied by hand (fast
+path); anything else goes through :func:`copy.deepcopy`.
 """
 
 from __future__ import annotations
