@@ -430,6 +430,8 @@ class Simulation:
         self._group_of = np.zeros(0, dtype=np.intp)
         self._pos_t = math.nan
         self._pos_cache = np.zeros((0, 3))
+        self._vel_t = math.nan  # velocities evaluated with the cached positions (_gather)
+        self._vel_cache = np.zeros((0, 3))
         self._static_pos: np.ndarray | None = None
         self._sampler_started = False
         self._one_call_states = True  # every group's model a Mobility (states_at per group)
@@ -553,7 +555,7 @@ class Simulation:
         self._moving = np.concatenate([self._moving, np.full(count, not group.static)])
         self._group_of = np.concatenate([self._group_of, np.full(count, len(self.groups) - 1)])
         self._static_pos = None
-        self._pos_t = math.nan
+        self._pos_t = self._vel_t = math.nan
         self._one_call_states = all(isinstance(g.mobility, Mobility) for g in self.groups)
         for node in new:
             gen = node.run()
@@ -578,15 +580,30 @@ class Simulation:
         return p
 
     def _gather(self, t: float) -> np.ndarray:
-        if len(self.groups) == 1:
-            return np.asarray(self.groups[0].mobility.position(t), dtype=float)
         if not self.groups:
             return np.zeros((0, 3))
+        if self._one_call_states:
+            # Positions and velocities from one evaluation (Mobility.state: the bits of
+            # position(t) and velocity(t)), the velocities kept for velocities(t): without a
+            # neighbour index (a model with no speed bound) the channel asks for both at every
+            # transmission's instant, and each asked alone evaluates the trajectory again.
+            states = [g.mobility.state(t) for g in self.groups]
+            if len(states) == 1:
+                p, v = (np.asarray(a, dtype=float) for a in states[0])
+            else:
+                p = np.concatenate([np.asarray(s[0], dtype=float) for s in states])
+                v = np.concatenate([np.asarray(s[1], dtype=float) for s in states])
+            self._vel_t, self._vel_cache = t, v
+            return p
+        if len(self.groups) == 1:
+            return np.asarray(self.groups[0].mobility.position(t), dtype=float)
         return np.concatenate([np.asarray(g.mobility.position(t), dtype=float) for g in self.groups])
 
     def velocities(self, t: float | None = None) -> np.ndarray:
         """True velocities (N, 3) at true time ``t`` (default now)."""
         t = self.env.now if t is None else float(t)
+        if t == self._vel_t:
+            return self._vel_cache
         if not self.groups:
             return np.zeros((0, 3))
         return np.concatenate([np.asarray(g.mobility.velocity(t), dtype=float) for g in self.groups])

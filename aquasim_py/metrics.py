@@ -271,10 +271,14 @@ class _AfterWarmup(Mapping[str, Any]):
 
     def __init__(self, tables: Mapping[str, Any], t0: float) -> None:
         self._tables, self._t0 = tables, t0
+        self._cache: dict[str, Any] = {}  # one filtered copy per table, whoever asks
 
     def __getitem__(self, name: str) -> Any:
-        v = self._tables[name]
-        return _after(v, self._t0) if name in ("estimates", "clocks") else v
+        if name not in ("estimates", "clocks"):
+            return self._tables[name]
+        if name not in self._cache:
+            self._cache[name] = _after(self._tables[name], self._t0)
+        return self._cache[name]
 
     def __contains__(self, name: object) -> bool:
         return name in self._tables

@@ -177,7 +177,7 @@ def _readonly(a: Array) -> Array:
 
 
 class _Table:
-    """Growable array of per-knot states (K, n, 3) with capacity doubling."""
+    """Growable array of per-knot states (K, n, ...) with capacity doubling."""
 
     __slots__ = ("count", "data")
 
@@ -289,12 +289,15 @@ class Mobility:
     def _state_at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
         # No argument checks (the kernel's hot path passes valid ids and times, (m,) each); the
         # same operations as position_at / velocity_at, so the same bits.
-        raw_p = self._raw_position_at(idx, t)
-        raw_v = self._raw_velocity_at(idx, t)
+        raw_p, raw_v = self._raw_state_at(idx, t)
         if not self._folds:
             return raw_p, raw_v
         pos, sign = self.box.fold(raw_p)
         return pos, raw_v * sign
+
+    def _raw_state_at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
+        # (_raw_position_at, _raw_velocity_at); a model may share work between the two
+        return self._raw_position_at(idx, t), self._raw_velocity_at(idx, t)
 
     def _position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         # position_at without argument checks (see _state_at)
@@ -780,10 +783,12 @@ class _CurrentDrift(Mobility):
 
     Trajectories are integrated once, in fixed chunks of ``_CHUNK`` table steps from t = 0
     (scipy DOP853, rtol 1e-12, all nodes in one state vector), into a table of positions and
-    velocities every ``time_scale / steps_per_unit`` seconds, and read back by cubic Hermite
-    interpolation: ``position`` is C1, ``velocity`` its exact derivative, a query costs
-    microseconds and the result does not depend on the order of queries. The field acts on the
-    unconstrained path, which is then folded into the box (mirror walls). Depth is constant.
+    velocities every ``time_scale / steps_per_unit`` seconds (packed: one (2, 3) row per knot
+    and node, so a batch of queries gathers each knot's position and velocity at once), and
+    read back by cubic Hermite interpolation: ``position`` is C1, ``velocity`` its exact
+    derivative, a query costs microseconds and the result does not depend on the order of
+    queries. The field acts on the unconstrained path, which is then folded into the box
+    (mirror walls). Depth is constant.
     """
 
     _CHUNK = 256
@@ -811,8 +816,7 @@ class _CurrentDrift(Mobility):
         self._h = self.time_scale / self.steps_per_unit  # table step, s
         self._inv_h = 1.0 / self._h
         p0 = self._p0.copy()
-        self._pos = _Table(p0)
-        self._vel = _Table(self.field(p0, 0.0))
+        self._pv = _Table(np.stack((p0, self.field(p0, 0.0)), axis=1))  # (K, n, 2, 3): position, velocity
 
     def _dimensionless(self, x: Array, y: Array, tp: Array | float) -> tuple[Array, Array]:
         raise NotImplementedError
@@ -835,8 +839,8 @@ class _CurrentDrift(Mobility):
     def _extend(self) -> None:
         """Integrate one more chunk of ``_CHUNK`` table steps from the last knot."""
         n, spu, L = self.n, self.steps_per_unit, self.length_scale
-        k0 = self._pos.count - 1
-        last = self._pos.last
+        k0 = self._pv.count - 1
+        last = self._pv.last[:, 0]
         s0 = np.concatenate(((last[:, 0] - self._ox) / L, (last[:, 1] - self._oy) / L))
         # Knot times in dimensionless units; computed from integers so chunks tile exactly.
         tgrid = self.phase + np.arange(k0, k0 + self._CHUNK + 1) / spu
@@ -850,8 +854,7 @@ class _CurrentDrift(Mobility):
         pos[:, :, 2] = self._p0[:, 2]
         times = (np.arange(k0 + 1, k0 + self._CHUNK + 1)) * self._h
         vel = self.field(pos, times[:, None])
-        self._pos.append(pos)
-        self._vel.append(vel)
+        self._pv.append(np.stack((pos, vel), axis=2))
 
     def _knots_at(self, idx: NDArray[np.intp], t: Array) -> tuple[NDArray[np.intp], NDArray[np.intp], Array]:
         """Flat row indices of (knot i, knot i + 1) per pair, and the fraction u (m, 1)."""
@@ -862,55 +865,56 @@ class _CurrentDrift(Mobility):
         flat = i * self.n + idx
         return flat, flat + self.n, (x - i)[:, None]
 
-    def _flat(self) -> tuple[Array, Array]:
-        shape = (-1, 3)
-        return self._pos.data.reshape(shape), self._vel.data.reshape(shape)
-
-    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+    def _gather(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array, Array, Array, Array]:
+        """(P_a, V_a, P_b, V_b, u): position and velocity at the knots around each (node, time)
+        pair (each (m, 3), strided views of two gathers) and the fraction u (m, 1)."""
         a, b, u = self._knots_at(idx, t)
-        P, V = self._flat()
+        pv = self._pv.data.reshape(-1, 2, 3)
+        ga, gb = pv.take(a, 0), pv.take(b, 0)
+        return ga[:, 0], ga[:, 1], gb[:, 0], gb[:, 1], u
+
+    def _hermite(self, pa: Array, va: Array, pb: Array, vb: Array, u: Array | float) -> Array:
         um = 1.0 - u
         h00 = (1.0 + 2.0 * u) * um * um
         h10 = u * um * um * self._h
         h01 = u * u * (3.0 - 2.0 * u)
         h11 = -u * u * um * self._h
-        return h00 * P.take(a, 0) + h10 * V.take(a, 0) + h01 * P.take(b, 0) + h11 * V.take(b, 0)
+        return h00 * pa + h10 * va + h01 * pb + h11 * vb
 
-    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
-        a, b, u = self._knots_at(idx, t)
-        P, V = self._flat()
+    def _hermite_derivative(self, pa: Array, va: Array, pb: Array, vb: Array, u: Array | float) -> Array:
         um = 1.0 - u
         d00 = 6.0 * u * um * self._inv_h
         d10 = um * (1.0 - 3.0 * u)
         d11 = u * (3.0 * u - 2.0)
-        return d00 * (P.take(b, 0) - P.take(a, 0)) + d10 * V.take(a, 0) + d11 * V.take(b, 0)
+        return d00 * (pb - pa) + d10 * va + d11 * vb
+
+    def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._hermite(*self._gather(idx, t))
+
+    def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
+        return self._hermite_derivative(*self._gather(idx, t))
+
+    def _raw_state_at(self, idx: NDArray[np.intp], t: Array) -> tuple[Array, Array]:
+        g = self._gather(idx, t)
+        return self._hermite(*g), self._hermite_derivative(*g)
 
     def _knot(self, t: float) -> tuple[int, float]:
         x = t * self._inv_h
         i = int(x)
-        while i + 1 >= self._pos.count:
+        while i + 1 >= self._pv.count:
             self._extend()
         return i, x - i
 
     def _raw_position(self, t: float) -> Array:
+        # cubic Hermite on [t_i, t_i + h], every node (the rows of the knots i and i + 1)
         i, u = self._knot(t)
-        P, V = self._pos.data, self._vel.data
-        um = 1.0 - u
-        # Cubic Hermite basis on [t_i, t_i + h].
-        h00 = (1.0 + 2.0 * u) * um * um
-        h10 = u * um * um * self._h
-        h01 = u * u * (3.0 - 2.0 * u)
-        h11 = -u * u * um * self._h
-        return h00 * P[i] + h10 * V[i] + h01 * P[i + 1] + h11 * V[i + 1]
+        a, b = self._pv.data[i], self._pv.data[i + 1]
+        return self._hermite(a[:, 0], a[:, 1], b[:, 0], b[:, 1], u)
 
     def _raw_velocity(self, t: float) -> Array:
         i, u = self._knot(t)
-        P, V = self._pos.data, self._vel.data
-        um = 1.0 - u
-        d00 = 6.0 * u * um * self._inv_h
-        d10 = um * (1.0 - 3.0 * u)
-        d11 = u * (3.0 * u - 2.0)
-        return d00 * (P[i + 1] - P[i]) + d10 * V[i] + d11 * V[i + 1]
+        a, b = self._pv.data[i], self._pv.data[i + 1]
+        return self._hermite_derivative(a[:, 0], a[:, 1], b[:, 0], b[:, 1], u)
 
 
 class Kinematic(_CurrentDrift):

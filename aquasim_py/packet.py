@@ -5,10 +5,11 @@ Payloads are copied, never shared: a packet carries a snapshot taken when the se
 snapshot (:func:`copy_payload`). So a sender changing its object after sending reaches no
 receiver, and receivers cannot write into each other's packets (either would be an instant,
 distance-free side channel). Cost: both are a deep copy, O(payload size) per send and per
-reception; immutable leaves (None, numbers, strings, bytes, numpy scalars) are shared, not
-copied, so the usual payloads (small dicts of numbers, short lists, 3-vectors) cost a few
-microseconds. Built-in containers (dict, list, tuple, set) and numpy arrays are copied by hand
-(fast path); anything else goes through :func:`copy.deepcopy`.
+reception; immutable parts (None, numbers, strings, bytes, numpy scalars, and tuples and
+frozensets made only of those) are shared, not copied, so the usual payloads (small dicts of
+numbers, tuples of numbers, short lists, 3-vectors) cost a few microseconds. Built-in
+containers (dict, list, tuple, set, frozenset) and numpy arrays are copied by hand (fast
+path); anything else goes through :func:`copy.deepcopy`.
 """
 
 from __future__ import annotations
@@ -26,21 +27,33 @@ _ATOMS = (type(None), bool, int, float, complex, str, bytes)
 
 
 def copy_payload(obj: Any) -> Any:
-    """A deep copy of ``obj`` that shares only immutable leaves (returns ``obj`` itself if it
-    is one); numpy arrays are copied (writable), containers rebuilt with their type."""
+    """A deep copy of ``obj`` that shares only immutable parts (returns ``obj`` itself if it
+    is immutable: an atom, or a tuple / frozenset of immutable parts); numpy arrays are copied
+    (writable), mutable containers rebuilt with their type."""
     t = type(obj)
     if t in _ATOMS or isinstance(obj, np.generic):
         return obj
     if t is dict:
-        return {k: copy_payload(v) for k, v in obj.items()}
+        out = obj.copy()  # keys and atoms shared; the rest replaced by copies (rarely needed)
+        for k, v in obj.items():
+            if type(v) not in _ATOMS:
+                c = copy_payload(v)
+                if c is not v:
+                    out[k] = c
+        return out
     if t is list:
-        return [copy_payload(v) for v in obj]
-    if t is tuple:
-        return tuple([copy_payload(v) for v in obj])
+        return [v if type(v) in _ATOMS else copy_payload(v) for v in obj]
+    if t is tuple or t is frozenset:
+        # A tuple whose items all come back as themselves holds nothing mutable, so no
+        # receiver can change it: shared, not rebuilt (per reception, the common case).
+        for v in obj:
+            if type(v) not in _ATOMS and copy_payload(v) is not v:
+                return t([copy_payload(u) for u in obj])
+        return obj
     if t is np.ndarray and obj.dtype != object:
         return obj.copy()
-    if t is set or t is frozenset:
-        return t(copy_payload(v) for v in obj)
+    if t is set:
+        return {copy_payload(v) for v in obj}
     return copy.deepcopy(obj)
 
 

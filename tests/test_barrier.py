@@ -272,3 +272,42 @@ def test_copy_payload_is_an_equal_copy_sharing_no_mutable_part(p: Any) -> None:
     assert _same(p, q)
     mine = {id(c) for c in _containers(p)}
     assert not mine & {id(c) for c in _containers(q)}
+
+
+def _shared_tuples(p: Any, q: Any) -> list[tuple[Any, ...]]:
+    """The tuples of ``q`` that are the very objects of ``p`` (walked in parallel)."""
+    if isinstance(p, tuple) and p is q:
+        return [p]
+    if isinstance(p, dict):
+        return [t for k in p for t in _shared_tuples(p[k], q[k])]
+    if isinstance(p, (list, tuple)):
+        return [t for a, b in zip(p, q) for t in _shared_tuples(a, b)]
+    return []
+
+
+@given(_payloads)
+@settings(max_examples=50, deadline=None)
+def test_copy_payload_shares_a_tuple_only_when_nothing_in_it_is_mutable(p: Any) -> None:
+    # A shared tuple cannot be written (no item assignment) and holds no container a receiver
+    # could write into; one that holds such a container is rebuilt around its copy.
+    q = copy_payload(p)
+    for t in _shared_tuples(p, q):
+        assert _containers(t) == []
+    if isinstance(p, tuple):
+        assert (q is p) == (_containers(p) == [])
+
+
+def test_immutable_tuples_are_shared_and_stay_immutable() -> None:
+    xy = (1.5, 2.5)
+    p = {"xy": xy, "vel": (np.float64(0.1), 0.2), "tags": frozenset({"a", 3}), "hist": [1.0]}
+    q = copy_payload(p)
+    assert q is not p and q["hist"] is not p["hist"]
+    assert q["xy"] is xy and q["vel"] is p["vel"] and q["tags"] is p["tags"]
+    with pytest.raises(TypeError):
+        q["xy"][0] = 9.0  # type: ignore[index]
+    q["xy"] = (9.0, 9.0)  # a receiver rebinding its own dict's entry
+    q["hist"].append(2.0)
+    assert p == {"xy": (1.5, 2.5), "vel": (np.float64(0.1), 0.2), "tags": frozenset({"a", 3}), "hist": [1.0]}
+    nested = ((1, 2), [3])
+    r = copy_payload(nested)
+    assert r is not nested and r[0] is nested[0] and r[1] == [3] and r[1] is not nested[1]

@@ -222,3 +222,27 @@ def test_quiet_gc_restores_the_collector_even_on_error() -> None:
         raise RuntimeError("boom")
     assert gc.get_threshold() == before
     assert gc.get_freeze_count() == frozen
+
+
+def test_positions_and_velocities_of_one_instant_are_each_groups_own() -> None:
+    # Simulation.positions(t) keeps the velocities of the same evaluation for velocities(t);
+    # both must be what each group's model gives for t alone, whichever is asked first.
+    from aquasim_py.mobility import Kinematic
+
+    rng = np.random.default_rng(3)
+    drift = Kinematic(rng.uniform(100.0, 290.0, (4, 3)), BOX, np.random.default_rng(4))
+    walk = RandomWalk(rng.uniform(100.0, 290.0, (3, 3)), BOX, np.random.default_rng(5), speed_max=2.0)
+    sim = Simulation(1, ssp=C, volume=BOX)
+    sim.add_group(Node, 4, mobility=drift)
+    sim.add_group(Node, 3, mobility=walk)
+    sim.add_group(Node, 1, positions=[[5.0, 5.0, 5.0]])
+    for t in (0.0, 3.7, 3.7, 120.25, 0.5):
+        for first in ("positions", "velocities"):
+            if first == "velocities":
+                sim._pos_t = sim._vel_t = np.nan  # forget the instant: velocities asked first
+                v, p = sim.velocities(t), sim.positions(t)
+            else:
+                p, v = sim.positions(t), sim.velocities(t)
+            want_p = np.concatenate([drift.position(t), walk.position(t), [[5.0, 5.0, 5.0]]])
+            want_v = np.concatenate([drift.velocity(t), walk.velocity(t), np.zeros((1, 3))])
+            assert np.array_equal(p, want_p) and np.array_equal(v, want_v)

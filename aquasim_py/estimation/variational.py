@@ -127,7 +127,8 @@ def predict(
     mu_prev: ArrayLike, mu_precision_prev: ArrayLike, transition: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Variational prediction of q(mu_t) (eq 11): mu^p = mu*_{t-1},
-    Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions)."""
+    Lambda^p = (Lambda*_{t-1}^-1 + Lambda^-1)^-1 (precisions). Also for stacks ((B, 4),
+    (B, 4, 4), (B, 4, 4)): each node's result has the bits of its prediction alone."""
     mu_p = np.array(mu_prev, dtype=float)
     prev_cov, trans_cov = _inv(np.stack((np.asarray(mu_precision_prev, float), np.asarray(transition, float))))
     return mu_p, _sym(_inv(prev_cov + trans_cov))

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-import networkx as nx
 import numpy as np
 import pandas as pd
 
@@ -86,6 +85,10 @@ def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int
     nodes, pk = tables.get("nodes"), tables.get("packets")
     if nodes is None or pk is None or len(nodes) == 0:
         return float("nan")
+    # imported here: every run imports every built-in protocol (the registry), and networkx
+    # adds about 12 MiB to each one's memory (docs/performance.md)
+    import networkx as nx
+
     rx = pk[pk["event"].astype(str) == "rx"]
     G = nx.Graph()
     G.add_nodes_from(nodes["node"].to_numpy(int))

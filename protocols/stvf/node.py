@@ -45,13 +45,15 @@ _BATCH = "stvf_update_batch"  # key of the run's _UpdateBatch in Node.out_of_ban
 
 @dataclass(frozen=True)
 class _Job:
-    """One node's update, handed in: its inputs and what to call with the result."""
+    """One node's prediction and update, handed in: its inputs (q(mu_{t-1}) and the transition
+    precision Lambda / gaps for eq 11) and what to call with the result."""
 
     node: StvfNode
     z: np.ndarray
     refs: np.ndarray
-    mu_p: np.ndarray
-    lp: np.ndarray
+    mu: np.ndarray
+    mu_precision: np.ndarray
+    transition: np.ndarray
     done: Callable[[vf.VariationalResult], None]
 
 
@@ -78,11 +80,18 @@ class _UpdateBatch:
             groups.setdefault((id(job.node.params), job.z.size), []).append(job)
         outs: dict[int, vf.VariationalResult] = {}
         for part in groups.values():
+            # eq 11 for the whole part: predict's inverses loop over the stack, each matrix
+            # inverted as on its own (same bits as one node's predict)
+            mu_p, lp = vf.predict(
+                np.stack([j.mu for j in part]),
+                np.stack([j.mu_precision for j in part]),
+                np.stack([j.transition for j in part]),
+            )
             res = vf.variational_update_batch(
                 np.stack([j.z for j in part]),
                 np.stack([j.refs for j in part]),
-                np.stack([j.mu_p for j in part]),
-                np.stack([j.lp for j in part]),
+                mu_p,
+                lp,
                 part[0].node.prior,
                 [j.node.rng for j in part],
             )
@@ -245,13 +254,15 @@ class StvfNode(PeriodicBeaconNode):
         else:
             gaps = self.missed + 1
         assert self.mu is not None and self.mu_precision is not None
-        mu_p, lp = vf.predict(self.mu, self.mu_precision, self.prior.transition / gaps)
+        transition = self.prior.transition / gaps
         done = partial(self._localized, z=z, refs=refs, eta=eta, now=now, depth=depth, fresh=fresh, n_heard=len(heard))
         # Deferred to the end of this instant, unless the next period starts at it (listen_s >=
         # period_s): the node then reads its own confidence for its beacon at this instant.
         if self.batch_updates and p.listen_s < p.period_s:
-            self.out_of_band.setdefault(_BATCH, _UpdateBatch()).add(_Job(self, z, refs, mu_p, lp, done))
+            job = _Job(self, z, refs, self.mu, self.mu_precision, transition, done)
+            self.out_of_band.setdefault(_BATCH, _UpdateBatch()).add(job)
         else:
+            mu_p, lp = vf.predict(self.mu, self.mu_precision, transition)
             done(vf.variational_update(z, refs, mu_p, lp, self.prior, self.rng))
 
     def _localized(

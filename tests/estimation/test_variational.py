@@ -151,6 +151,23 @@ def test_predict_precision():
     assert np.allclose(prec, np.eye(4) / 904.0)
 
 
+def test_predict_on_a_stack_gives_each_node_the_bits_of_its_own():
+    # the STVF batch predicts every node of an instant in one call (protocols/stvf/node.py)
+    rng = np.random.default_rng(5)
+    a = rng.normal(size=(30, 4, 4))
+    prec = a @ a.swapaxes(-1, -2) + 0.1 * np.eye(4)  # symmetric positive definite
+    trans = np.eye(4) / 900.0 / rng.integers(1, 4, size=30)[:, None, None]
+    mu = rng.normal(size=(30, 4))
+    mu_b, prec_b = vf.predict(mu, prec, trans)
+    for i in range(30):
+        mu_i, prec_i = vf.predict(mu[i], prec[i], trans[i])
+        assert np.array_equal(mu_b[i], mu_i)
+        assert np.array_equal(prec_b[i], prec_i)
+    # and it is eq 11: (Lambda*^-1 + Lambda^-1)^-1, symmetric
+    ref = np.linalg.inv(np.linalg.inv(prec) + np.linalg.inv(trans))
+    assert np.allclose(prec_b, ref, rtol=1e-10, atol=0)
+
+
 # --- the whole Algorithm 1 inner loop -----------------------------------------------------------
 
 
