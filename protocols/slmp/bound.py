@@ -36,7 +36,7 @@ from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
 from ..stvf.metrics import localization_metrics
-from .math import MobilityPredictor, slmp_confidence
+from .math import MobilityPredictor, in_range, slmp_confidence
 
 __all__ = ["MultilaterationBoundNode", "MultilaterationBoundParams"]
 
@@ -151,8 +151,9 @@ class MultilaterationBoundNode(PeriodicBeaconNode):
             try:
                 xy_est = multilaterate(np.array(refs), np.array(ranges), refine=5)
                 # A node hears only nodes within range: a fix farther than that from a
-                # reference is a failed one (ill-conditioned geometry), not an estimate.
-                if np.all(np.linalg.norm(np.array(refs) - xy_est, axis=1) <= p.range_m):
+                # reference, beyond the ranging noise, is a failed one (ill-conditioned
+                # geometry), not an estimate.
+                if in_range(xy_est, refs, p.range_m, p.noise_ratio * p.range_m):
                     conf = slmp_confidence(etas, xy_est, np.array(refs), np.array(ranges))
                     method = "multilateration"
                 else:

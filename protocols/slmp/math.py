@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "MobilityPredictor",
     "fit_linear_predictor",
+    "in_range",
     "is_stable",
     "predict_velocities",
     "prediction_residual",
@@ -172,3 +173,12 @@ def prediction_residual(position: ArrayLike, refs: ArrayLike, ranges: ArrayLike)
     agrees with what the node hears (a prediction off by d gives about d / sqrt(2))."""
     rho = np.linalg.norm(np.asarray(position, float) - np.asarray(refs, float), axis=-1)
     return float(np.sqrt(np.mean((rho - np.asarray(ranges, float)) ** 2)))
+
+
+def in_range(position: ArrayLike, refs: ArrayLike, range_m: float, range_std_m: float) -> bool:
+    """Whether a fix lies within ``range_m`` (m) of every reference (n, 2), up to 3 std of a
+    range measured at ``range_m`` (``range_std_m``, m). A node hears only references in range,
+    so a fix well beyond that from one of them is a failed one (ill-conditioned geometry); a
+    good fix of a node near the edge of a reference's range exceeds it by its ranging noise."""
+    rho = np.linalg.norm(np.asarray(refs, float) - np.asarray(position, float), axis=-1)
+    return bool(np.all(rho <= range_m + 3.0 * range_std_m))

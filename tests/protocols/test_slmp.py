@@ -158,3 +158,41 @@ def test_prediction_residual_hand_computed():
     # at (3, 4): distances 5 and sqrt(65); ranges 6 and sqrt(65) + 2 -> residuals -1, -2
     got = sm.prediction_residual([3.0, 4.0], refs, [6.0, np.sqrt(65) + 2.0])
     assert got == pytest.approx(np.sqrt((1 + 4) / 2))
+
+
+def test_bound_keeps_a_fix_at_the_edge_of_range():
+    """A static node 79.9 m from one of four beacons (range 80 m, ranging error 2 % of the
+    delay, about 1.6 m there): about half its fixes land beyond 80 m from that beacon by noise
+    alone. They are good fixes and must be kept (the former gate, 80 m flat, refused them and
+    the node self-estimated instead); the gate allows 3 std of that error."""
+    beacons = "[[10.0, 100.0, 25.0], [89.9, 50.0, 25.0], [89.9, 150.0, 25.0], [130.0, 100.0, 25.0]]"
+    frames = _run(
+        [
+            "nodes[0].protocol=multilateration_bound",
+            "nodes[1].protocol=multilateration_bound",
+            "nodes[0].count=4",
+            "nodes[1].count=1",
+            f'nodes[0].placement={{kind="explicit", positions={beacons}}}',
+            'nodes[1].placement={kind="explicit", positions=[[89.9, 100.0, 25.0]]}',
+            "nodes[0].mobility.model=static",
+            "nodes[1].mobility.model=static",
+            "channel.sound_speed_std_mps=0.0",
+            "nodes[0].params={training_s=0.0}",
+            "nodes[1].params={training_s=0.0}",
+            "simulation.duration_s=40.0",
+        ]
+    )
+    e = frames["estimates"]
+    assert (e["n_refs"] >= 3).all()  # (a beacon arriving while the node itself sends is lost)
+    fixes = e["method"] == "multilateration"
+    assert fixes.sum() >= 36  # of 40 periods (here 40); the former gate kept 19
+    err = np.hypot(e.x - e.true_x, e.y - e.true_y)
+    assert err[fixes].max() < 5.0  # what is kept is a good fix
+
+
+def test_in_range_gate_allows_ranging_noise_only():
+    refs = np.array([[0.0, 0.0], [50.0, 0.0]])
+    assert sm.in_range([81.0, 0.0], refs, 80.0, 1.6)  # 1 m beyond: noise
+    assert sm.in_range([84.7, 0.0], refs, 80.0, 1.6)  # 3 std: 4.8 m
+    assert not sm.in_range([85.0, 0.0], refs, 80.0, 1.6)
+    assert not sm.in_range([0.0, 95.0], refs, 80.0, 1.6)  # far from both: a failed fix
