@@ -47,7 +47,7 @@ from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
 from ..stvf.metrics import localization_metrics
-from .math import MobilityPredictor, prediction_residual, slmp_confidence
+from .math import MobilityPredictor, in_range, prediction_residual, slmp_confidence
 
 __all__ = ["SlmpNode", "SlmpParams"]
 
@@ -192,7 +192,8 @@ class SlmpNode(PeriodicBeaconNode):
 
     def least_squares(self, refs: np.ndarray, r: np.ndarray) -> np.ndarray | None:
         """Plain linear least squares (SLMP's multilateration) on this period's references; a
-        fix farther than ``range_m`` from a reference it heard is a failed one."""
+        fix farther than ``range_m`` from a reference it heard, beyond 3 std of the ranging
+        noise there (:func:`.math.in_range`), is a failed one (ill-conditioned geometry)."""
         p: SlmpParams = self.params
         if len(r) < p.min_refs:
             return None
@@ -200,7 +201,7 @@ class SlmpNode(PeriodicBeaconNode):
             xy = multilaterate(refs, r)
         except (DegenerateGeometryError, InsufficientMeasurementsError, np.linalg.LinAlgError):
             return None
-        if not np.all(np.linalg.norm(refs - xy, axis=1) <= p.range_m):
+        if not in_range(xy, refs, p.range_m, p.noise_ratio * p.range_m):
             return None
         return xy
 

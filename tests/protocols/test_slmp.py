@@ -196,3 +196,31 @@ def test_in_range_gate_allows_ranging_noise_only():
     assert sm.in_range([84.7, 0.0], refs, 80.0, 1.6)  # 3 std: 4.8 m
     assert not sm.in_range([85.0, 0.0], refs, 80.0, 1.6)
     assert not sm.in_range([0.0, 95.0], refs, 80.0, 1.6)  # far from both: a failed fix
+
+
+def test_slmp_least_squares_keeps_fixes_at_the_edge_of_range():
+    """SLMP's plain least squares with the same gate as the bound: a node 79.9 m from one of
+    four references (range 80 m, ranging error 2 % of the range, 1.6 m there) gets a fix beyond
+    80 m from it in about half of the noise draws. Those are good fixes and must be kept (the
+    former flat 80-m gate refused about half of them); a fix no node in range could have is
+    still refused."""
+    from types import SimpleNamespace
+
+    from aquasim_py.protocols.slmp.node import SlmpNode, SlmpParams
+
+    me = SimpleNamespace(params=SlmpParams())
+    refs = np.array([[10.0, 100.0], [89.9, 50.0], [89.9, 150.0], [130.0, 100.0]])
+    truth = np.array([89.9, 100.0])
+    rho = np.linalg.norm(refs - truth, axis=1)
+    rng = np.random.default_rng(7)
+    fixes = [
+        SlmpNode.least_squares(me, refs, rho * (1.0 + 0.02 * rng.standard_normal(4)))  # type: ignore[arg-type]
+        for _ in range(400)
+    ]
+    kept = [f for f in fixes if f is not None]
+    beyond = sum(np.linalg.norm(f - refs[0]) > 80.0 for f in kept)
+    assert len(kept) >= 396  # 3 std of the range error: a refusal is a < 1 % event per draw
+    assert beyond >= 100  # the case the former gate refused does occur in these draws
+    assert max(np.linalg.norm(f - truth) for f in kept) < 6.0  # what is kept is a good fix
+    far = np.array([105.0, 100.0])  # 95 m from the first reference: out of its range
+    assert SlmpNode.least_squares(me, refs, np.linalg.norm(refs - far, axis=1)) is None  # type: ignore[arg-type]
