@@ -264,7 +264,7 @@ def test_ideal_fusion_weights_are_eq27_of_eq23_on_the_fc_particles(monkeypatch: 
         assert len(S) == 3 and np.all(loc == 2.0)
         np.testing.assert_allclose(alpha, mi / mi.sum(), rtol=1e-12)
         gam = np.concatenate([[-np.inf], cfg.gammas, [np.inf]])
-        for s, ls, I in zip(S, loc, mi):
+        for s, ls, mi_s in zip(S, loc, mi):
 
             def h(P: np.ndarray, s: np.ndarray = s) -> np.ndarray:
                 return cfg.source_level / np.linalg.norm(P - s, axis=1) ** cfg.exponent
@@ -279,4 +279,4 @@ def test_ideal_fusion_weights_are_eq27_of_eq23_on_the_fc_particles(monkeypatch: 
                 return -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=-1)
 
             ref = ent(P.mean(axis=0)) - ent(P).mean()
-            assert I == pytest.approx(ref, rel=1e-6, abs=1e-9)
+            assert mi_s == pytest.approx(ref, rel=1e-6, abs=1e-9)
