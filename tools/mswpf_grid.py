@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         m = float(np.mean(np.log(T / PAPER)))
         print(
             f"{p[0]:>2} {p[1]:>5} {p[2]:>10} | {score(T):5.2f} [{lo:4.2f}, {hi:4.2f}] | {m:+5.2f} (x{np.exp(m):4.2f})"
-            f"       | {score(T) - score(E[DEFAULT]):+5.2f} [{dlo:+5.2f}, {dhi:+5.2f}]"
+            f"       | {score(T) - score(cells(E[DEFAULT])):+5.2f} [{dlo:+5.2f}, {dhi:+5.2f}]"
         )
         for i, lv in enumerate(LEVELS):
             gw, ew, bw = T[i]
