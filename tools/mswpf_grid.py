@@ -123,7 +123,7 @@ def figure(T: dict[tuple[int, str, str], np.ndarray], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(11, 3.6), sharey=True)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), sharey=True)
     for j, (ax, w) in enumerate(zip(axes, WEIGHTS)):
         for p, t in T.items():
             ax.plot(LEVELS, t[:, j], "o-" if p[2] == "pressure" else "s--", ms=3, label=f"k={p[0]} S={p[1]} {p[2]}")
@@ -133,8 +133,8 @@ def figure(T: dict[tuple[int, str, str], np.ndarray], path: Path) -> None:
         ax.set_xlabel("Quantization level L")
         ax.set_title(f"{w.upper()} ({RUNS} runs per point)")
     axes[0].set_ylabel("Average error (m)")
-    axes[-1].legend(fontsize=6, loc="upper right")
-    fig.tight_layout()
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="center right")
+    fig.tight_layout(rect=(0, 0, 0.84, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     plt.close(fig)
