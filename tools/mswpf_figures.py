@@ -91,7 +91,7 @@ def main() -> int:
                 ax.plot(c.index, c.values, label=f"{str(w).upper()}-{ns} (avg {c.mean():.2f} m)")
         ax.set_xlabel("Time (s)")
         ax.set_ylabel("RMSE (m)")
-        ax.set_title("Figs. 14-15: 3-D, GW / EW with Ns selected")
+        ax.set_title(f"Figs. 14-15: 3-D, GW / EW, Ns selected ({df['run'].nunique()} runs)", fontsize=10)
         ax.legend()
         fig.tight_layout()
         fig.savefig(out / "fig14_15_3d.png", dpi=120)

@@ -55,7 +55,7 @@ def paper_metric(df: pd.DataFrame) -> float:
     return float(np.sqrt((df["error_m"] ** 2).groupby(df["step"]).mean()).mean())
 
 
-def bootstrap_ci(df: pd.DataFrame, n_boot: int = 400, seed: int = 0) -> tuple[float, float]:
+def bootstrap_ci(df: pd.DataFrame, n_boot: int = 1000, seed: int = 0) -> tuple[float, float]:
     """95 % CI of :func:`paper_metric` by resampling runs (all intervals of a run together)."""
     piv = df.pivot_table(index="run", columns="step", values="error_m") ** 2
     A = piv.to_numpy()
@@ -66,7 +66,7 @@ def bootstrap_ci(df: pd.DataFrame, n_boot: int = 400, seed: int = 0) -> tuple[fl
     return float(lo), float(hi)
 
 
-def paired(df: pd.DataFrame, by: list[str], key: str, a: str, b: str, n_boot: int = 400) -> tuple[float, float, float]:
+def paired(df: pd.DataFrame, by: list[str], key: str, a: str, b: str, n_boot: int = 1000) -> tuple[float, float, float]:
     """Paired difference metric(a) - metric(b) over the same runs, with a 95 % bootstrap CI."""
     pa = df[df[key] == a].pivot_table(index="run", columns="step", values="error_m") ** 2
     pb = df[df[key] == b].pivot_table(index="run", columns="step", values="error_m") ** 2

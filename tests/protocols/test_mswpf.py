@@ -236,3 +236,47 @@ def test_pcrlb_selection_is_the_brute_force_det_j_maximizer() -> None:
     ranked = sorted(dets.values(), reverse=True)
     assert ranked[0] > ranked[1] * (1 + 1e-6)  # the maximizer is clear of the finite-difference error
     assert sorted(idx.tolist()) == sorted(cand[list(best)].tolist())
+
+
+def test_ideal_fusion_weights_are_eq27_of_eq23_on_the_fc_particles(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The GW path end to end (ideal links, location noise r_x = 2): at every fusion each weight
+    is I_s / sum I (eq 27) over the reports that arrived, and each I_s is eq 23 on exactly the
+    fusion centre's predicted particles of that interval, at the position the sensor reported,
+    with eq 10's r_m. Reference: h = S / D^k, its gradient by central differences and the level
+    probabilities by scipy's normal cdf, independent of the package's quantizer maths."""
+    from scipy.stats import norm
+
+    from aquasim_py.protocols.mswpf import math as mm
+
+    seen: list[tuple[Any, ...]] = []
+    orig = mm.MswpfTracker.update
+
+    def spy(self: Any, sensors: Any, loc_std: Any, levels: Any, mi: Any, info: Any = None) -> Any:
+        X = self.positions().copy()
+        out = orig(self, sensors, loc_std, levels, mi, info)
+        seen.append((X, np.array(sensors, float), np.array(loc_std, float), np.array(mi, float), out[0], self.cfg))
+        return out
+
+    monkeypatch.setattr(mm.MswpfTracker, "update", spy)
+    _run(_small_network(True))
+    assert len(seen) == 6
+    for X, S, loc, mi, alpha, cfg in seen:
+        assert len(S) == 3 and np.all(loc == 2.0)
+        np.testing.assert_allclose(alpha, mi / mi.sum(), rtol=1e-12)
+        gam = np.concatenate([[-np.inf], cfg.gammas, [np.inf]])
+        for s, ls, mi_s in zip(S, loc, mi):
+
+            def h(P: np.ndarray, s: np.ndarray = s) -> np.ndarray:
+                return cfg.source_level / np.linalg.norm(P - s, axis=1) ** cfg.exponent
+
+            e = 1e-4
+            gx = (h(X + [e, 0, 0]) - h(X - [e, 0, 0])) / (2 * e)
+            gy = (h(X + [0, e, 0]) - h(X - [0, e, 0])) / (2 * e)
+            rm = np.sqrt(cfg.r**2 + (gx**2 + gy**2) * ls**2)
+            P = np.diff(norm.cdf((gam[None, :] - h(X)[:, None]) / rm[:, None]), axis=1)  # (N, L)
+
+            def ent(p: np.ndarray) -> np.ndarray:
+                return -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=-1)
+
+            ref = ent(P.mean(axis=0)) - ent(P).mean()
+            assert mi_s == pytest.approx(ref, rel=1e-6, abs=1e-9)
