@@ -11,6 +11,8 @@ exact and platform independent, so the same run gives byte-identical CSV files.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -563,6 +565,102 @@ def _reformats(old: Mapping[str, str], new: Mapping[str, str]) -> bool:
     return any(k not in old for k in new) or any(old[k] == "i" and new[k] == "f" for k in old)
 
 
+#: strings whose CSV field text a sink remembers (category values: a handful per column)
+_QUOTED_MAX = 65_536
+
+
+def _csv_field(s: str) -> str:
+    """``s`` as ``csv.writer`` writes it in a row of several fields (QUOTE_MINIMAL, the dialect
+    ``DataFrame.to_csv`` uses): asked of the csv module itself, so its quoting rules apply."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([s, "x"])
+    return buf.getvalue()[:-3]  # without ",x\n"
+
+
+def _float_fields(cols: list[np.ndarray]) -> list[list[str]]:
+    """The fields ``DataFrame.to_csv`` writes for float64 columns: numpy's ``astype(str)``,
+    which gives the digits of Python's ``repr`` (shortest round trip; tests/test_trace_csv.py
+    holds the two equal), and "" for NaN. ``repr`` costs about 0.4 us per value, so each
+    distinct value of the chunk (by its bits: -0.0 is not 0.0) is formatted once: a static
+    link's delay and SNR recur with every packet on it, a perfect clock's reading is the time."""
+    n = len(cols[0])
+    u, inv = np.unique(np.concatenate([c.view(np.int64) for c in cols]), return_inverse=True)
+    values = u.view(np.float64)
+    text = np.empty(len(u), dtype=object)
+    text[:] = list(map(float.__repr__, values.tolist()))
+    text[np.isnan(values)] = ""
+    fields = text[inv.ravel()]
+    return [fields[i * n : (i + 1) * n].tolist() for i in range(len(cols))]
+
+
+def _int_fields(a: np.ndarray) -> list[str]:
+    """The fields ``DataFrame.to_csv`` writes for an int64 column (``str`` of each value);
+    through a table of the range's texts when the range is no wider than the column (ids,
+    counts, uids of one chunk)."""
+    lo, hi = int(a.min()), int(a.max())
+    if hi - lo < len(a):
+        table = np.empty(hi - lo + 1, dtype=object)
+        table[:] = list(map(str, range(lo, hi + 1)))
+        return table[a - lo].tolist()
+    return list(map(int.__repr__, a.tolist()))
+
+
+def _object_fields(values: list[Any], quoted: dict[str, str]) -> list[str] | None:
+    """The fields ``DataFrame.to_csv`` writes for an object column of strings, None and bools
+    ("" for None, csv quoting for strings, ``str`` for bools); None if it holds anything else
+    (NaN, numbers, arrays: pandas' and csv's own rules then apply, through pandas)."""
+    out = []
+    for v in values:
+        f = quoted.get(v) if type(v) is str else None
+        if f is None:
+            t = type(v)
+            if t is str:
+                f = quoted[v] = _csv_field(v)
+            elif v is None:
+                f = ""
+            elif t is bool:
+                f = str(v)
+            else:
+                return None
+        out.append(f)
+    return out
+
+
+def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[str, str]) -> str | None:
+    """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
+    column at a time instead of through pandas' per-field path (about 5 us per ``packets``
+    row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
+    fields across calls. None when ``df`` has a column other than float64, int64 or an object
+    column of strings / None / bools, a single column (csv writes an empty lone field as
+    ``""``), no rows or a label that is not a string: the caller then uses pandas.
+
+    tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
+    labels = list(df.columns)
+    if len(df) == 0 or len(labels) < 2 or not all(type(c) is str for c in labels):
+        return None
+    cols: list[list[str] | None] = [None] * len(labels)
+    floats = []
+    for i, c in enumerate(labels):
+        a = df[c].to_numpy()
+        if a.dtype == np.float64:
+            floats.append(i)
+        elif a.dtype == np.int64:
+            cols[i] = _int_fields(a)
+        elif a.dtype == object:
+            cols[i] = _object_fields(a.tolist(), quoted)
+            if cols[i] is None:
+                return None
+        else:
+            return None
+    if floats:
+        for i, f in zip(floats, _float_fields([df[labels[i]].to_numpy() for i in floats])):
+            cols[i] = f
+    rows = "\n".join(map(",".join, zip(*cols))) + "\n"
+    if not header:
+        return rows
+    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n" + rows
+
+
 class _CsvSink:
     """A table appended to ``path`` chunk by chunk, byte for byte what :func:`write_frames`
     writes for the whole table.
@@ -575,14 +673,21 @@ class _CsvSink:
     def __init__(self, path: Path) -> None:
         self.path = path
         self._kinds: dict[str, str] | None = None
+        self._quoted: dict[str, str] = {}  # a string -> its CSV field (_csv_text), kept across chunks
 
     def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
         if self._kinds is not None and _reformats(self._kinds, kinds):
             self._rewrite(kinds)
         first = self._kinds is None
+        text = _csv_text(df, first, self._quoted)
         with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
-            df.to_csv(f, index=False, header=first, lineterminator="\n")
+            if text is None:  # a column the bulk formatter does not take: pandas writes the chunk
+                df.to_csv(f, index=False, header=first, lineterminator="\n")
+            else:
+                f.write(text)
         self._kinds = dict(kinds)
+        if len(self._quoted) > _QUOTED_MAX:  # a column of ever new strings: do not keep them all
+            self._quoted.clear()
 
     def _rewrite(self, kinds: Mapping[str, str]) -> None:
         assert self._kinds is not None
