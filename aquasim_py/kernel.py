@@ -292,10 +292,11 @@ class _NodeCore:
     # -- logging ----------------------------------------------------------------------------------
 
     def log(self, table: str, columns: Mapping[str, Any]) -> None:
-        reserved = {"time", "node", "protocol"} & set(columns)
-        if reserved:
-            raise ValueError(f"log(): columns {sorted(reserved)} are added by the kernel")
-        self.sim.trace.append(table, time=self.env.now, node=self.index, protocol=self.protocol, **columns)
+        if "time" in columns or "node" in columns or "protocol" in columns:
+            reserved = sorted({"time", "node", "protocol"} & set(columns))
+            raise ValueError(f"log(): columns {reserved} are added by the kernel")
+        # straight to the table: one keyword packing per row (a protocol may log per reception)
+        self.sim.trace.table(table).append(time=self.env.now, node=self.index, protocol=self.protocol, **columns)
 
     def log_estimate(
         self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]

@@ -254,7 +254,11 @@ class Table:
         self._n = 0
         self.columns: dict[str, _Column] = {c: _Column(k) for c, k in schema}
         self._schema = tuple(self.columns)
+        # the columns of the row tuples in _buf, in order (a prefix of self.columns): the schema
+        # (append_fast, row_buffer); a table without one takes the columns of its first row
+        self._buf_keys = self._schema
         self._buf: list[tuple[Any, ...]] = []
+        self._batch = self._BATCH  # rows buffered before they move into the columns
         self._sink: _Sink | None = None
         self._chunk_rows = self._next_spill = 0
         self._streamed = 0  # rows handed to the sink
@@ -284,17 +288,21 @@ class Table:
             return
         buf = self._buf[:]
         self._buf.clear()  # the same list object: hot-path writers may hold it (see row_buffer)
-        for key, values in zip(self._schema, zip(*buf)):
+        for key, values in zip(self._buf_keys, zip(*buf)):
             self.columns[key].push_many(values)
-        if len(self.columns) != len(self._schema):
-            for key in list(self.columns)[len(self._schema) :]:
+        if len(self.columns) != len(self._buf_keys):
+            for key in list(self.columns)[len(self._buf_keys) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
         self._maybe_spill()
 
     def _maybe_spill(self) -> None:
-        if self._sink is not None and self._n >= self._next_spill:
-            self._spill(final=False)
+        if self._sink is not None:
+            if self._n >= self._next_spill:
+                self._spill(final=False)
+            # buffer no more rows than reach the next hand-over: rows go to the sink where
+            # they would if appended one by one, and a small chunk stays small in memory
+            self._batch = max(1, min(self._BATCH, self._next_spill - self._n))
 
     def _spill(self, final: bool) -> None:
         """Hand the rows held (for a time-ordered table: those before the watermark) to the sink."""
@@ -350,7 +358,18 @@ class Table:
         return self._sink.path
 
     def append(self, **row: Any) -> None:
-        """Append one row; unknown columns are created (earlier rows get missing values)."""
+        """Append one row; unknown columns are created (earlier rows get missing values).
+
+        A row of every column in the buffer's order (a protocol logging the same columns each
+        time) is buffered as :meth:`append_fast` buffers: ``push_many`` widens a column's type
+        exactly as ``push`` would, row by row."""
+        keys = tuple(row)
+        if keys == self._buf_keys and len(keys) == len(self.columns):
+            buf = self._buf
+            buf.append(tuple(row.values()))
+            if len(buf) >= self._batch:
+                self._flush()
+            return
         if self._buf:
             self._flush()
         cols = self.columns
@@ -364,6 +383,8 @@ class Table:
                 if key not in row:
                     col.fill_missing()
         self._n += 1
+        if not self._schema and len(row) == len(cols):  # later rows like this one are buffered
+            self._buf_keys = keys
         self._maybe_spill()
 
     def row_buffer(self) -> list[tuple[Any, ...]]:
@@ -372,14 +393,14 @@ class Table:
         return self._buf
 
     def flush_if_large(self) -> None:
-        if len(self._buf) >= self._BATCH:
+        if len(self._buf) >= self._batch:
             self._flush()
 
     def append_fast(self, values: tuple[Any, ...]) -> None:
         """Append a row given in schema order (the kernel's hot path: no checks, no new columns)."""
         buf = self._buf
         buf.append(values)
-        if len(buf) >= self._BATCH:
+        if len(buf) >= self._batch:
             self._flush()
 
     def extend(self, **cols: np.ndarray) -> None:
@@ -605,28 +626,27 @@ def _int_fields(a: np.ndarray) -> list[str]:
     return list(map(int.__repr__, a.tolist()))
 
 
-def _object_fields(values: list[Any], quoted: dict[str, str]) -> list[str] | None:
+_OBJECT_TYPES = frozenset((str, type(None), bool))
+
+
+def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | None:
     """The fields ``DataFrame.to_csv`` writes for an object column of strings, None and bools
     ("" for None, csv quoting for strings, ``str`` for bools); None if it holds anything else
-    (NaN, numbers, arrays: pandas' and csv's own rules then apply, through pandas)."""
-    out = []
-    for v in values:
-        f = quoted.get(v) if type(v) is str else None
-        if f is None:
-            t = type(v)
-            if t is str:
-                f = quoted[v] = _csv_field(v)
-            elif v is None:
-                f = ""
-            elif t is bool:
-                f = str(v)
-            else:
-                return None
-        out.append(f)
-    return out
+    (NaN, numbers, arrays: pandas' and csv's own rules then apply, through pandas).
+
+    ``quoted`` maps each value met so far to its field (no other types share a key with
+    these: 1 == True is excluded by the type test), so a column is one C-level ``map``."""
+    if not _OBJECT_TYPES.issuperset(map(type, values)):
+        return None
+    try:
+        return list(map(quoted.__getitem__, values))
+    except KeyError:
+        for v in set(values).difference(quoted):
+            quoted[v] = "" if v is None else str(v) if type(v) is bool else _csv_field(v)
+        return list(map(quoted.__getitem__, values))
 
 
-def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[str, str]) -> str | None:
+def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
     """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
     column at a time instead of through pandas' per-field path (about 5 us per ``packets``
     row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
@@ -639,11 +659,11 @@ def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[str, str]) -> str | N
     if len(df) == 0 or len(labels) < 2 or not all(type(c) is str for c in labels):
         return None
     cols: list[list[str] | None] = [None] * len(labels)
-    floats = []
+    floats: dict[int, np.ndarray] = {}
     for i, c in enumerate(labels):
         a = df[c].to_numpy()
         if a.dtype == np.float64:
-            floats.append(i)
+            floats[i] = a
         elif a.dtype == np.int64:
             cols[i] = _int_fields(a)
         elif a.dtype == object:
@@ -653,7 +673,7 @@ def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[str, str]) -> str | N
         else:
             return None
     if floats:
-        for i, f in zip(floats, _float_fields([df[labels[i]].to_numpy() for i in floats])):
+        for i, f in zip(floats, _float_fields(list(floats.values()))):
             cols[i] = f
     rows = "\n".join(map(",".join, zip(*cols))) + "\n"
     if not header:
@@ -673,7 +693,7 @@ class _CsvSink:
     def __init__(self, path: Path) -> None:
         self.path = path
         self._kinds: dict[str, str] | None = None
-        self._quoted: dict[str, str] = {}  # a string -> its CSV field (_csv_text), kept across chunks
+        self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_csv_text), kept across chunks
 
     def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
         if self._kinds is not None and _reformats(self._kinds, kinds):
