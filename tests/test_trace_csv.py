@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pandas as pd
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
@@ -130,3 +131,38 @@ def test_float_text_is_python_repr() -> None:
     x = np.concatenate([bits.view(np.float64), np.array(_EDGE_FLOATS)])
     x = x[~np.isnan(x)]
     assert x.astype(str).tolist() == list(map(float.__repr__, x.tolist())), sys.version
+
+
+def test_columns_read_alone_are_the_whole_tables_columns(tmp_path) -> None:
+    """TraceFiles.columns parses only the columns asked for, into exactly the dtypes and values
+    of the whole table's (CSV and parquet), also through table_columns and the warm-up view; a
+    table the run did not keep still fails loudly, an absent one is None."""
+    from aquasim_py.metrics import _AfterWarmup
+    from aquasim_py.trace import TableNotKept, Trace, TraceFiles, read_table, table_columns
+
+    for fmt in ("csv", "parquet"):
+        d = tmp_path / fmt
+        d.mkdir()
+        tr = Trace()
+        tr.stream(lambda n, d=d, fmt=fmt: None if n == "noise" else d / f"{n}.{fmt}", fmt, chunk_rows=5)
+        pk = tr.table("packets")
+        for i in range(23):
+            ev = ("tx", "rx", "drop")[i % 3]
+            pk.append_fast(
+                (i * 0.5, ev, "collision" if ev == "drop" else None, i % 4, 0, -1, i // 3, "007", 64)
+                + (1e-300 * i, -0.0 if i % 2 else math.nan, None, math.nan)
+            )
+            tr.append("noise", v=i)
+        done = tr.close()
+        files = TraceFiles({k: p for k, (p, _) in done.items() if p is not None}, dropped=["noise"])
+        whole = read_table(d / f"packets.{fmt}", "packets")
+        for cols in (["time", "event"], ["uid", "reason", "node"], ["path", "tof", "kind", "nothing"]):
+            want = whole[[c for c in whole.columns if c in cols]]
+            pd.testing.assert_frame_equal(files.columns("packets", cols), want, check_exact=True)
+            pd.testing.assert_frame_equal(table_columns(files, "packets", cols), want, check_exact=True)
+            view = _AfterWarmup(files, 1.0)
+            pd.testing.assert_frame_equal(table_columns(view, "packets", cols), want, check_exact=True)
+        assert table_columns(files, "ranges", ["uid"]) is None
+        assert table_columns({"packets": whole}, "packets", ["uid"]).equals(whole[["uid"]])
+        with pytest.raises(TableNotKept, match="noise"):
+            table_columns(files, "noise", ["v"])
