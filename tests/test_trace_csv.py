@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -144,7 +145,11 @@ def test_columns_read_alone_are_the_whole_tables_columns(tmp_path) -> None:
         d = tmp_path / fmt
         d.mkdir()
         tr = Trace()
-        tr.stream(lambda n, d=d, fmt=fmt: None if n == "noise" else d / f"{n}.{fmt}", fmt, chunk_rows=5)
+
+        def route(n: str, d: Path = d, fmt: str = fmt) -> Path | None:
+            return None if n == "noise" else d / f"{n}.{fmt}"
+
+        tr.stream(route, fmt, chunk_rows=5)
         pk = tr.table("packets")
         for i in range(23):
             ev = ("tx", "rx", "drop")[i % 3]
@@ -163,6 +168,7 @@ def test_columns_read_alone_are_the_whole_tables_columns(tmp_path) -> None:
             view = _AfterWarmup(files, 1.0)
             pd.testing.assert_frame_equal(table_columns(view, "packets", cols), want, check_exact=True)
         assert table_columns(files, "ranges", ["uid"]) is None
-        assert table_columns({"packets": whole}, "packets", ["uid"]).equals(whole[["uid"]])
+        plain = table_columns({"packets": whole}, "packets", ["uid"])
+        assert plain is not None and plain.equals(whole[["uid"]])
         with pytest.raises(TableNotKept, match="noise"):
             table_columns(files, "noise", ["v"])
