@@ -106,8 +106,9 @@ def child(toml: Path, out: Path, ablate: str) -> dict[str, float]:
     return clock.total
 
 
-def _child_run(toml: Path, out: Path, ablate: str) -> tuple[dict[str, float], int]:
-    """One child process: its stage CPU and the receptions it decided (rx + drop rows)."""
+def _child_run(toml: Path, out: Path, ablate: str) -> tuple[dict[str, float], int, int]:
+    """One child process: its stage CPU, the receptions it decided (rx + drop rows) and the
+    receptions a listener's process took (``ranges`` rows)."""
     import pandas as pd
 
     res = subprocess.run(
@@ -119,7 +120,9 @@ def _child_run(toml: Path, out: Path, ablate: str) -> tuple[dict[str, float], in
     )
     stages = json.loads(res.stdout.strip().splitlines()[-1])
     ev = pd.read_csv(out / "packets.csv", usecols=["event"])["event"]
-    return stages, int(ev.isin(["rx", "drop"]).sum())
+    ranges = out / "ranges.csv"
+    taken = len(pd.read_csv(ranges, usecols=["uid"])) if ranges.exists() else 0
+    return stages, int(ev.isin(["rx", "drop"]).sum()), taken
 
 
 def stages(speed: float, short: float, long: float, rounds: int, seed: int, ablate: str) -> dict[str, Any]:
@@ -129,15 +132,17 @@ def stages(speed: float, short: float, long: float, rounds: int, seed: int, abla
 
     pos, rng_m = bk.layout(200, 16.0, seed)
     per: dict[str, list[float]] = {s: [] for s in (*STAGES, "total")}
-    receptions = 0
+    receptions = taken = 0
     with tempfile.TemporaryDirectory() as tmp:
         tomls = {}
         for dur in (short, long):
             tomls[dur] = Path(tmp) / f"e2e_{dur:g}.toml"
             tomls[dur].write_text(ba._scenario(pos, rng_m, speed, dur, seed))
         for r in range(rounds):
-            (a, ra), (b, rb) = (_child_run(tomls[d], Path(tmp) / f"out_{r}_{d:g}", ablate) for d in (short, long))
-            receptions = rb - ra
+            (a, ra, ta), (b, rb, tb) = (
+                _child_run(tomls[d], Path(tmp) / f"out_{r}_{d:g}", ablate) for d in (short, long)
+            )
+            receptions, taken = rb - ra, tb - ta
             for s in STAGES:
                 per[s].append(1e6 * (b[s] - a[s]) / receptions)
             per["total"].append(1e6 * (sum(b.values()) - sum(a.values())) / receptions)
@@ -145,6 +150,7 @@ def stages(speed: float, short: float, long: float, rounds: int, seed: int, abla
         "speed": speed,
         "ablate": ablate,
         "receptions": receptions,
+        "taken": taken / receptions,
         **{s: statistics.median(v) for s, v in per.items()},
     }
 
@@ -259,6 +265,15 @@ def main(argv: list[str] | None = None) -> int:
         f"floor: bare SimPy {fl['bare_us']:.2f} us per delivery; with a receiver's step, resume and "
         f"row append {fl['resume_us']:.2f} us: best ratio {fl['best_ratio']:.3f}"
     )
+    for r in results.get("stages", []):
+        # this scenario's floor: every reception one SimPy step (the bare timeout), the share a
+        # listener's process takes (ranges rows) also the step, resume and append
+        us = fl["bare_us"] + r["taken"] * (fl["resume_us"] - fl["bare_us"])
+        print(
+            f"  the e2e scenario ({'moving' if r['speed'] else 'static'}{', ' + r['ablate'] if r['ablate'] else ''}): "
+            f"{r['taken']:.3f} of receptions resume a listener; floor {us:.2f} us per reception, "
+            f"best ratio {fl['bare_us'] / us:.3f}; measured {r['total']:.2f} us, ratio {fl['bare_us'] / r['total']:.3f}"
+        )
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=1))
