@@ -318,10 +318,15 @@ def positions_at(positions: pd.DataFrame, node: ArrayLike, time: ArrayLike) -> N
         return out
     has_v = all(c in positions.columns for c in ("vx", "vy", "vz"))
     pos = positions.sort_values(["node", "time"], kind="stable")
+    # the queries of each node, in query order (as np.flatnonzero(node == nid) gives them), from
+    # one stable sort instead of a pass over every query per node
+    order = np.argsort(node, kind="stable")
+    ids, starts = np.unique(node[order], return_index=True)
+    queries = dict(zip(ids.tolist(), np.split(order, starts[1:])))
     # one np.interp per node (not per query): the loop is over the few nodes, vectorized over queries
     for nid, grp in pos.groupby("node", sort=False):
-        sel = np.flatnonzero(node == int(nid))
-        if sel.size == 0:
+        sel = queries.get(int(nid))
+        if sel is None:
             continue
         t = grp["time"].to_numpy(float)
         q = time[sel]
