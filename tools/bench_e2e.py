@@ -265,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
         f"floor: bare SimPy {fl['bare_us']:.2f} us per delivery; with a receiver's step, resume and "
         f"row append {fl['resume_us']:.2f} us: best ratio {fl['best_ratio']:.3f}"
     )
-    for r in results.get("stages", []):
+    for r in (r for r in results.get("stages", []) if not r["ablate"]):
         # this scenario's floor: every reception one SimPy step (the bare timeout), the share a
         # listener's process takes (ranges rows) also the step, resume and append
         us = fl["bare_us"] + r["taken"] * (fl["resume_us"] - fl["bare_us"])
