@@ -265,8 +265,9 @@ class Table:
         self._n = 0
         self.columns: dict[str, _Column] = {c: _Column(k) for c, k in schema}
         self._schema = tuple(self.columns)
-        # the columns of the row tuples in _buf, in order (a prefix of self.columns): the schema
-        # (append_fast, row_buffer); a table without one takes the columns of its first row
+        # the columns of the row tuples in _buf, in order: the schema, a prefix of self.columns
+        # (append_fast, row_buffer); a table without one: every column, as its last complete
+        # row named them (append)
         self._buf_keys = self._schema
         self._buf: list[tuple[Any, ...]] = []
         self._batch = self._BATCH  # rows buffered before they move into the columns
@@ -847,11 +848,12 @@ def _read_csv(path: Path, name: str, columns: Sequence[str] | None = None) -> pd
     header = _csv_header(path)
     if header is None:  # a table without columns is written as an empty line
         return pd.DataFrame()
+    kw: dict[str, Any] = dict(_READ_CSV_KW)
     if columns is not None:
-        header = [c for c in header if c in columns]
+        header = kw["usecols"] = [c for c in header if c in columns]
     # categories as text: "007" or "1.50" must not become numbers
     dtype = {c: str for c in header if kinds.get(c) == "c"}
-    df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, usecols=header, **_READ_CSV_KW)
+    df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, **kw)
     for c in header:
         kind = kinds.get(c)
         if kind in ("f", "i") and len(df) == 0:  # no rows: the header alone reads as object
