@@ -850,7 +850,11 @@ def _read_csv(path: Path, name: str, columns: Sequence[str] | None = None) -> pd
         return pd.DataFrame()
     kw: dict[str, Any] = dict(_READ_CSV_KW)
     if columns is not None:
-        header = kw["usecols"] = [c for c in header if c in columns]
+        header = [c for c in header if c in columns]
+    if len(set(header)) == len(header):
+        # the columns named even when all are read: the parse then peaks about 25 MiB lower
+        # on STVF's 500-s estimates (14.5 MB; docs/performance.md, "End to end")
+        kw["usecols"] = list(header)
     # categories as text: "007" or "1.50" must not become numbers
     dtype = {c: str for c in header if kinds.get(c) == "c"}
     df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, **kw)
