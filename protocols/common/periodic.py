@@ -64,7 +64,7 @@ class PeriodicBeaconNode(Node):
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)
     drain_inbox = True
 
-    def beacon_payload(self) -> dict[str, Any] | None:
+    def beacon_payload(self) -> Any:
         """What this node broadcasts this period, or None if it is not a reference."""
         raise NotImplementedError
 
