@@ -793,7 +793,6 @@ class _CurrentDrift(Mobility):
 
     _CHUNK = 256
     _NAME = "current"
-    _SPEED_SLACK = 1e-6
 
     def _init_scales(
         self, length_scale: float, time_scale: float, phase: float, steps_per_unit: int, origin: ArrayLike
@@ -823,27 +822,6 @@ class _CurrentDrift(Mobility):
 
     def _dimensionless(self, x: Array, y: Array, tp: Array | float) -> tuple[Array, Array]:
         raise NotImplementedError
-
-    def _field_bounds(self) -> tuple[Array, Array]:
-        """Per-node bounds (n,) on the dimensionless field over the whole plane and all times:
-        (V on the speed |v'|, A on the acceleration |D v' / D t'| along a path, inf if none)."""
-        raise NotImplementedError
-
-    def max_speed(self) -> float:
-        """A proven bound (m/s) on the speed of the interpolated trajectories (see below).
-
-        On a table step of length h' (dimensionless) the Hermite velocity is
-        d(u) = m + d10 (v_a - m) + d11 (v_b - m), with m = (p_b - p_a) / h' the step's mean
-        velocity and the knot velocities v_a, v_b (the weights 6u(1-u), d10, d11 of
-        :meth:`_hermite_derivative` sum to 1). |m| <= V (a mean of the field along the path),
-        |v_a - m|, |v_b - m| <= A h' / 2 (the field changes by at most A s after s), and
-        |d10| + |d11| <= 1 on [0, 1], so |d(u)| <= V + A h' / 2. Without an acceleration bound
-        the weights' absolute sum (at most 2, at u = 1/2) gives |d(u)| <= 2 V. Folding into the
-        box and the constant depth keep the speed. The relative slack ``_SPEED_SLACK`` covers
-        the table's integration error in m (DOP853 at rtol 1e-12 on the positions)."""
-        v, a = self._field_bounds()
-        bound = np.minimum(2.0 * v, v + 0.5 * a / self.steps_per_unit)
-        return float(bound.max()) * self._speed_scale * (1.0 + self._SPEED_SLACK)
 
     def field(self, p: ArrayLike, t: ArrayLike) -> Array:
         """Current velocity (m/s), shape (..., n, 3) with vz = 0, at unfolded positions ``p`` (..., n, 3), time ``t`` (s, broadcast to p[..., 0])."""
@@ -1028,18 +1006,6 @@ class Kinematic(_CurrentDrift):
         vy = -a * np.cos(self.k2 * x) * np.sin(self.k3 * y) + self.k5
         return vx, vy
 
-    def _field_bounds(self) -> tuple[Array, Array]:
-        """(V, A) per node: each sine, cosine <= 1 in |Vx|, |Vy| and in their partial
-        derivatives, with D V / D t' = dV/dt' + Vx dV/dx' + Vy dV/dy'."""
-        k1, k2, k3 = np.abs(self.k1), np.abs(self.k2), np.abs(self.k3)
-        iota = np.abs(self.iota)
-        a = iota * np.abs(self.omega)
-        bx = k1 * a + k1 * iota + np.abs(self.k4)
-        by = a + np.abs(self.k5)
-        ax = 2.0 * k1 * k1 * iota + bx * k1 * a * k2 + by * k1 * a * k3
-        ay = bx * a * k2 + by * a * k3
-        return np.hypot(bx, by), np.hypot(ax, ay)
-
 
 class MeanderingCurrent(Kinematic):
     """Deprecated name of :class:`Kinematic` (the STVF/SLMP model, not Caruso's meandering
@@ -1053,10 +1019,6 @@ class MeanderingCurrent(Kinematic):
             stacklevel=2,
         )
         super().__init__(*args, **kwargs)
-
-
-#: sup of eta sech^2(eta) over eta >= 0, 0.44773... at eta tanh(eta) = 1/2, rounded up
-_ETA_SECH2 = 0.4478
 
 
 class MeanderingJet(_CurrentDrift):
@@ -1139,14 +1101,6 @@ class MeanderingJet(_CurrentDrift):
         tp = np.asarray(t, dtype=float) / self.time_scale + self.phase
         eta = self._axis((pa[..., 0] - self._ox) / L, (pa[..., 1] - self._oy) / L, tp)[4]
         return 1.0 - np.tanh(eta)
-
-    def _field_bounds(self) -> tuple[Array, Array]:
-        """(V, inf): |u'| = sech^2 eta / D <= 1 (D >= 1); |v'| <= |k B s| / D + sup |eta sech^2 eta|
-        k (k B |s|)(k B |c|) / D^2 <= x / sqrt(1 + x^2) + _ETA_SECH2 k x / 2 with x = k max|B|
-        (X / (1 + X^2) <= 1/2). No acceleration bound is derived (max_speed then uses 2 V)."""
-        x = self.k * (abs(self.amplitude) + abs(self.epsilon))
-        vy = x / math.sqrt(1.0 + x * x) + _ETA_SECH2 * self.k * x / 2.0
-        return np.full(self.n, math.hypot(1.0, vy)), np.full(self.n, math.inf)
 
     def _dimensionless(self, x: Array, y: Array, tp: Array | float) -> tuple[Array, Array]:
         B, s, c, D, eta = self._axis(x, y, tp)
