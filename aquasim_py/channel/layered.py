@@ -393,18 +393,19 @@ def _kernels():
 def _range(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], deriv: bool = False):
     """Compiled X(phi) (m, NaN where the family has no ray) at phi (pairs, samples), and with
     ``deriv`` also d X / d phi: the same doubles as ``_family(..., deriv=deriv)[:2]``."""
-    x, dx = _kernels().family_range(st.arrays, geo.arrays(), fam, np.ascontiguousarray(phi, dtype=float), deriv)
+    x, dx = _kernels().family_range(st.arrays, geo.arrays(), fam, phi, deriv)
     return (x, dx) if deriv else x
 
 
 def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi, guess=None):
     """Safeguarded Newton iteration on h(phi) = X(phi) - target inside brackets [lo, hi]
     with h(lo) h(hi) <= 0 (bisection whenever a step leaves the bracket or stalls), each
-    bracket on its own (compiled: _layered_jit.refine); returns (phi, |h|) at the best point
-    seen."""
-    f = [np.ascontiguousarray(v, dtype=float) for v in (target, lo, hi, hlo, hhi)]
-    g = f[1] if guess is None else np.ascontiguousarray(guess, dtype=float)
-    return _kernels().refine(st.arrays, geo.arrays(), fam, *f, g, guess is not None, _RTOL, _MAXIT)
+    bracket on its own (compiled: _layered_jit.refine), from ``guess`` or the regula falsi
+    point; returns (phi, |h|) at the best point seen."""
+    if guess is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            guess = lo - hlo * (hi - lo) / (hhi - hlo)
+    return _kernels().refine(st.arrays, geo.arrays(), fam, target, lo, hi, hlo, hhi, guess, _RTOL, _MAXIT)
 
 
 def _pick_brackets(h: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
