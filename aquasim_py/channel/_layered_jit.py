@@ -252,7 +252,7 @@ def refine(st, geo, fam: int, target, lo, hi, hlo, hhi, start, rtol: float, maxi
     that is not inside), to |h| <= rtol max(target, 1 m) or at most ``maxit`` steps,
     bisecting whenever a step leaves the bracket or |h| falls by less than half; returns
     (phi, |h|) at the best point of each bracket (layered._refine)."""
-    f = [np.ascontiguousarray(v, dtype=float) for v in (target, hlo, hhi)]
+    t, fa, fb = (np.ascontiguousarray(v, dtype=float) for v in (target, hlo, hhi))
     rows = np.ascontiguousarray(np.stack([lo, hi, start], axis=1), dtype=float)
-    best, fbest = _evaluate(st, geo, fam, rows, True, True, *f, rtol, maxit)
+    best, fbest = _evaluate(st, geo, fam, rows, True, True, t, fa, fb, rtol, maxit)
     return best[:, 0], fbest[:, 0]
