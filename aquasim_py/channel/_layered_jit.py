@@ -1,12 +1,14 @@
-"""Compiled range evaluations of the layered solver's ray families (numba).
+"""Compiled range evaluations of the layered solver's ray families (numba): the phi scan
+(:func:`family_range`) and the Newton refinement (:func:`refine`) of layered.py.
 
 Imported lazily by :mod:`aquasim_py.channel.layered` on its first solve (``import numba``
 costs about 64 MiB and 0.15 s, which runs without a layered profile never pay). One family
 evaluation is a loop over the layers one ray crosses, per (pair, sample); the numpy version
 (``layered._family``) does the same arithmetic as ~25 passes over (pairs x samples x layers)
 arrays. Every expression here is written in the numpy version's order, and the layer sums in
-numpy's pairwise order, so both give the same doubles (tests/channel/test_layered.py checks
-it); the time, arc length and turning depth of the accepted roots stay in numpy.
+numpy's pairwise order (up to 128 layers), so both give the same doubles
+(tests/channel/test_layered.py checks it); the time, arc length and turning depth of the
+accepted roots stay in numpy (its log1p and arcsin are not libm's on every machine).
 
 Arguments shared by the kernels: the layer stack ``st = (z, c, g, h, chs)``: breakpoint
 depths z (m) and speeds c (m/s) (K+1,), gradients g (1/s) and thicknesses h (m) (K,),
@@ -76,11 +78,12 @@ def _family1(z, c, g, chs, za, zb, ka, kb, ca, cb, pm, fam: int, phi: float, der
 
     Each piece is two partial layers at its ends plus the full layers k1 < k < k2, whose
     ranges (layered._Layers) are summed as numpy sums ``np.where(mid, x, 0).sum(axis=-1)``
-    over K <= 128 layers: 8 accumulators (layer index mod 8, in ``buf``, scratch of 16) over
-    the largest multiple m of 8, added as a tree, then the rest in turn; zeros change no sum
-    of finite or NaN terms (only the sign of an all-zero one), so only the layers k1 < k < k2
-    are added. Above 128 layers numpy splits the sum into halves recursively; the sum here
-    is then a plain loop (the same to a few ulps)."""
+    over K <= 128 layers: 8 accumulators (layer index mod 8) over the largest multiple m of
+    8, added as a tree, then the rest in turn; zeros change no sum of finite or NaN terms
+    (only the sign of an all-zero one), so only the layers k1 < k < k2 are added. Above 128
+    layers numpy splits the sum into halves recursively; the sum here is then a plain loop
+    (the same to a few ulps). ``buf``: scratch of 2 K + 16 (the accumulators of X and
+    d X / d p, then the layers after m)."""
     sp = math.sin(phi)
     cp = math.cos(phi)
     p = pm * cp
@@ -111,14 +114,13 @@ def _family1(z, c, g, chs, za, zb, ka, kb, ca, cb, pm, fam: int, phi: float, der
         else:
             k1, k2 = kt, ka
         # the full layers k1 < k < k2, and |sin theta| at breakpoints k1 + 1 and k2
-        sx, sdx, tree = 0.0, 0.0, False
+        sx, sdx = 0.0, 0.0
         w_first = w_last = 0.0
         if k2 > k1:
             w0 = _sin_theta(c[k1 + 1], pm, sp, cp)
             w_first = w0
             if k2 - k1 >= 2:
-                for j in range(16):
-                    buf[j] = 0.0
+                buf[:16] = 0.0
                 q0 = c[k1 + 1] * c[k1 + 1] / w0
                 dx = 0.0
                 for k in range(k1 + 1, k2):
@@ -134,17 +136,12 @@ def _family1(z, c, g, chs, za, zb, ka, kb, ca, cb, pm, fam: int, phi: float, der
                         buf[k % 8] += x
                         buf[8 + k % 8] += dx
                     else:
-                        if not tree:
-                            sx = ((buf[0] + buf[1]) + (buf[2] + buf[3])) + ((buf[4] + buf[5]) + (buf[6] + buf[7]))
-                            sdx = ((buf[8] + buf[9]) + (buf[10] + buf[11])) + (
-                                (buf[12] + buf[13]) + (buf[14] + buf[15])
-                            )
-                            tree = True
-                        sx += x
-                        sdx += dx
-                if not tree:
-                    sx = ((buf[0] + buf[1]) + (buf[2] + buf[3])) + ((buf[4] + buf[5]) + (buf[6] + buf[7]))
-                    sdx = ((buf[8] + buf[9]) + (buf[10] + buf[11])) + ((buf[12] + buf[13]) + (buf[14] + buf[15]))
+                        buf[16 + k], buf[16 + nk + k] = x, dx
+                sx = ((buf[0] + buf[1]) + (buf[2] + buf[3])) + ((buf[4] + buf[5]) + (buf[6] + buf[7]))
+                sdx = ((buf[8] + buf[9]) + (buf[10] + buf[11])) + ((buf[12] + buf[13]) + (buf[14] + buf[15]))
+                for k in range(max(k1 + 1, m), k2):
+                    sx += buf[16 + k]
+                    sdx += buf[16 + nk + k]
             w_last = w0
         # the partial layers at the piece's ends (layered._Layers.interval)
         if piece == 0:
@@ -194,10 +191,10 @@ def _evaluate(st, geo, fam: int, phi, deriv: bool, newton: bool, target, hlo, hh
     n, s = phi.shape
     out = np.empty((n, s))
     dout = np.empty((n, s))
-    buf = np.zeros(16)
+    buf = np.zeros(2 * g.size + 16)
     for i in range(n):
         steps = s
-        a = b = x = fa = fb = tol = bst = fbs = 0.0
+        a = b = x = fa = fb = tol = bst = fbs = 0.0  # numba types every variable on every path
         prev = math.inf
         if newton:
             a, b, x = phi[i, 0], phi[i, 1], phi[i, 2]
