@@ -8,7 +8,7 @@ evaluation is a loop over the layers one ray crosses, per (pair, sample); the nu
 arrays. Every expression here is written in the numpy version's order, and the layer sums in
 numpy's pairwise order (up to 128 layers), so both give the same doubles
 (tests/channel/test_layered.py checks it); the time, arc length and turning depth of the
-accepted roots stay in numpy (its log1p and arcsin are not libm's on every machine).
+accepted roots stay in numpy (numpy's log1p and arcsin are not libm's on every machine).
 
 Arguments shared by the kernels: the layer stack ``st = (z, c, g, h, chs)``: breakpoint
 depths z (m) and speeds c (m/s) (K+1,), gradients g (1/s) and thicknesses h (m) (K,),
@@ -31,7 +31,7 @@ _EPS = float(np.finfo(float).eps)
 # IEEE division (x / 0 is inf or NaN, as in numpy, not ZeroDivisionError); no fastmath: every
 # operation rounds as written, in the written order
 _jit = njit(cache=True, error_model="numpy")
-# the per-evaluation helpers that take arrays are inlined into the kernel's loop (a call that
+# the family evaluation, which takes arrays, is inlined into the kernel's loop (a call that
 # passes arrays costs about as much as the arithmetic of a family evaluation)
 _inline = njit(cache=True, error_model="numpy", inline="always")
 
