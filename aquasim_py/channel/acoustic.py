@@ -34,10 +34,11 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, insort
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 from heapq import heappush
+from itertools import repeat
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, cast
 
@@ -178,11 +179,16 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     The same terms in the same order as ``loss.snr_db`` (so the same bits), with the two that
     depend only on the config (ambient noise N(f) and 10 log10 B) computed once per config:
     the noise sum is the costliest part and this runs once per transmission."""
+    return _snr_of_length(np.asarray(ray.length, dtype=float), config)
+
+
+def _snr_of_length(length: NDArray[np.float64], config: ChannelConfig) -> NDArray[np.float64]:
+    """:func:`physical_snr` (dB) of rays of arc lengths ``length`` (m)."""
     noise, band, alpha, k10 = _snr_constants(config)
     # loss.path_loss_db(l, f, k, l0 = 1, alpha) term by term (the same operations, so the same
     # bits): 10 k log10(max(l, l0) / l0) + (max(l, l0) - l0) 1e-3 alpha, with l / 1.0 = l and
     # no divide-by-zero guard needed since max(l, 1) >= 1 (NaN stays NaN)
-    length = np.maximum(np.asarray(ray.length, dtype=float), 1.0)
+    length = np.maximum(length, 1.0)
     loss_db = k10 * np.log10(length) + (length - 1.0) * 1e-3 * alpha
     return config.source_level_db - loss_db - noise - band
 
@@ -269,6 +275,10 @@ class AcousticChannel:
     ... in order); a node transmits with :meth:`transmit`.
     """
 
+    #: use the compiled links (channel/straight.py) where they apply; False forces the numpy
+    #: path (tests compare the two; the results are the same bits)
+    compiled_links = True
+
     def __init__(
         self,
         env: simpy.Environment,
@@ -298,6 +308,9 @@ class AcousticChannel:
         self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
         self._static = False
         self._all_moving = False
+        # every node on a box-folded straight line, constant profile, no link hooks: the
+        # compiled links of channel/straight.py ((records, kernel), see _new_layout)
+        self._lines: tuple[NDArray[np.float64], Callable[..., Any]] | None = None
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
@@ -476,8 +489,7 @@ class AcousticChannel:
         added; the loss model must be a pure function of the eigenray and the config).
         """
         net = self._net
-        modems = self._modems
-        n = len(modems)
+        n = len(self._modems)
         if n != self._layout_n:
             self._new_layout(n)
         static = self._static and self._cacheable
@@ -502,6 +514,10 @@ class AcousticChannel:
             # the sender and the k-d tree's superset of the nodes in range around it, then the
             # same exact test on that superset alone
             near = index.neighbourhood(src, t0, n, net.positions)
+            if self._lines is not None:
+                done = self._compiled_links(near, t0)
+                if done is not None:
+                    return done
             if static:
                 p_near = net.positions(t0)[near]
                 v_near = None
@@ -515,42 +531,73 @@ class AcousticChannel:
             p_cand = p_near[1:][keep]
             if v_near is not None:
                 v_cand = v_near[1:][keep]
-        heard: list[tuple[_Modem, float, str, float]] = []
-        lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, p_cand, v_cand)
             if self._sound_speed is not None:  # path-mean speed taken at the mid depth
                 times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + p_cand[:, 2]) / 2))
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
-            thr = self.config.snr_threshold_db
-            ids = cand.tolist()
-            # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
-            # no loss model, compares False: never dropped on SNR)
-            if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
-                heard = list(
-                    zip(
-                        map(modems.__getitem__, ids),
-                        times.tolist(),
-                        map(PATH_NAMES.__getitem__, paths.tolist()),
-                        snr.tolist(),
-                    )
-                )
-            else:
-                for rid, T, p, s in zip(ids, times.tolist(), paths.tolist(), snr.tolist()):
-                    if T != T:
-                        lost.append((rid, "no_path", T, PATH_NAMES[p], s))
-                    elif s < thr:
-                        lost.append((rid, "snr", T, PATH_NAMES[p], s))
-                    else:
-                        heard.append((modems[rid], T, PATH_NAMES[p], s))
-            heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
+            out = self._sorted_links(cand.tolist(), times, map(PATH_NAMES.__getitem__, paths.tolist()), snr)
         else:
-            ids = []
-        out = (ids, heard, lost)
+            out = ([], [], [])
         if static:
             self._static_links[src] = (n, out)
         return out
+
+    def _sorted_links(
+        self, ids: list[int], times: NDArray[np.float64], paths: Iterable[str], snr: NDArray[np.float64]
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+        """(ids, heard, lost) of ``_links`` from the candidates' delays (s), path names and SNR (dB)."""
+        modems = self._modems
+        thr = self.config.snr_threshold_db
+        heard: list[tuple[_Modem, float, str, float]] = []
+        lost: list[tuple[int, str, float, str, float]] = []
+        # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
+        # no loss model, compares False: never dropped on SNR)
+        if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
+            heard = list(zip(map(modems.__getitem__, ids), times.tolist(), paths, snr.tolist()))
+        else:
+            for rid, T, p, s in zip(ids, times.tolist(), paths, snr.tolist()):
+                if T != T:
+                    lost.append((rid, "no_path", T, p, s))
+                elif s < thr:
+                    lost.append((rid, "snr", T, p, s))
+                else:
+                    heard.append((modems[rid], T, p, s))
+        heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
+        return ids, heard, lost
+
+    def _compiled_links(
+        self, near: NDArray[np.intp], t0: float
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]] | None:
+        """``_links`` by the compiled kernel (``channel.straight``) for the sender ``near[0]``
+        and its neighbourhood ``near[1:]``; None when the general path must decide."""
+        assert self._lines is not None
+        records, kernel = self._lines
+        ssp = cast(Constant, self.ssp)
+        bottom = math.inf if ssp.bottom is None else float(ssp.bottom)
+        status, cand, times, length, diff = kernel(
+            records, near, t0, ssp.speed_mps, bottom, self._range2, FIXED_POINT_TOL_S
+        )
+        if status:
+            return None
+        if not cand.size:
+            return [], [], []
+        model = self.loss_model
+        if model is physical_snr:
+            snr = _snr_of_length(length, self.config)
+        else:  # any other model gets the whole ray, as _straight_moving makes it
+            ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
+            ray = Eigenray(
+                time=times,
+                length=length,
+                launch_angle=ang,
+                arrival_angle=ang.copy(),
+                turning_depth=np.full(length.shape, np.nan),
+                path=np.full(length.shape, np.int8(PathKind.DIRECT)),
+            )
+            snr = np.asarray(model(ray, self.config), dtype=float)
+        return self._sorted_links(cand.tolist(), times, repeat(PATH_NAMES[int(PathKind.DIRECT)], cand.size), snr)
 
     def _new_layout(self, n: int) -> None:
         """Nodes were added: whether the network is static, and the neighbour index (None when
@@ -563,6 +610,21 @@ class AcousticChannel:
         vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
         self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
         self._vel_at = getattr(net, "velocities_at", None)
+        self._lines = None
+        records = getattr(net, "line_records", None)
+        if (
+            self.compiled_links
+            and self._all_moving
+            and self._index is not None
+            and isinstance(self.ssp, Constant)
+            and self._sound_speed is None
+            and self._obstacles is None
+            and records is not None
+            and (table := records()) is not None
+        ):
+            from .straight import straight_links  # numba: only runs that take this path pay for it
+
+            self._lines = (np.ascontiguousarray(table, dtype=float), straight_links)
         self._states_at = getattr(net, "states_at", None)
 
     def _velocities(self, idx: NDArray[np.intp], t: float) -> NDArray[np.float64]:
