@@ -310,7 +310,10 @@ class AcousticChannel:
         self._all_moving = False
         # every node on a box-folded straight line, constant profile, no link hooks: the
         # compiled links of channel/straight.py ((records, kernel), see _new_layout)
-        self._lines: tuple[NDArray[np.float64], Callable[..., Any]] | None = None
+        self._lines: tuple[NDArray[np.float64], Callable[..., Any], Callable[..., Any], NDArray[np.float64]] | None = (
+            None
+        )
+        self._direct = repeat(PATH_NAMES[int(PathKind.DIRECT)])  # the path name of every straight ray
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
@@ -480,7 +483,7 @@ class AcousticChannel:
     def _links(
         self, src: int, t0: float
     ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
-        """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
+        """Who hears ``src`` transmitting at ``t0``: (ids in range, in any order; heard; lost).
 
         heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver,
         sorted by delay;
@@ -573,7 +576,7 @@ class AcousticChannel:
         """``_links`` by the compiled kernel (``channel.straight``) for the sender ``near[0]``
         and its neighbourhood ``near[1:]``; None when the general path must decide."""
         assert self._lines is not None
-        records, kernel = self._lines
+        records, kernel, finish, terms = self._lines
         ssp = cast(Constant, self.ssp)
         bottom = math.inf if ssp.bottom is None else float(ssp.bottom)
         status, cand, times, length, diff = kernel(
@@ -585,7 +588,16 @@ class AcousticChannel:
             return [], [], []
         model = self.loss_model
         if model is physical_snr:
-            snr = _snr_of_length(length, self.config)
+            thr = self.config.snr_threshold_db
+            snr, lost, ids, t_s, snr_s = finish(cand, times, length, np.log10(np.maximum(length, 1.0)), terms, thr)
+            if not lost:  # the usual case: every receiver heard, already in order of arrival
+                modems = self._modems
+                in_range = ids.tolist()
+                return (
+                    in_range,
+                    list(zip(map(modems.__getitem__, in_range), t_s.tolist(), self._direct, snr_s.tolist())),
+                    [],
+                )
         else:  # any other model gets the whole ray, as _straight_moving makes it
             ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
             ray = Eigenray(
@@ -622,9 +634,11 @@ class AcousticChannel:
             and records is not None
             and (table := records()) is not None
         ):
-            from .straight import straight_links  # numba: only runs that take this path pay for it
+            from .straight import by_arrival, straight_links  # numba: only runs that take this path pay for it
 
-            self._lines = (np.ascontiguousarray(table, dtype=float), straight_links)
+            noise, band, alpha, k10 = _snr_constants(self.config)
+            terms = np.array([k10, alpha, self.config.source_level_db, noise, band], dtype=float)
+            self._lines = (np.ascontiguousarray(table, dtype=float), straight_links, by_arrival, terms)
         self._states_at = getattr(net, "states_at", None)
 
     def _velocities(self, idx: NDArray[np.intp], t: float) -> NDArray[np.float64]:

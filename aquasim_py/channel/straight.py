@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-__all__ = ["FALLBACK", "OK", "straight_links"]
+__all__ = ["FALLBACK", "OK", "by_arrival", "straight_links"]
 
 #: status codes of :func:`straight_links`
 OK = 0
@@ -148,3 +148,43 @@ def straight_links(
         length[i] = dist
         diff[i, 0], diff[i, 1], diff[i, 2] = e0, e1, e2
     return OK, cand, time, length, diff
+
+
+@njit(cache=True)
+def by_arrival(
+    cand: NDArray[np.intp],
+    time: NDArray[np.float64],
+    length: NDArray[np.float64],
+    log_length: NDArray[np.float64],
+    snr_terms: NDArray[np.float64],
+    threshold: float,
+) -> tuple[NDArray[np.float64], int, NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+    """``acoustic.physical_snr`` of the rays and the receivers in order of arrival.
+
+    log_length: numpy's log10(max(length, 1)) (numpy's own log10: its bits may differ from
+    libm's). snr_terms: (10 k, Thorp's alpha in dB/km, source level, ambient noise N(f),
+    10 log10 B), the constants of ``acoustic._snr_constants``; threshold: the SNR (dB) below
+    which a reception is lost. Returns (snr in the candidates' order, how many are below the
+    threshold, and the ids, delays and SNR sorted by delay, stably: equal delays keep the
+    candidates' order, as ``list.sort`` does)."""
+    k10, alpha, level, noise, band = snr_terms[0], snr_terms[1], snr_terms[2], snr_terms[3], snr_terms[4]
+    m = cand.size
+    snr = np.empty(m)
+    lost = 0
+    for i in range(m):
+        ell = length[i]
+        if not (ell >= 1.0 or ell != ell):  # np.maximum(length, 1.0)
+            ell = 1.0
+        loss = k10 * log_length[i] + ((ell - 1.0) * 1e-3) * alpha
+        snr[i] = ((level - loss) - noise) - band
+        if snr[i] < threshold:
+            lost += 1
+    order = np.arange(m)
+    for i in range(1, m):  # insertion sort (a neighbourhood is small), stable
+        o = order[i]
+        j = i
+        while j > 0 and time[order[j - 1]] > time[o]:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = o
+    return snr, lost, cand[order], time[order], snr[order]

@@ -22,7 +22,7 @@ from scipy.optimize import brentq
 from aquasim_py.channel import Constant, acoustic
 from aquasim_py.channel.acoustic import FIXED_POINT_TOL_S, ChannelConfig, no_snr
 from aquasim_py.channel.rays import Eigenray
-from aquasim_py.channel.straight import FALLBACK, OK, _fold, _root, straight_links
+from aquasim_py.channel.straight import FALLBACK, OK, _fold, _root, by_arrival, straight_links
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
@@ -73,8 +73,8 @@ def _network(seed: int, n: int, speed: float, groups: int, loss: str = "physical
 
 
 def _plain(links):
-    ids, heard, lost = links
-    return ids, [(m.index, t, p, s) for m, t, p, s in heard], lost
+    ids, heard, lost = links  # ids: the set in range (the channel only tests membership)
+    return sorted(ids), [(m.index, t, p, s) for m, t, p, s in heard], lost
 
 
 def _same(a, b) -> bool:
@@ -114,7 +114,7 @@ def test_compiled_links_against_brute_force():
         ch = sim.channel
         ch._links(0, 0.0)
         assert ch._lines is not None and ch._index is not None
-        records, kernel = ch._lines
+        records, kernel = ch._lines[:2]
         for t0 in (0.0, 1.3, 7.77):
             pos = sim.positions(t0)
             for src in range(0, 60, 3):
@@ -161,6 +161,25 @@ def test_kernel_pieces_are_numpy_bit_for_bit(seed, scale):
     mine = np.array([_root(C, *d[i], *v[i]) for i in range(n)])
     assert np.array_equal(mine, acoustic._constant_moving_root(C, d, v))
     assert math.isnan(_root(C, *d[0], *(v[0] * (0.51 * C / np.linalg.norm(v[0])))))  # faster than c / 2
+
+
+@settings(max_examples=30)
+@given(seed=st.integers(0, 2**31 - 1), m=st.integers(0, 40))
+def test_by_arrival_is_physical_snr_and_a_stable_sort(seed, m):
+    rng = np.random.default_rng(seed)
+    cfg = ChannelConfig(frequency_khz=float(rng.uniform(5.0, 30.0)), spreading=float(rng.choice([1.0, 1.5, 2.0])))
+    length = rng.uniform(0.0, 3000.0, m)
+    length[: m // 4] = rng.uniform(0.0, 1.0, m // 4)  # under the loss model's 1 m reference
+    time = np.round(length / C, 3)  # ties, for the stability of the sort
+    cand = rng.permutation(1000)[:m]
+    noise, band, alpha, k10 = acoustic._snr_constants(cfg)
+    terms = np.array([k10, alpha, cfg.source_level_db, noise, band], dtype=float)
+    thr = float(rng.uniform(0.0, 60.0))
+    snr, lost, ids, t_s, snr_s = by_arrival(cand, time, length, np.log10(np.maximum(length, 1.0)), terms, thr)
+    ref = acoustic._snr_of_length(length, cfg)
+    assert np.array_equal(snr, ref) and lost == int((ref < thr).sum())
+    heard = sorted(zip(cand.tolist(), time.tolist(), ref.tolist()), key=lambda h: h[1])
+    assert list(zip(ids.tolist(), t_s.tolist(), snr_s.tolist())) == heard
 
 
 def test_kernel_matches_the_fold_of_the_model():
