@@ -33,7 +33,8 @@ arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_s
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, insort
+from array import array
+from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
@@ -79,7 +80,7 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-_ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
+# signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
 _Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
@@ -224,6 +225,8 @@ class _Modem:
         "log_cap",
         "port",
         "pressure_rng",
+        "rx_arr",
+        "rx_end",
         "rx_log",
         "tx_free_at",
         "tx_log",
@@ -240,6 +243,10 @@ class _Modem:
         self.tx_free_at = 0.0  # true time (s) the modem is free to start the next queued packet
         self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
+        # their arrival and end times (true s), the collision scan's keys: contiguous doubles,
+        # so a scan does not chase a tuple and two float objects per signal
+        self.rx_arr = array("d")
+        self.rx_end = array("d")
         self.log_cap = 8  # prune tx_log beyond this length (see _prune)
 
 
@@ -455,10 +462,14 @@ class AcousticChannel:
                 # delivery's context
                 sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
-                    log = rx.rx_log
-                    insort(log, sig, key=_ARRIVAL)
-                    if log[0][0] < forget:
-                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
+                    keys = rx.rx_arr
+                    if keys and keys[0] < forget:
+                        j = bisect_left(keys, forget)
+                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
+                    j = bisect_right(keys, arr)  # after equal arrivals, as insort
+                    keys.insert(j, arr)
+                    rx.rx_end.insert(j, end)
+                    rx.rx_log.insert(j, sig)
                 sigs.append(sig)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
@@ -470,10 +481,14 @@ class AcousticChannel:
                 end = arr + duration
                 sig = (arr, end, s, rx, pkt, T, path, dst)
                 if track:
-                    log = rx.rx_log
-                    insort(log, sig, key=_ARRIVAL)
-                    if log[0][0] < forget:
-                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
+                    keys = rx.rx_arr
+                    if keys and keys[0] < forget:
+                        j = bisect_left(keys, forget)
+                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
+                    j = bisect_right(keys, arr)
+                    keys.insert(j, arr)
+                    rx.rx_end.insert(j, end)
+                    rx.rx_log.insert(j, sig)
                 if intended:
                     sigs.append(sig)
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
@@ -760,21 +775,23 @@ class AcousticChannel:
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
-            log = rx.rx_log
-            i = bisect_left(log, arr - self._max_duration, key=_ARRIVAL)
-            n = len(log)
+            keys = rx.rx_arr
+            ends = rx.rx_end
+            i = bisect_left(keys, arr - self._max_duration)
+            n = len(keys)
             power = 0.0
             hit = False
             while i < n:
-                e = log[i]
-                i += 1
-                if e[0] >= end:
+                if keys[i] >= end:
                     break
-                if e[1] > arr and e is not sig:
-                    hit = True
-                    if self._destructive:
-                        break
-                    power += 10.0 ** (e[2] / 10.0)
+                if ends[i] > arr:
+                    e = rx.rx_log[i]
+                    if e is not sig:
+                        hit = True
+                        if self._destructive:
+                            break
+                        power += 10.0 ** (e[2] / 10.0)
+                i += 1
             if hit and (self._destructive or not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
         if reason is not None:
