@@ -323,6 +323,9 @@ class AcousticChannel:
         self._direct = repeat(PATH_NAMES[int(PathKind.DIRECT)])  # the path name of every straight ray
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
+        # (time, velocity, estimated acceleration) of each node when last a candidate, for
+        # the start of the fixed point on trajectories without a speed bound (_accelerations)
+        self._motion: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
             None
         )
@@ -668,6 +671,26 @@ class AcousticChannel:
             return self._states_at(idx, t)
         return self._net.positions_at(idx, np.full(idx.size, t)), self._velocities(idx, t)
 
+    def _accelerations(self, cand: NDArray[np.intp], t0: float, v: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Estimated accelerations (m/s^2, (k, 3)) of the candidates at ``t0``: the change of
+        each one's velocity ``v`` since the last transmission it was a candidate of, over the
+        time between (0 before that; the last estimate again at the same instant). Only the
+        start of the exact fixed point uses it, so a poor estimate (a wall bounce in between)
+        costs an iteration, never accuracy."""
+        n = len(self._modems)
+        if self._motion is None or len(self._motion[0]) != n:
+            self._motion = (np.full(n, np.nan), np.zeros((n, 3)), np.zeros((n, 3)))
+        t_last, v_last, a_last = self._motion
+        dt = t0 - t_last[cand]
+        a = a_last[cand]
+        new = dt > 0.0  # NaN (never seen) compares False
+        if new.any():
+            a[new] = (v[new] - v_last[cand[new]]) / dt[new, None]
+        a_last[cand] = a
+        t_last[cand] = t0
+        v_last[cand] = v
+        return a
+
     def _arrivals(
         self,
         t0: float,
@@ -693,7 +716,9 @@ class AcousticChannel:
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
                 v = v_rx if v_rx is not None else self._velocities(cand, t0)
-                start = _constant_start(ssp, refl, p_src, p_rx, moving, v)
+                # no speed bound (the current-driven models): their acceleration matters
+                acc = self._accelerations(cand, t0, v) if self._index is None else None
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, v, acc)
             if start is None:
                 ray = eigenray(ssp, p_src, p_rx, reflections=refl)
                 fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
@@ -981,6 +1006,7 @@ def _constant_start(
     p_rx: NDArray[np.float64],
     moving: NDArray[np.bool_],
     v: NDArray[np.float64],
+    acc: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None:
     """Constant profile: the eigenray fields of the candidates before the exact iteration, and
     the moving receivers to iterate (``active``), without tracing rays to their send-time
@@ -999,6 +1025,8 @@ def _constant_start(
     t = _constant_moving_root(ssp.speed_mps, p_rx[active] - p_src, v[active])
     if not np.isfinite(t).all():
         return None
+    if acc is not None:
+        t = _accelerated_root(ssp.speed_mps, p_rx[active] - p_src, v[active], acc[active], t)
     n = len(p_rx)
     if active.size == n:  # every row is overwritten by the first exact step, which reads only time
         return {"time": t}, active
@@ -1027,6 +1055,30 @@ def _constant_moving_root(c: float, d: NDArray[np.float64], v: NDArray[np.float6
         return np.full(len(d), np.nan)
     a = c * c - vv
     return (dv + np.sqrt(dv * dv + a * np.einsum("ij,ij->i", d, d))) / a
+
+
+def _accelerated_root(
+    c: float, d: NDArray[np.float64], v: NDArray[np.float64], a: NDArray[np.float64], t: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """One Newton step from the straight-line root t (s) towards the root of
+    |d + v t + a t^2 / 2| = c t (offset d in m, velocity v in m/s, acceleration a in m/s^2),
+    for the rows with a != 0; t where the step fails. The straight-line root misses by about
+    |a| t^2 / (2 c) (1e-9 s for a current's 1e-3 m/s^2 over 80 m), more than the fixed point's
+    tolerance, so the exact iteration would need a second step; from this start it needs one."""
+    use = np.flatnonzero((a != 0.0).any(axis=1))
+    if not use.size:
+        return t
+    tu, du, vu, au = t[use], d[use], v[use], a[use]
+    q = du + vu * tu[:, None] + (0.5 * tu * tu)[:, None] * au
+    dq = vu + au * tu[:, None]
+    nq = np.sqrt(np.einsum("ij,ij->i", q, q))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_new = tu - (nq - c * tu) / (np.einsum("ij,ij->i", q, dq) / nq - c)
+    out = t.copy()
+    # a correction is tiny (|a| t^2 / 2c); a large one comes from a poor estimate (e.g. a
+    # wall bounce since the last one) and is not taken
+    out[use] = np.where(np.abs(t_new - tu) <= 1e-3 * tu, t_new, tu)
+    return out
 
 
 def _slope_along(
