@@ -14,7 +14,11 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    mobility queries): in closed form for a constant sound speed, else by a few secant steps
    seeded with the exact slope grad T . v. It is exact for constant velocity, so the exact
    iteration usually stops after one query (and one ray trace) per receiver; static
-   receivers need none;
+   receivers need none. Receivers without a speed bound (the current-driven models) accelerate
+   enough to miss the tolerance from that start; in a constant profile one Newton step with
+   their estimated accelerations corrects it (``_accelerations``, ``_accelerated_root``). For
+   a constant profile with every node on a box-folded straight line the whole computation is
+   compiled (``channel/straight.py``, same bits);
 3. losses: no eigenray (shadow zone) -> "no_path"; SNR below the threshold -> "snr";
    the receiver transmitting during any part of the reception -> "half_duplex"; another
    signal overlapping the reception at the receiver -> "collision" (with ``capture``, the
