@@ -320,7 +320,8 @@ class AcousticChannel:
         self._static = False
         self._all_moving = False
         # every node on a box-folded straight line, constant profile, no link hooks: the
-        # compiled links of channel/straight.py ((records, kernel), see _new_layout)
+        # compiled links of channel/straight.py ((records, links kernel, SNR-and-order kernel,
+        # SNR constants), see _new_layout)
         self._lines: tuple[NDArray[np.float64], Callable[..., Any], Callable[..., Any], NDArray[np.float64]] | None = (
             None
         )
@@ -631,7 +632,7 @@ class AcousticChannel:
                 path=np.full(length.shape, np.int8(PathKind.DIRECT)),
             )
             snr = np.asarray(model(ray, self.config), dtype=float)
-        return self._sorted_links(cand.tolist(), times, repeat(PATH_NAMES[int(PathKind.DIRECT)], cand.size), snr)
+        return self._sorted_links(cand.tolist(), times, self._direct, snr)
 
     def _new_layout(self, n: int) -> None:
         """Nodes were added: whether the network is static, and the neighbour index (None when
