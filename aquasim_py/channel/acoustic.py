@@ -232,8 +232,9 @@ class _Modem:
         "rx_arr",
         "rx_end",
         "rx_log",
+        "tx_end",
         "tx_free_at",
-        "tx_log",
+        "tx_start",
     )
 
     def __init__(self, port: RadioPort) -> None:
@@ -245,13 +246,16 @@ class _Modem:
         self.jitter: np.random.Generator | None = None  # the port's jitter stream, asked on first use
         self.pressure_rng: np.random.Generator | None = None  # ("node", id, "pressure"), on first use
         self.tx_free_at = 0.0  # true time (s) the modem is free to start the next queued packet
-        self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
+        # start and end (true s) of own transmissions, in order of start (arrays: a reception's
+        # half-duplex test reads a slice of doubles, not a tuple and two floats per entry)
+        self.tx_start = array("d")
+        self.tx_end = array("d")
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
         # their arrival and end times (true s), the collision scan's keys: contiguous doubles,
         # so a scan does not chase a tuple and two float objects per signal
         self.rx_arr = array("d")
         self.rx_end = array("d")
-        self.log_cap = 8  # prune tx_log beyond this length (see _prune)
+        self.log_cap = 8  # prune the own transmissions beyond this many (see _prune)
 
 
 class _Deliveries:
@@ -443,8 +447,9 @@ class AcousticChannel:
         nan = math.nan
         row = self._row
         self._table.flush_if_large()
-        modem.tx_log.append((t0, t0 + duration))
-        if len(modem.tx_log) > modem.log_cap:
+        modem.tx_start.append(t0)
+        modem.tx_end.append(t0 + duration)
+        if len(modem.tx_start) > modem.log_cap:
             self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
@@ -798,10 +803,17 @@ class AcousticChannel:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
         arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
-        for a, b in rx.tx_log:
-            if a < end and b > arr:
+        # own transmissions overlapping [arr, end): started before end and, lasting at most
+        # the longest packet, after arr - longest packet (twice that here, so the rounding of
+        # start + duration cannot hide one); the exact test decides within that slice
+        starts = rx.tx_start
+        i = bisect_left(starts, arr - 2.0 * self._max_duration)
+        n = len(starts)
+        while i < n and starts[i] < end:
+            if rx.tx_end[i] > arr:
                 reason = "half_duplex"
                 break
+            i += 1
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
@@ -873,9 +885,11 @@ class AcousticChannel:
         so it began after now - max_duration; anything that ended before cannot touch it.
         """
         cutoff = self._env.now - self._max_duration
-        modem.tx_log = [e for e in modem.tx_log if e[1] >= cutoff]
+        keep = [i for i, b in enumerate(modem.tx_end) if b >= cutoff]
+        modem.tx_start = array("d", [modem.tx_start[i] for i in keep])
+        modem.tx_end = array("d", [modem.tx_end[i] for i in keep])
         # next prune when the log has doubled: amortized O(1) per entry, short scans
-        modem.log_cap = max(8, 2 * len(modem.tx_log))
+        modem.log_cap = max(8, 2 * len(keep))
 
 
 # -- straight-line start of the moving-receiver fixed point -----------------------------------------
