@@ -825,6 +825,8 @@ class _CurrentDrift(Mobility):
         self._inv_h = 1.0 / self._h
         p0 = self._p0.copy()
         self._pv = _Table(np.stack((p0, self.field(p0, 0.0)), axis=1))  # (K, n, 2, 3): position, velocity
+        self._state_t = math.nan  # the time of the kept state (see state)
+        self._state: tuple[Array, Array] = (p0, p0)
 
     def _dimensionless(self, x: Array, y: Array, tp: Array | float) -> tuple[Array, Array]:
         raise NotImplementedError
@@ -895,6 +897,22 @@ class _CurrentDrift(Mobility):
         d10 = um * (1.0 - 3.0 * u)
         d11 = u * (3.0 * u - 2.0)
         return d00 * (pb - pa) + d10 * va + d11 * vb
+
+    def state(self, t: float) -> tuple[Array, Array]:
+        """``Mobility.state``, kept for the last time asked (read-only arrays): at one instant
+        a group's positions and velocities are asked for several times (a beacon's position
+        fix, depth and velocity sensors, then the channel), each a full evaluation before."""
+        tf = _time(t)
+        if tf != self._state_t:
+            pos, vel = super().state(tf)
+            pos.flags.writeable = False
+            vel.flags.writeable = False
+            self._state_t, self._state = tf, (pos, vel)
+        return self._state
+
+    def position(self, t: float) -> Array:
+        """Positions (n, 3) in m at true time ``t`` (s), read-only (see :meth:`state`)."""
+        return self.state(t)[0]
 
     def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._hermite(*self._gather(idx, t))
