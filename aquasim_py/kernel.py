@@ -29,7 +29,7 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
-from .mobility import Mobility
+from .mobility import ConstantVelocity, Mobility
 from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import Trace, TraceConfig
@@ -678,6 +678,14 @@ class Simulation:
             if batched is not None:
                 return np.asarray(batched(idx - group.start, t), dtype=float)
         return self.velocities(t)[idx]
+
+    def line_records(self) -> np.ndarray | None:
+        """Every node's straight-line trajectory record ((N, 7, 3), ``ConstantVelocity.line_records``)
+        when every group moves at constant velocity folded into its box, else None (for the
+        channel's compiled links; the records do not change once the groups are added)."""
+        if not self.groups or not all(type(g.mobility) is ConstantVelocity for g in self.groups):
+            return None
+        return np.concatenate([g.mobility.line_records() for g in self.groups])
 
     def is_moving(self) -> np.ndarray:
         """(N,) bool: which nodes belong to a non-static mobility group."""

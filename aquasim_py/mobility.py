@@ -411,6 +411,14 @@ class ConstantVelocity(Mobility):
     def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._v[idx]
 
+    def line_records(self) -> Array:
+        """Each node's trajectory as a record (n, 7, 3): start position (m), velocity (m/s),
+        and the box's lo, hi, size, 2 size, 1 / (2 size) (m, 1/m), the constants
+        :meth:`Box.fold` uses (for the channel's compiled links, ``channel.straight``)."""
+        b = self.box
+        consts = (b.lo, b.hi, b.size, b._period, b._inv_period)
+        return np.stack([self._p0, self._v, *(np.broadcast_to(a, (self.n, 3)) for a in consts)], axis=1)
+
 
 class CoordinatedTurn(Mobility):
     """Constant horizontal speed on circles in x-y plus a constant vertical speed.
@@ -817,6 +825,8 @@ class _CurrentDrift(Mobility):
         self._inv_h = 1.0 / self._h
         p0 = self._p0.copy()
         self._pv = _Table(np.stack((p0, self.field(p0, 0.0)), axis=1))  # (K, n, 2, 3): position, velocity
+        self._state_t = math.nan  # the time of the kept state (see state)
+        self._state: tuple[Array, Array] = (p0, p0)
 
     def _dimensionless(self, x: Array, y: Array, tp: Array | float) -> tuple[Array, Array]:
         raise NotImplementedError
@@ -887,6 +897,22 @@ class _CurrentDrift(Mobility):
         d10 = um * (1.0 - 3.0 * u)
         d11 = u * (3.0 * u - 2.0)
         return d00 * (pb - pa) + d10 * va + d11 * vb
+
+    def state(self, t: float) -> tuple[Array, Array]:
+        """``Mobility.state``, kept for the last time asked (read-only arrays): at one instant
+        a group's positions and velocities are asked for several times (a beacon's position
+        fix, depth and velocity sensors, then the channel), each a full evaluation before."""
+        tf = _time(t)
+        if tf != self._state_t:
+            pos, vel = super().state(tf)
+            pos.flags.writeable = False
+            vel.flags.writeable = False
+            self._state_t, self._state = tf, (pos, vel)
+        return self._state
+
+    def position(self, t: float) -> Array:
+        """Positions (n, 3) in m at true time ``t`` (s), read-only (see :meth:`state`)."""
+        return self.state(t)[0]
 
     def _raw_position_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._hermite(*self._gather(idx, t))

@@ -22,6 +22,8 @@ import simpy
 from pydantic import BaseModel, ConfigDict
 from simpy.events import NORMAL, EventPriority
 
+from .packet import Reception
+
 __all__ = ["BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors"]
 
 #: ``dst`` of a broadcast packet
@@ -257,6 +259,14 @@ class Node:
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""
         return len(self.__k.inbox)
+
+    def take_pending(self) -> list[Reception]:
+        """Every buffered reception, oldest first, taken now without an event each (what
+        ``recv()`` while ``pending()`` returns, one SimPy event per reception)."""
+        inbox = self.__k.inbox
+        out = list(inbox)
+        inbox.clear()
+        return out
 
     # -- sensors --------------------------------------------------------------------------------
 

@@ -10,6 +10,7 @@ little as possible.
     python tools/bench_kernel.py            # 200 nodes, 500 s simulated
     python tools/bench_kernel.py --quick    # 200 nodes, 50 s
     python tools/bench_kernel.py --quick --nodes 5000 --until 4   # same density, 25x the area
+    python tools/bench_kernel.py --quick --speed 1 [--numpy-links]   # moving: compiled (numpy) links
 
 The reported "CPU per reception" (kernel CPU time / receptions decided) is the figure to
 compare across network sizes at the same neighbour count.
@@ -29,7 +30,7 @@ import simpy
 from scipy.spatial import cKDTree
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.kernel import Simulation, quiet_gc
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
@@ -226,7 +227,14 @@ def main(argv: list[str] | None = None) -> int:
         help="node speed (m/s): > 0 moves every node (no per-sender link cache, fixed point per delivery)",
     )
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument(
+        "--numpy-links",
+        action="store_true",
+        help="moving nodes: the channel's numpy links instead of the compiled ones (channel/straight.py)",
+    )
     args = ap.parse_args(argv)
+    if args.numpy_links:
+        AcousticChannel.compiled_links = False
     until = min(50.0, args.until) if args.quick else args.until
     pos, rng_m = layout(args.nodes, args.neighbours, args.seed)
     mean_nb = float(np.mean([len(nb) for nb in neighbour_lists(pos, rng_m)]))

@@ -1,6 +1,8 @@
 """Ray-tracer throughput benchmark: pairs per second on one core, with a same-run baseline.
 
     python tools/bench_raytrace.py [--quick]
+    python tools/bench_raytrace.py --profile          # cProfile of the layered direct-only case
+    python tools/bench_raytrace.py --dump out/rays.npz  # the layered case's eigenrays, to compare
 
 Every case is a function returning a :class:`Case` (a label, a zero-argument callable that
 traces all its pairs, and the pair count); ``CASES`` lists them. The baseline is the plain
@@ -23,6 +25,7 @@ import argparse  # noqa: E402
 import time  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -105,7 +108,16 @@ def main(argv: list[str] | None = None) -> list[dict[str, float | str]]:
     ap.add_argument(
         "--profile", action="store_true", help="cProfile the layered direct-only case (top 15 by own time) instead"
     )
+    ap.add_argument(
+        "--dump",
+        type=Path,
+        default=None,
+        help="write the layered case's eigenrays (50 000 pairs; reflections none, fallback, all) to this .npz instead",
+    )
     args = ap.parse_args(argv)
+    if args.dump is not None:
+        dump_layered(args.dump, 50_000)
+        return []
     if args.profile:
         profile_layered(max(50_000 // (10 if args.quick else 1), 1))
         return []
@@ -194,6 +206,22 @@ def profile_layered(n: int, top: int = 15) -> None:
     prof = cProfile.Profile()
     prof.runcall(case.run)
     pstats.Stats(prof).strip_dirs().sort_stats("tottime").print_stats(top)
+
+
+def dump_layered(path: Path, n: int) -> None:
+    """Save every eigenray field of the layered case's pairs for reflections none, fallback and
+    all (``{mode}_{field}`` arrays), to compare two versions of the solver pair by pair."""
+    from aquasim_py.channel import layered
+
+    prof = _layered_profile()
+    src, dst = random_pairs(n)
+    out = {}
+    for mode in ("none", "fallback", "all"):
+        ray = layered.eigenray(prof, src, dst, reflections=mode)
+        for f in ("time", "length", "launch_angle", "arrival_angle", "turning_depth", "path"):
+            out[f"{mode}_{f}"] = np.asarray(getattr(ray, f))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **out)  # type: ignore[arg-type]
 
 
 if __name__ == "__main__":

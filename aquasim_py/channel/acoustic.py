@@ -14,7 +14,11 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    mobility queries): in closed form for a constant sound speed, else by a few secant steps
    seeded with the exact slope grad T . v. It is exact for constant velocity, so the exact
    iteration usually stops after one query (and one ray trace) per receiver; static
-   receivers need none;
+   receivers need none. Receivers without a speed bound (the current-driven models) accelerate
+   enough to miss the tolerance from that start; in a constant profile one Newton step with
+   their estimated accelerations corrects it (``_accelerations``, ``_accelerated_root``). For
+   a constant profile with every node on a box-folded straight line the whole computation is
+   compiled (``channel/straight.py``, same bits);
 3. losses: no eigenray (shadow zone) -> "no_path"; SNR below the threshold -> "snr";
    the receiver transmitting during any part of the reception -> "half_duplex"; another
    signal overlapping the reception at the receiver -> "collision" (with ``capture``, the
@@ -33,11 +37,13 @@ arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_s
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, insort
-from collections.abc import Callable
+from array import array
+from bisect import bisect_left, bisect_right
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 from heapq import heappush
+from itertools import repeat
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, cast
 
@@ -78,7 +84,7 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-_ARRIVAL = itemgetter(0)  # signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
+# signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
 _Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
@@ -178,11 +184,16 @@ def physical_snr(ray: Eigenray, config: ChannelConfig) -> NDArray[np.float64]:
     The same terms in the same order as ``loss.snr_db`` (so the same bits), with the two that
     depend only on the config (ambient noise N(f) and 10 log10 B) computed once per config:
     the noise sum is the costliest part and this runs once per transmission."""
+    return _snr_of_length(np.asarray(ray.length, dtype=float), config)
+
+
+def _snr_of_length(length: NDArray[np.float64], config: ChannelConfig) -> NDArray[np.float64]:
+    """:func:`physical_snr` (dB) of rays of arc lengths ``length`` (m)."""
     noise, band, alpha, k10 = _snr_constants(config)
     # loss.path_loss_db(l, f, k, l0 = 1, alpha) term by term (the same operations, so the same
     # bits): 10 k log10(max(l, l0) / l0) + (max(l, l0) - l0) 1e-3 alpha, with l / 1.0 = l and
     # no divide-by-zero guard needed since max(l, 1) >= 1 (NaN stays NaN)
-    length = np.maximum(np.asarray(ray.length, dtype=float), 1.0)
+    length = np.maximum(length, 1.0)
     loss_db = k10 * np.log10(length) + (length - 1.0) * 1e-3 * alpha
     return config.source_level_db - loss_db - noise - band
 
@@ -218,9 +229,12 @@ class _Modem:
         "log_cap",
         "port",
         "pressure_rng",
+        "rx_arr",
+        "rx_end",
         "rx_log",
+        "tx_end",
         "tx_free_at",
-        "tx_log",
+        "tx_start",
     )
 
     def __init__(self, port: RadioPort) -> None:
@@ -232,9 +246,16 @@ class _Modem:
         self.jitter: np.random.Generator | None = None  # the port's jitter stream, asked on first use
         self.pressure_rng: np.random.Generator | None = None  # ("node", id, "pressure"), on first use
         self.tx_free_at = 0.0  # true time (s) the modem is free to start the next queued packet
-        self.tx_log: list[tuple[float, float]] = []  # (start, end) of own transmissions, true s
+        # start and end (true s) of own transmissions, in order of start (arrays: a reception's
+        # half-duplex test reads a slice of doubles, not a tuple and two floats per entry)
+        self.tx_start = array("d")
+        self.tx_end = array("d")
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
-        self.log_cap = 8  # prune tx_log beyond this length (see _prune)
+        # their arrival and end times (true s), the collision scan's keys: contiguous doubles,
+        # so a scan does not chase a tuple and two float objects per signal
+        self.rx_arr = array("d")
+        self.rx_end = array("d")
+        self.log_cap = 8  # prune the own transmissions beyond this many (see _prune)
 
 
 class _Deliveries:
@@ -269,6 +290,10 @@ class AcousticChannel:
     ... in order); a node transmits with :meth:`transmit`.
     """
 
+    #: use the compiled links (channel/straight.py) where they apply; False forces the numpy
+    #: path (tests compare the two; the results are the same bits)
+    compiled_links = True
+
     def __init__(
         self,
         env: simpy.Environment,
@@ -298,8 +323,18 @@ class AcousticChannel:
         self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
         self._static = False
         self._all_moving = False
+        # every node on a box-folded straight line, constant profile, no link hooks: the
+        # compiled links of channel/straight.py ((records, links kernel, SNR-and-order kernel,
+        # SNR constants), see _new_layout)
+        self._lines: tuple[NDArray[np.float64], Callable[..., Any], Callable[..., Any], NDArray[np.float64]] | None = (
+            None
+        )
+        self._direct = repeat(PATH_NAMES[int(PathKind.DIRECT)])  # the path name of every straight ray
         self._index: NeighbourIndex | None = None
         self._vel_at: Callable[[NDArray[np.intp], float], NDArray[np.float64]] | None = None
+        # (time, velocity, estimated acceleration) of each node when last a candidate, for
+        # the start of the fixed point on trajectories without a speed bound (_accelerations)
+        self._motion: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
         self._states_at: Callable[[NDArray[np.intp], float], tuple[NDArray[np.float64], NDArray[np.float64]]] | None = (
             None
         )
@@ -412,8 +447,9 @@ class AcousticChannel:
         nan = math.nan
         row = self._row
         self._table.flush_if_large()
-        modem.tx_log.append((t0, t0 + duration))
-        if len(modem.tx_log) > modem.log_cap:
+        modem.tx_start.append(t0)
+        modem.tx_end.append(t0 + duration)
+        if len(modem.tx_start) > modem.log_cap:
             self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
@@ -439,10 +475,14 @@ class AcousticChannel:
                 # delivery's context
                 sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
-                    log = rx.rx_log
-                    insort(log, sig, key=_ARRIVAL)
-                    if log[0][0] < forget:
-                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
+                    keys = rx.rx_arr
+                    if keys and keys[0] < forget:
+                        j = bisect_left(keys, forget)
+                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
+                    j = bisect_right(keys, arr)  # after equal arrivals, as insort
+                    keys.insert(j, arr)
+                    rx.rx_end.insert(j, end)
+                    rx.rx_log.insert(j, sig)
                 sigs.append(sig)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
@@ -454,10 +494,14 @@ class AcousticChannel:
                 end = arr + duration
                 sig = (arr, end, s, rx, pkt, T, path, dst)
                 if track:
-                    log = rx.rx_log
-                    insort(log, sig, key=_ARRIVAL)
-                    if log[0][0] < forget:
-                        del log[: bisect_left(log, forget, key=_ARRIVAL)]
+                    keys = rx.rx_arr
+                    if keys and keys[0] < forget:
+                        j = bisect_left(keys, forget)
+                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
+                    j = bisect_right(keys, arr)
+                    keys.insert(j, arr)
+                    rx.rx_end.insert(j, end)
+                    rx.rx_log.insert(j, sig)
                 if intended:
                     sigs.append(sig)
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
@@ -467,7 +511,7 @@ class AcousticChannel:
     def _links(
         self, src: int, t0: float
     ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
-        """Who hears ``src`` transmitting at ``t0``: (ids in range, heard, lost).
+        """Who hears ``src`` transmitting at ``t0``: (ids in range, in any order; heard; lost).
 
         heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver,
         sorted by delay;
@@ -476,8 +520,7 @@ class AcousticChannel:
         added; the loss model must be a pure function of the eigenray and the config).
         """
         net = self._net
-        modems = self._modems
-        n = len(modems)
+        n = len(self._modems)
         if n != self._layout_n:
             self._new_layout(n)
         static = self._static and self._cacheable
@@ -502,6 +545,10 @@ class AcousticChannel:
             # the sender and the k-d tree's superset of the nodes in range around it, then the
             # same exact test on that superset alone
             near = index.neighbourhood(src, t0, n, net.positions)
+            if self._lines is not None:
+                done = self._compiled_links(near, t0)
+                if done is not None:
+                    return done
             if static:
                 p_near = net.positions(t0)[near]
                 v_near = None
@@ -515,42 +562,82 @@ class AcousticChannel:
             p_cand = p_near[1:][keep]
             if v_near is not None:
                 v_cand = v_near[1:][keep]
-        heard: list[tuple[_Modem, float, str, float]] = []
-        lost: list[tuple[int, str, float, str, float]] = []
         if cand.size:
             times, paths, snr = self._arrivals(t0, p_src, cand, p_cand, v_cand)
             if self._sound_speed is not None:  # path-mean speed taken at the mid depth
                 times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + p_cand[:, 2]) / 2))
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
-            thr = self.config.snr_threshold_db
-            ids = cand.tolist()
-            # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
-            # no loss model, compares False: never dropped on SNR)
-            if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
-                heard = list(
-                    zip(
-                        map(modems.__getitem__, ids),
-                        times.tolist(),
-                        map(PATH_NAMES.__getitem__, paths.tolist()),
-                        snr.tolist(),
-                    )
-                )
-            else:
-                for rid, T, p, s in zip(ids, times.tolist(), paths.tolist(), snr.tolist()):
-                    if T != T:
-                        lost.append((rid, "no_path", T, PATH_NAMES[p], s))
-                    elif s < thr:
-                        lost.append((rid, "snr", T, PATH_NAMES[p], s))
-                    else:
-                        heard.append((modems[rid], T, PATH_NAMES[p], s))
-            heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
+            out = self._sorted_links(cand.tolist(), times, map(PATH_NAMES.__getitem__, paths.tolist()), snr)
         else:
-            ids = []
-        out = (ids, heard, lost)
+            out = ([], [], [])
         if static:
             self._static_links[src] = (n, out)
         return out
+
+    def _sorted_links(
+        self, ids: list[int], times: NDArray[np.float64], paths: Iterable[str], snr: NDArray[np.float64]
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+        """(ids, heard, lost) of ``_links`` from the candidates' delays (s), path names and SNR (dB)."""
+        modems = self._modems
+        thr = self.config.snr_threshold_db
+        heard: list[tuple[_Modem, float, str, float]] = []
+        lost: list[tuple[int, str, float, str, float]] = []
+        # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
+        # no loss model, compares False: never dropped on SNR)
+        if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
+            heard = list(zip(map(modems.__getitem__, ids), times.tolist(), paths, snr.tolist()))
+        else:
+            for rid, T, p, s in zip(ids, times.tolist(), paths, snr.tolist()):
+                if T != T:
+                    lost.append((rid, "no_path", T, p, s))
+                elif s < thr:
+                    lost.append((rid, "snr", T, p, s))
+                else:
+                    heard.append((modems[rid], T, p, s))
+        heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
+        return ids, heard, lost
+
+    def _compiled_links(
+        self, near: NDArray[np.intp], t0: float
+    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]] | None:
+        """``_links`` by the compiled kernel (``channel.straight``) for the sender ``near[0]``
+        and its neighbourhood ``near[1:]``; None when the general path must decide."""
+        assert self._lines is not None
+        records, kernel, finish, terms = self._lines
+        ssp = cast(Constant, self.ssp)
+        bottom = math.inf if ssp.bottom is None else float(ssp.bottom)
+        status, cand, times, length, diff = kernel(
+            records, near, t0, ssp.speed_mps, bottom, self._range2, FIXED_POINT_TOL_S
+        )
+        if status:
+            return None
+        if not cand.size:
+            return [], [], []
+        model = self.loss_model
+        if model is physical_snr:
+            thr = self.config.snr_threshold_db
+            snr, lost, ids, t_s, snr_s = finish(cand, times, length, np.log10(np.maximum(length, 1.0)), terms, thr)
+            if not lost:  # the usual case: every receiver heard, already in order of arrival
+                modems = self._modems
+                in_range = ids.tolist()
+                return (
+                    in_range,
+                    list(zip(map(modems.__getitem__, in_range), t_s.tolist(), self._direct, snr_s.tolist())),
+                    [],
+                )
+        else:  # any other model gets the whole ray, as _straight_moving makes it
+            ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
+            ray = Eigenray(
+                time=times,
+                length=length,
+                launch_angle=ang,
+                arrival_angle=ang.copy(),
+                turning_depth=np.full(length.shape, np.nan),
+                path=np.full(length.shape, np.int8(PathKind.DIRECT)),
+            )
+            snr = np.asarray(model(ray, self.config), dtype=float)
+        return self._sorted_links(cand.tolist(), times, self._direct, snr)
 
     def _new_layout(self, n: int) -> None:
         """Nodes were added: whether the network is static, and the neighbour index (None when
@@ -563,6 +650,23 @@ class AcousticChannel:
         vmax = 0.0 if self._static else (float(bound()) if bound is not None else math.inf)
         self._index = NeighbourIndex(float(self.config.max_range_m), vmax) if math.isfinite(vmax) else None
         self._vel_at = getattr(net, "velocities_at", None)
+        self._lines = None
+        records = getattr(net, "line_records", None)
+        if (
+            self.compiled_links
+            and self._all_moving
+            and self._index is not None
+            and isinstance(self.ssp, Constant)
+            and self._sound_speed is None
+            and self._obstacles is None
+            and records is not None
+            and (table := records()) is not None
+        ):
+            from .straight import by_arrival, straight_links  # numba: only runs that take this path pay for it
+
+            noise, band, alpha, k10 = _snr_constants(self.config)
+            terms = np.array([k10, alpha, self.config.source_level_db, noise, band], dtype=float)
+            self._lines = (np.ascontiguousarray(table, dtype=float), straight_links, by_arrival, terms)
         self._states_at = getattr(net, "states_at", None)
 
     def _velocities(self, idx: NDArray[np.intp], t: float) -> NDArray[np.float64]:
@@ -576,6 +680,26 @@ class AcousticChannel:
         if self._states_at is not None:
             return self._states_at(idx, t)
         return self._net.positions_at(idx, np.full(idx.size, t)), self._velocities(idx, t)
+
+    def _accelerations(self, cand: NDArray[np.intp], t0: float, v: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Estimated accelerations (m/s^2, (k, 3)) of the candidates at ``t0``: the change of
+        each one's velocity ``v`` since the last transmission it was a candidate of, over the
+        time between (0 before that; the last estimate again at the same instant). Only the
+        start of the exact fixed point uses it, so a poor estimate (a wall bounce in between)
+        costs an iteration, never accuracy."""
+        n = len(self._modems)
+        if self._motion is None or len(self._motion[0]) != n:
+            self._motion = (np.full(n, np.nan), np.zeros((n, 3)), np.zeros((n, 3)))
+        t_last, v_last, a_last = self._motion
+        dt = t0 - t_last[cand]
+        a = a_last[cand]
+        new = dt > 0.0  # NaN (never seen) compares False
+        if new.any():
+            a[new] = (v[new] - v_last[cand[new]]) / dt[new, None]
+        a_last[cand] = a
+        t_last[cand] = t0
+        v_last[cand] = v
+        return a
 
     def _arrivals(
         self,
@@ -602,7 +726,9 @@ class AcousticChannel:
             start: tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None = None
             if isinstance(ssp, Constant):
                 v = v_rx if v_rx is not None else self._velocities(cand, t0)
-                start = _constant_start(ssp, refl, p_src, p_rx, moving, v)
+                # no speed bound (the current-driven models): their acceleration matters
+                acc = self._accelerations(cand, t0, v) if self._index is None else None
+                start = _constant_start(ssp, refl, p_src, p_rx, moving, v, acc)
             if start is None:
                 ray = eigenray(ssp, p_src, p_rx, reflections=refl)
                 fields = {f: np.array(getattr(ray, f)) for f in Eigenray.__dataclass_fields__}
@@ -677,28 +803,37 @@ class AcousticChannel:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
         arr, end, snr, rx, pkt, tof, path, dst_code = sig
         reason = None
-        for a, b in rx.tx_log:
-            if a < end and b > arr:
+        # own transmissions overlapping [arr, end): started before end and, lasting at most
+        # the longest packet, after arr - longest packet (twice that here, so the rounding of
+        # start + duration cannot hide one); the exact test decides within that slice
+        starts = rx.tx_start
+        i = bisect_left(starts, arr - 2.0 * self._max_duration)
+        n = len(starts)
+        while i < n and starts[i] < end:
+            if rx.tx_end[i] > arr:
                 reason = "half_duplex"
                 break
+            i += 1
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
-            log = rx.rx_log
-            i = bisect_left(log, arr - self._max_duration, key=_ARRIVAL)
-            n = len(log)
+            keys = rx.rx_arr
+            ends = rx.rx_end
+            i = bisect_left(keys, arr - self._max_duration)
+            n = len(keys)
             power = 0.0
             hit = False
             while i < n:
-                e = log[i]
-                i += 1
-                if e[0] >= end:
+                if keys[i] >= end:
                     break
-                if e[1] > arr and e is not sig:
-                    hit = True
-                    if self._destructive:
-                        break
-                    power += 10.0 ** (e[2] / 10.0)
+                if ends[i] > arr:
+                    e = rx.rx_log[i]
+                    if e is not sig:
+                        hit = True
+                        if self._destructive:
+                            break
+                        power += 10.0 ** (e[2] / 10.0)
+                i += 1
             if hit and (self._destructive or not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
         if reason is not None:
@@ -750,9 +885,11 @@ class AcousticChannel:
         so it began after now - max_duration; anything that ended before cannot touch it.
         """
         cutoff = self._env.now - self._max_duration
-        modem.tx_log = [e for e in modem.tx_log if e[1] >= cutoff]
+        keep = [i for i, b in enumerate(modem.tx_end) if b >= cutoff]
+        modem.tx_start = array("d", [modem.tx_start[i] for i in keep])
+        modem.tx_end = array("d", [modem.tx_end[i] for i in keep])
         # next prune when the log has doubled: amortized O(1) per entry, short scans
-        modem.log_cap = max(8, 2 * len(modem.tx_log))
+        modem.log_cap = max(8, 2 * len(keep))
 
 
 # -- straight-line start of the moving-receiver fixed point -----------------------------------------
@@ -888,6 +1025,7 @@ def _constant_start(
     p_rx: NDArray[np.float64],
     moving: NDArray[np.bool_],
     v: NDArray[np.float64],
+    acc: NDArray[np.float64] | None = None,
 ) -> tuple[dict[str, NDArray[Any]], NDArray[np.intp]] | None:
     """Constant profile: the eigenray fields of the candidates before the exact iteration, and
     the moving receivers to iterate (``active``), without tracing rays to their send-time
@@ -906,6 +1044,8 @@ def _constant_start(
     t = _constant_moving_root(ssp.speed_mps, p_rx[active] - p_src, v[active])
     if not np.isfinite(t).all():
         return None
+    if acc is not None:
+        t = _accelerated_root(ssp.speed_mps, p_rx[active] - p_src, v[active], acc[active], t)
     n = len(p_rx)
     if active.size == n:  # every row is overwritten by the first exact step, which reads only time
         return {"time": t}, active
@@ -934,6 +1074,30 @@ def _constant_moving_root(c: float, d: NDArray[np.float64], v: NDArray[np.float6
         return np.full(len(d), np.nan)
     a = c * c - vv
     return (dv + np.sqrt(dv * dv + a * np.einsum("ij,ij->i", d, d))) / a
+
+
+def _accelerated_root(
+    c: float, d: NDArray[np.float64], v: NDArray[np.float64], a: NDArray[np.float64], t: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """One Newton step from the straight-line root t (s) towards the root of
+    |d + v t + a t^2 / 2| = c t (offset d in m, velocity v in m/s, acceleration a in m/s^2),
+    for the rows with a != 0; t where the step fails. The straight-line root misses by about
+    |a| t^2 / (2 c) (1e-9 s for a current's 1e-3 m/s^2 over 80 m), more than the fixed point's
+    tolerance, so the exact iteration would need a second step; from this start it needs one."""
+    use = np.flatnonzero((a != 0.0).any(axis=1))
+    if not use.size:
+        return t
+    tu, du, vu, au = t[use], d[use], v[use], a[use]
+    q = du + vu * tu[:, None] + (0.5 * tu * tu)[:, None] * au
+    dq = vu + au * tu[:, None]
+    nq = np.sqrt(np.einsum("ij,ij->i", q, q))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_new = tu - (nq - c * tu) / (np.einsum("ij,ij->i", q, dq) / nq - c)
+    out = t.copy()
+    # a correction is tiny (|a| t^2 / 2c); a large one comes from a poor estimate (e.g. a
+    # wall bounce since the last one) and is not taken
+    out[use] = np.where(np.abs(t_new - tu) <= 1e-3 * tu, t_new, tu)
+    return out
 
 
 def _slope_along(

@@ -14,10 +14,13 @@ them without leaving the water and with at most one turning point:
 
 The eigenray invariant solves X_family(p) = horizontal distance. The solver samples each
 family on a grid of the grazing angle phi (p = p_max cos phi, which makes the grazing
-singularities smooth), brackets every sign change and refines it with a vectorized
+singularities smooth), brackets every sign change and refines it with a safeguarded
 Newton iteration (analytic d X / d p, bisection whenever a step leaves the bracket) to
-~1e-13 relative range, all pairs at once; the time is then corrected to first order for the
-residual (t = p X + tau(p) is stationary in p at an eigenray).
+~1e-13 relative range; the time is then corrected to first order for the residual
+(t = p X + tau(p) is stationary in p at an eigenray). The samples and the iterations run
+in a compiled kernel (numba, ``_layered_jit``: one loop over the layers a ray crosses per
+pair and sample, the same doubles as the numpy ``_family``); the rest works on all pairs
+of a block at once.
 Several eigenrays (caustics) give several roots: the earliest arrival is kept. Rays whose
 turning point would lie above the surface or below the bottom are not direct paths
 (eqs 21-22); the boundary-reflected arrivals come from the same solver applied to the
@@ -31,6 +34,7 @@ network ranges (a few km) multi-turn rays exist only for pairs close to a channe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -66,7 +70,10 @@ REASON_OUTSIDE = "point outside the water column"
 _OPEN_DEPTH_M = 1.0e5
 _GRID = 9  # phi samples per turning family (brackets the roots; caustics need >1 sample)
 _SAME_DEPTH_M = 1e-9
-_CHUNK_ELEMS = 1 << 21  # elements of one (pairs, samples, layers) work array per block
+# a block of pairs: (pairs, samples, layers) = 2^21 elements, about 5 800 pairs at 10 layers
+# (the numpy work is on (pairs, samples) and (pairs, layers) arrays; 2 to 8x larger blocks
+# were no faster)
+_CHUNK_ELEMS = 1 << 21
 _RTOL = 1e-13  # relative tolerance on horizontal range
 _MAXIT = 80
 _FAM_D, _FAM_L, _FAM_U = 0, 1, 2
@@ -89,6 +96,11 @@ class _Stack:
     @property
     def zmax(self) -> float:
         return float(self.z[-1])
+
+    @cached_property
+    def arrays(self) -> tuple[NDArray[np.float64], ...]:
+        """(z, c, g, h, (c_k + c_k+1) h_k) for the compiled kernels (see _layered_jit)."""
+        return self.z, self.c, self.g, self.h, (self.c[:-1] + self.c[1:]) * self.h
 
     @classmethod
     def from_points(cls, z: NDArray[np.float64], c: NDArray[np.float64], bottom: bool) -> _Stack:
@@ -239,6 +251,14 @@ class _Geo:
     def col(self) -> _Geo:
         return _Geo(*(getattr(self, f)[:, None] for f in self.__dataclass_fields__))
 
+    def arrays(self) -> tuple[NDArray, ...]:
+        """(za, zb, ka, kb, ca, cb, pmax) as the compiled kernels take them (see _layered_jit)."""
+        f, i = np.float64, np.int64
+        return tuple(
+            np.ascontiguousarray(getattr(self, name), dtype=t)
+            for name, t in (("za", f), ("zb", f), ("ka", i), ("kb", i), ("ca", f), ("cb", f), ("pmax", f))
+        )
+
 
 def _geometry(st: _Stack, za: NDArray[np.float64], zb: NDArray[np.float64]) -> _Geo:
     ka, kb = st.layer(za), st.layer(zb)
@@ -328,7 +348,8 @@ def _turning(inv, c, g, full: bool, deriv: bool = False):
 def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: bool = False, deriv: bool = False):
     """Range X(phi) (NaN where the family has no ray), and when ``full`` also time, arc
     length and turning depth, for invariants p = p_max cos(phi). With ``deriv`` the second
-    value is d X / d phi instead."""
+    value is d X / d phi instead. The solver evaluates X and d X / d phi with the compiled
+    ``_range``; this numpy version is its reference (tests) and evaluates the roots."""
     inv = _inv(geo.pmax, phi)
     p = inv[0]
     lay = _Layers(st, inv, full, deriv)
@@ -369,48 +390,29 @@ def _family(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], full: boo
 # root finding
 
 
+def _kernels():
+    """The compiled family evaluations (numba: imported on the first solve, see _layered_jit)."""
+    from . import _layered_jit
+
+    return _layered_jit
+
+
+def _range(st: _Stack, geo: _Geo, fam: int, phi: NDArray[np.float64], deriv: bool = False):
+    """Compiled X(phi) (m, NaN where the family has no ray) at phi (pairs, samples), and with
+    ``deriv`` also d X / d phi: the same doubles as ``_family(..., deriv=deriv)[:2]``."""
+    x, dx = _kernels().family_range(st.arrays, geo.arrays(), fam, phi, deriv)
+    return (x, dx) if deriv else x
+
+
 def _refine(st: _Stack, geo: _Geo, fam: int, target, lo, hi, hlo, hhi, guess=None):
     """Safeguarded Newton iteration on h(phi) = X(phi) - target inside brackets [lo, hi]
-    with h(lo) h(hi) <= 0 (bisection whenever a step leaves the bracket or stalls), all
-    brackets at once; returns (phi, |h|) at the best point seen."""
-    a, b, fa, fb = lo.copy(), hi.copy(), hlo.copy(), hhi.copy()
-    tol = _RTOL * np.maximum(target, 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = a - fa * (b - a) / (fb - fa)  # regula falsi start
-    if guess is not None:
-        x = guess
-    x = np.where(np.isfinite(x) & (x > np.minimum(a, b)) & (x < np.maximum(a, b)), x, 0.5 * (a + b))
-    best = np.where(np.abs(fa) <= np.abs(fb), a, b)
-    fbest = np.minimum(np.abs(fa), np.abs(fb))
-    prev = np.full(a.shape, np.inf)
-    active = fbest > tol
-    for _ in range(_MAXIT):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        X = x[idx]
-        fx, dfx, _, _ = _family(st, geo.take(idx), fam, X, deriv=True)
-        fx = fx - target[idx]
-        A, B, FA = a[idx], b[idx], fa[idx]
-        same_as_a = np.sign(fx) == np.sign(FA)
-        A, FA, B = np.where(same_as_a, X, A), np.where(same_as_a, fx, FA), np.where(same_as_a, B, X)
-        a[idx], fa[idx], b[idx] = A, FA, B
-        afx = np.abs(fx)
-        improved = afx < fbest[idx]
-        best[idx] = np.where(improved, X, best[idx])
-        fbest[idx] = np.where(improved, afx, fbest[idx])
+    with h(lo) h(hi) <= 0 (bisection whenever a step leaves the bracket or stalls), each
+    bracket on its own (compiled: _layered_jit.refine), from ``guess`` or the regula falsi
+    point; returns (phi, |h|) at the best point seen."""
+    if guess is None:
         with np.errstate(divide="ignore", invalid="ignore"):
-            nx = X - fx / dfx
-        lo_, hi_ = np.minimum(A, B), np.maximum(A, B)
-        slow = afx > 0.5 * prev[idx]
-        bis = ~np.isfinite(nx) | (nx <= lo_) | (nx >= hi_) | (slow & (prev[idx] < np.inf))
-        nx = np.where(bis, 0.5 * (A + B), nx)
-        prev[idx] = np.where(bis, np.inf, afx)
-        x[idx] = nx
-        width = hi_ - lo_
-        done = (afx <= tol[idx]) | (width <= 4.0 * np.finfo(float).eps * np.maximum(hi_, 1e-300)) | ~np.isfinite(fx)
-        active[idx] = ~done
-    return best, fbest
+            guess = lo - hlo * (hi - lo) / (hhi - hlo)
+    return _kernels().refine(st.arrays, geo.arrays(), fam, target, lo, hi, hlo, hhi, guess, _RTOL, _MAXIT)
 
 
 def _pick_brackets(h: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -520,9 +522,8 @@ def _cusp_samples(st: _Stack, geo: _Geo, fam: int, ext) -> NDArray[np.float64] |
         phj = np.where(m[:, None] > 0, np.take_along_axis(phj, pick, axis=1), np.nan)
         key = np.take_along_axis(key, pick, axis=1)
     g_old, g_new, cj = g_old[key], g_new[key], cj[key]
-    col = geo.col()
     probe = np.where(np.isfinite(phj), phj * (1.0 - 1e-12), 0.0)  # just before: old layer turns
-    _, slope, _, _ = _family(st, col, fam, probe, deriv=True)
+    _, slope = _range(st, geo, fam, probe, deriv=True)
     beta = 2.0 * (1.0 / g_old - 1.0 / g_new) * cj  # 1/p = c_j at phi_j
     with np.errstate(invalid="ignore", divide="ignore"):
         du = beta**2 * np.tan(phj) / (2.0 * slope**2)
@@ -562,7 +563,7 @@ def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
     if np.any(cand):
         i = allidx[cand]
         g = geo.take(i)
-        xg = _family(st, g, _FAM_D, np.zeros(i.size))[0]
+        xg = _range(st, g, _FAM_D, np.zeros((i.size, 1)))[:, 0]
         reach = xg >= x[i]
         i, xg = i[reach], xg[reach]
         if i.size:
@@ -584,7 +585,7 @@ def _direct_block(st: _Stack, za, zb, x) -> _Arrivals:
         cusp = _cusp_samples(st, g, fam, ext[i])
         if cusp is not None:
             grid = np.sort(np.concatenate([grid, cusp], axis=1), axis=1)  # NaN (unused) last
-        h = _family(st, g.col(), fam, grid)[0] - x[i, None]
+        h = _range(st, g, fam, grid) - x[i, None]
         rows, s = _pick_brackets(h)
         if rows.size == 0:
             continue

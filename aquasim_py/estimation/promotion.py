@@ -16,5 +16,7 @@ __all__ = ["promote"]
 def promote(confidences: ArrayLike, threshold: float, min_rounds: int = 1) -> bool:
     """True when the last ``min_rounds`` confidences (a scalar is a history of one) all reach
     ``threshold``; False while the history is shorter than ``min_rounds``."""
+    if min_rounds == 1 and type(confidences) is float:  # one value (STVF, per localization)
+        return bool(confidences >= threshold)
     c = np.atleast_1d(np.asarray(confidences, dtype=float))
     return c.size >= min_rounds and bool(np.all(c[-min_rounds:] >= threshold))

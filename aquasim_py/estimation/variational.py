@@ -460,12 +460,17 @@ def localization_confidence(
     ``absolute=True`` sums |.| of each term of E: the paper prints a signed sum, which lets errors
     of opposite sign cancel and can push eta above the references' mean (even above 1); the
     text calls E "the sum of errors", so by default each error counts. Clipped to [0, 1]."""
-    d2 = np.sum((np.asarray(position, float) - np.asarray(refs, float)) ** 2, axis=-1)
+    # np.add.reduce is what np.sum, ndarray.sum and np.mean reduce with (the same bits), without
+    # their Python wrappers: this runs once per localization
+    add = np.add.reduce
+    d2 = add((np.asarray(position, float) - np.asarray(refs, float)) ** 2, axis=-1)
     m2 = (np.asarray(z, float) * speed / z_scale) ** 2
     err = d2 - m2
-    e = np.abs(err).sum() if absolute else err.sum()
-    eta = float(np.mean(np.asarray(ref_confidence, float))) * (1.0 - e / d2.sum())
-    return float(np.clip(eta, 0.0, 1.0))
+    e = add(np.abs(err)) if absolute else add(err)
+    eta_r = np.asarray(ref_confidence, float)
+    eta = float(add(eta_r) / eta_r.size) * (1.0 - e / add(d2))
+    # strictly inside (0, 1) the clip is the identity; its edge cases (-0.0, NaN) stay numpy's
+    return float(eta) if 0.0 < eta < 1.0 else float(np.clip(eta, 0.0, 1.0))
 
 
 def _normalize(a: NDArray[np.float64]) -> NDArray[np.float64]:

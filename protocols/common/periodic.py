@@ -8,9 +8,45 @@ from the beacons heard. Subclasses give the payload, the localization, and when 
 from __future__ import annotations
 
 from collections.abc import Generator
+from operator import itemgetter
 from typing import Any
 
+import simpy
+
 from aquasim_py.node import Node
+from aquasim_py.packet import Reception
+
+_TURNS = "periodic_turns"  # key of the run's _Turns in Node.out_of_band
+
+
+class _Turns:
+    """The unknown nodes that end their listening at one instant, resumed in the order a
+    ``recv()`` event per reception gave them, without those events.
+
+    With one event per reception, the nodes woken at an instant take turns, one reception
+    each, in wake-up order, and a node localizes (and schedules its next wake-up) right after
+    its last one: in order of (receptions taken, wake-up order). Here a node takes its whole
+    inbox when it wakes (``Node.take_pending``) and waits for its turn, and the instant's end
+    (``NodeEnv.at_instant_end``) resumes the nodes in that order, one event each. Every node
+    sees the same receptions, localizes in the same order and schedules its later events in the
+    same order, so the traces are those of the per-reception loop (a test compares them)."""
+
+    def __init__(self) -> None:
+        self.waiting: list[tuple[int, simpy.Event]] = []
+
+    def take(self, node: Node, count: int) -> simpy.Event:
+        """The event resuming ``node``, which took ``count`` receptions, at its turn."""
+        if not self.waiting:
+            node.env.at_instant_end(self._release)
+        ev = node.env.event()
+        self.waiting.append((count, ev))
+        return ev
+
+    def _release(self, _event: object) -> None:
+        waiting, self.waiting = self.waiting, []
+        waiting.sort(key=itemgetter(0))  # stable: equal counts keep their wake-up order
+        for _, ev in waiting:
+            ev.succeed()
 
 
 class PeriodicBeaconNode(Node):
@@ -24,8 +60,11 @@ class PeriodicBeaconNode(Node):
     # default of 4096 each of Table 1's 40 anchors would hold its last 4096 receptions, about
     # 100 MiB at the end of a 500-s run (docs/performance.md). 256 keeps every period's beacons.
     inbox_capacity = 256
+    #: take the inbox at once and localize in turn (_Turns) instead of one recv() event per
+    #: reception; False keeps the per-reception loop (the same traces, a test compares them)
+    drain_inbox = True
 
-    def beacon_payload(self) -> dict[str, Any] | None:
+    def beacon_payload(self) -> Any:
         """What this node broadcasts this period, or None if it is not a reference."""
         raise NotImplementedError
 
@@ -52,11 +91,16 @@ class PeriodicBeaconNode(Node):
                 yield self.broadcast(self.beacon_kind, payload, p.bits)
             if not self.is_beacon:
                 yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
-                heard = []
-                while self.pending():
-                    rec = yield self.recv()
-                    if rec.packet.kind == self.beacon_kind:
-                        heard.append(rec)
+                received: list[Reception] = []
+                if self.drain_inbox and p.listen_s < p.period_s:
+                    # (not when the next period starts at this instant: the node's own period
+                    # start would then wait for the instant's end, after the other nodes')
+                    received = self.take_pending()
+                    yield self.out_of_band.setdefault(_TURNS, _Turns()).take(self, len(received))
+                else:
+                    while self.pending():
+                        received.append((yield self.recv()))
+                heard = [rec for rec in received if rec.packet.kind == self.beacon_kind]
                 if self.ready(self.local_time() - t_start):
                     self.localize(heard)
             k += 1

@@ -40,6 +40,9 @@ from .metrics import localization_metrics
 __all__ = ["StvfNode"]
 
 KIND = "stvf_beacon"
+#: the beacon payload, a flat tuple of floats: position x, y (m), depth (m), confidence eta,
+#: horizontal velocity vx, vy (m/s)
+BEACON_FIELDS = ("x", "y", "depth", "eta", "vx", "vy")
 _BATCH = "stvf_update_batch"  # key of the run's _UpdateBatch in Node.out_of_band
 
 
@@ -185,26 +188,19 @@ class StvfNode(PeriodicBeaconNode):
 
     # -- beacon side -------------------------------------------------------------------------
 
-    def beacon_payload(self) -> dict[str, Any] | None:
-        """What this node broadcasts this period, or None if it is not a reference."""
+    def beacon_payload(self) -> tuple[float, ...] | None:
+        """What this node broadcasts this period (``BEACON_FIELDS``), or None if it is not a
+        reference. A flat tuple of floats is immutable, so every receiver shares it
+        (``packet.copy_payload``) instead of getting its own copy."""
         if self.is_beacon:
             pos = np.asarray(self.known_position(), float)
             vel = np.asarray(self.velocity(), float)[:2]
-            return {
-                "xy": (float(pos[0]), float(pos[1])),
-                "depth": float(pos[2]),
-                "eta": 1.0,
-                "vel": (float(vel[0]), float(vel[1])),
-            }
+            return (float(pos[0]), float(pos[1]), float(pos[2]), 1.0, float(vel[0]), float(vel[1]))
         if self.last_fix is not None and self.confidence >= self.params.delta and self.missed == 0:
             # the estimate is from the end of the last period: carry it to the send time
             xy = self.last_fix[1] + self.speed_est * (self.local_time() - self.last_fix[0])
-            return {
-                "xy": (float(xy[0]), float(xy[1])),
-                "depth": self.depth(),
-                "eta": self.confidence,
-                "vel": (float(self.speed_est[0]), float(self.speed_est[1])),
-            }
+            vx, vy = self.speed_est
+            return (float(xy[0]), float(xy[1]), self.depth(), self.confidence, float(vx), float(vy))
         return None
 
     # -- localization ------------------------------------------------------------------------
@@ -215,15 +211,15 @@ class StvfNode(PeriodicBeaconNode):
         depth = self.depth()
         if not heard:
             return np.empty(0), np.empty((0, 2)), np.empty(0), np.empty(0), depth
-        pay = [r.packet.payload for r in heard]
+        pay = np.array([r.packet.payload for r in heard], float)  # (n, 6): BEACON_FIELDS
         z = 1e3 * np.array([r.rx_local - r.packet.tx_local for r in heard])
         if p.noise_ratio > 0:
             z = z * (1.0 + p.noise_ratio * self.rng.standard_normal(z.size))
-        dz = np.array([q["depth"] for q in pay]) - depth
-        z = vf.project_delay(z, dz, p.speed_mps)
-        refs = np.array([q["xy"] for q in pay], float)
-        eta = np.array([q["eta"] for q in pay], float)
-        speed = np.hypot(*np.array([q["vel"] for q in pay], float).T)
+        z = vf.project_delay(z, pay[:, 2] - depth, p.speed_mps)
+        # contiguous copies, as before: a reduction's order can depend on the memory layout
+        refs = np.ascontiguousarray(pay[:, :2])
+        eta = np.ascontiguousarray(pay[:, 3])
+        speed = np.hypot(pay[:, 4], pay[:, 5])
         return z, refs, eta, speed, depth
 
     def localize(self, heard: list[Any]) -> None:

@@ -524,3 +524,69 @@ def test_physical_snr_is_loss_snr_db_bit_for_bit():
         )
         assert np.array_equal(got, ref, equal_nan=True)
         assert np.isfinite(got[:5]).all() and np.all(np.diff(got[:5]) < 0)
+
+
+def test_accelerated_root_matches_brentq():
+    """One Newton step from the straight-line root: the root of |d + v t + a t^2 / 2| = c t to
+    well under the fixed point's tolerance, for current-like accelerations."""
+    rng = np.random.default_rng(5)
+    c = 1500.0
+    d = rng.normal(0.0, 60.0, (200, 3))
+    v = rng.normal(0.0, 1.0, (200, 3))
+    a = rng.normal(0.0, 1e-3, (200, 3))
+    a[:20] = 0.0  # rows without an acceleration keep the straight-line root, bit for bit
+    t_lin = acoustic._constant_moving_root(c, d, v)
+    t = acoustic._accelerated_root(c, d, v, a, t_lin)
+    assert np.array_equal(t[:20], t_lin[:20])
+    for i in range(20, 200):
+        ref = brentq(
+            lambda s, i=i: np.linalg.norm(d[i] + v[i] * s + 0.5 * a[i] * s * s) - c * s,
+            0.0,
+            1.0,
+            xtol=1e-16,
+            rtol=1e-15,
+        )
+        assert abs(t[i] - ref) < 1e-13
+        assert abs(t_lin[i] - ref) > abs(t[i] - ref)  # the straight line misses by |a| t^2 / 2c
+
+
+def test_current_driven_receivers_one_exact_step_and_exact():
+    """Receivers on the kinematic current (no speed bound, so the channel tests every node):
+    after the first transmissions the start uses each receiver's estimated acceleration and the
+    exact fixed point needs one trajectory evaluation per transmission (two from the
+    straight-line start), and every delay still matches brentq on the true trajectory."""
+    from aquasim_py.mobility import Kinematic
+
+    box = Box([0.0, 0.0, 0.0], [20_000.0, 20_000.0, 200.0])
+    rng = np.random.default_rng(3)
+    p0 = np.column_stack([rng.uniform(5000, 5400, 30), rng.uniform(5000, 5400, 30), rng.uniform(20, 180, 30)])
+    sim = Simulation(3, ssp=Constant(1500.0), volume=box, channel=ChannelConfig(max_range_m=300.0))
+    sim.add_group(Listener, 30, mobility=lambda r: Kinematic(p0, box, r))
+    ch = sim.channel
+    evaluations = []
+    positions_at = sim.positions_at
+
+    def counted(idx, times):
+        evaluations[-1] += 1
+        return positions_at(idx, times)
+
+    sim.positions_at = counted  # type: ignore[method-assign]
+    for k, t0 in enumerate(np.arange(0.0, 20.0, 0.37)):
+        src = k % 30
+        evaluations.append(0)
+        _, heard, lost = ch._links(src, float(t0))
+        assert heard and not lost
+        if k % 9 == 0:
+            p_src = positions_at(np.array([src]), np.array([t0]))[0]
+            for modem, tof, _, _ in heard:
+                j = np.array([modem.index])
+                ref = brentq(
+                    lambda s, j=j: 1500.0 * s - np.linalg.norm(positions_at(j, np.array([t0 + s]))[0] - p_src),
+                    0.0,
+                    1.0,
+                    xtol=1e-15,
+                    rtol=1e-15,
+                )
+                assert abs(tof - ref) <= acoustic.FIXED_POINT_TOL_S
+    assert ch._index is None  # the path under test: no speed bound
+    assert evaluations[0] == 2 and np.mean(evaluations[10:]) <= 1.1, evaluations

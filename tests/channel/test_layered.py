@@ -388,3 +388,65 @@ def test_shadow_zone_reason_and_fallback() -> None:
 def test_bad_reflections_option() -> None:
     with pytest.raises(ValueError):
         layered.eigenray(MONO, [0, 0, 1.0], [1, 0, 1.0], reflections="sometimes")
+
+
+# ---------------------------------------------------------------- the compiled family evaluations
+
+
+@settings(max_examples=40)
+@given(seed=st.integers(0, 2**32 - 1), layers=st.one_of(st.integers(1, 12), st.integers(129, 140)))
+def test_compiled_ranges_equal_numpy(seed: int, layers: int) -> None:
+    """The numba kernel (layered._range) and the numpy evaluation it replaces
+    (layered._family) give the same doubles for X(phi) and d X / d phi, every family, on
+    random profiles, their mirrored stacks (the reflected paths), random pairs and grazing
+    angles. Above 128 layers numpy's pairwise sum splits into halves and the kernel adds
+    in turn: X (a sum of <= K + 3 positive terms, each summation off by <= K eps of it) then
+    agrees to 4 (K + 3) eps relative; its d X / d phi shares that code path."""
+    rng = np.random.default_rng(seed)
+    z = np.concatenate([[0.0], np.sort(rng.choice(np.arange(1.0, 2000.0), layers, replace=False))])
+    c = 1480.0 + np.cumsum(rng.normal(0.0, 8.0, layers + 1))
+    prof = Layered(z, c, bottom=float(z[-1]) if rng.random() < 0.5 else None)
+    base = layered._stack(prof, float(z[-1]))
+    for stack in (base, base.mirrored("surface")):
+        n = 40
+        zz = rng.uniform(0.0, stack.zmax, (2, n))
+        zz[0, :5] = zz[1, :5]  # same depth
+        zz[0, 5:10] = stack.z[rng.integers(0, stack.g.size, 5)]  # on a breakpoint
+        za, zb = np.sort(zz, axis=0)  # the solver's order: A is the shallower point
+        geo = layered._geometry(stack, za, zb)
+        fams = ((layered._FAM_D, np.full(n, 0.5 * np.pi)), (layered._FAM_L, geo.phi_l), (layered._FAM_U, geo.phi_u))
+        for fam, ext in fams:
+            phi = ext[:, None] * np.concatenate([[0.0, 1.0 - 1e-10], rng.uniform(0.0, 1.0, 6)])[None, :]
+            phi[0, 2] = np.nan
+            with np.errstate(all="ignore"):
+                x_np, dx_np, _, _ = layered._family(stack, geo.col(), fam, phi, deriv=True)
+                x0_np = layered._family(stack, geo.col(), fam, phi)[0]
+            x, dx = layered._range(stack, geo, fam, phi, deriv=True)
+            if stack.g.size > 128:
+                k = stack.g.size + 3
+                np.testing.assert_allclose(x, x_np, rtol=4 * k * np.finfo(float).eps, atol=0)
+                continue
+            np.testing.assert_array_equal(x, x_np)
+            np.testing.assert_array_equal(layered._range(stack, geo, fam, phi), x0_np)
+            ok = np.isfinite(x_np)  # d X / d phi is only used where the family has a ray
+            np.testing.assert_array_equal(dx[ok], dx_np[ok])
+
+
+def test_compiled_kernel_loads_from_cache_in_a_new_process() -> None:
+    """numba writes the compiled kernel next to _layered_jit.py (or to its user cache dir): a
+    second process loads it instead of compiling it (about 2.5 s of CPU on first use)."""
+    import subprocess
+
+    layered.travel_time(CHANNEL, [0, 0, 10.0], [3000, 0, 700.0], reflections="all")  # compiles or loads
+    stats = getattr(layered._kernels()._evaluate, "stats", None)
+    if stats is None or not (stats.cache_hits or stats.cache_misses):
+        pytest.skip("numba caching is off here (NUMBA_DISABLE_JIT, or no writable cache directory)")
+    code = (
+        "from aquasim_py.channel import Layered, layered\n"
+        "prof = Layered([0, 300, 1200], [1500, 1476, 1508], bottom=1200)\n"
+        "layered.travel_time(prof, [0, 0, 10.0], [3000, 0, 700.0], reflections='all')\n"
+        "st = layered._kernels()._evaluate.stats\n"
+        "print(len(st.cache_hits), len(st.cache_misses))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["1", "0"]  # one signature, loaded, none compiled

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from aquasim_py.estimation.promotion import promote
@@ -16,3 +17,8 @@ def test_history_needs_the_last_rounds_all_confident():
     assert not promote([0.9], 0.8, 2)  # too short a history
     assert promote([0.1, 0.85, 0.9], 0.8, 2)  # an old low value does not matter
     assert not promote([0.9, 0.7], 0.8, 2)  # the latest round fell below
+
+
+def test_a_float_gives_what_a_history_of_one_gives():
+    for eta in (0.0, 0.5, 0.8999999999999999, 0.9, 0.9000000000000001, 1.0, float("nan"), float("inf")):
+        assert promote(eta, 0.9) is promote([eta], 0.9) is promote(np.float64(eta), 0.9)

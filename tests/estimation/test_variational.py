@@ -276,6 +276,37 @@ def test_localization_confidence_hand_computed():
     assert vf.localization_confidence(eta_refs, pos, refs, exact, v) == pytest.approx(0.95)
 
 
+def test_localization_confidence_has_the_bits_of_the_numpy_form():
+    """The per-localization fast path (np.add.reduce, no clip inside (0, 1)) against the
+    plain numpy form it replaced: the same float, bit for bit, clipped or not."""
+
+    def plain(eta_refs, pos, refs, z, speed, absolute):
+        d2 = np.sum((pos - refs) ** 2, axis=-1)
+        err = d2 - (z * speed / Z) ** 2
+        e = np.abs(err).sum() if absolute else err.sum()
+        return float(np.clip(float(np.mean(eta_refs)) * (1.0 - e / d2.sum()), 0.0, 1.0))
+
+    rng = np.random.default_rng(4)
+    clipped = 0
+    for _ in range(3000):
+        n = int(rng.integers(1, 9))
+        pos, refs = rng.uniform(0, 500, 2), rng.uniform(0, 500, (n, 2))
+        # delays near the true ranges (eta inside (0, 1)) or anywhere (clipped at 0 or 1)
+        d = (
+            np.linalg.norm(pos - refs, axis=1) * rng.uniform(0.9, 1.1, n)
+            if rng.random() < 0.5
+            else rng.uniform(0, 400, n)
+        )
+        args = (rng.uniform(0, 1, n), pos, refs, Z * d / 1500.0, float(rng.uniform(1400, 1600)))
+        for absolute in (True, False):
+            want = plain(*args, absolute)
+            got = vf.localization_confidence(*args, absolute=absolute)
+            assert type(got) is float and np.array_equal(np.float64(got), np.float64(want))
+            assert np.signbit(got) == np.signbit(want)
+            clipped += want in (0.0, 1.0)
+    assert 500 < clipped < 5000  # both paths exercised
+
+
 def test_measurement_confidence_hand_computed():
     eta = np.array([1.0, 0.92, 0.95])
     z = np.array([20.0, 40.0, 30.0])  # f_z = 0, 1, 0.5

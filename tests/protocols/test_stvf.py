@@ -210,3 +210,28 @@ def test_no_batch_when_the_next_period_starts_at_the_localization_instant(monkey
     assert inline["is_reference"].any()  # promoted nodes beacon: the case that would differ
     pd.testing.assert_frame_equal(batched, inline, check_exact=True)
     assert set(sizes) == {1}
+
+
+def test_receivers_share_the_beacon_payload(monkeypatch):
+    """A beacon is a flat tuple of floats (BEACON_FIELDS): receivers get the sender's object
+    itself, not a copy per reception (packet.copy_payload shares immutable payloads)."""
+    sent: dict[int, tuple] = {}
+    heard: list = []
+    payload, measure = stvf_node.StvfNode.beacon_payload, stvf_node.StvfNode.measurements
+
+    def send(self):
+        out = payload(self)
+        if out is not None:
+            sent[id(out)] = out
+        return out
+
+    def receive(self, recs):
+        heard.extend(r.packet.payload for r in recs)
+        return measure(self, recs)
+
+    monkeypatch.setattr(stvf_node.StvfNode, "beacon_payload", send)
+    monkeypatch.setattr(stvf_node.StvfNode, "measurements", receive)
+    _run(["simulation.duration_s=4.0"])
+    assert len(heard) > 500
+    assert all(sent.get(id(q)) is q for q in heard)
+    assert all(len(q) == len(stvf_node.BEACON_FIELDS) and all(type(v) is float for v in q) for q in sent.values())
