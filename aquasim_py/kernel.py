@@ -219,6 +219,12 @@ class _NodeCore:
                 return
         self.inbox.append(rec)
 
+    def take_pending(self) -> list[Reception]:
+        """Every buffered reception, oldest first, as the node takes it (:func:`_taken`)."""
+        out = [_taken(rec) for rec in self.inbox]
+        self.inbox.clear()
+        return out
+
     def recv(self, timeout: float | None, kinds: str | Iterable[str] | None, view: NodeEnv) -> simpy.Event:
         """The node's receive event (its ``env`` is the node's ``view``); the expiry timer is
         the kernel's own, in true time."""
