@@ -194,12 +194,12 @@ class _NodeCore:
         return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
 
     def deliver(self, rec: Reception) -> None:
-        # What the node gets: its own copy of the payload (receivers cannot write into each
-        # other's packets) and the modem's SNR estimate; the channel traced the true SNR.
-        pkt = rec.packet
-        payload = copy_payload(pkt.payload)
-        if payload is not pkt.payload:
-            pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
+        # What the node gets: the modem's SNR estimate (the channel traced the true SNR), drawn
+        # here in delivery order, and its own copy of the payload (_taken), made when the node
+        # takes the reception: at once for a waiting recv, from the inbox in recv. The packet
+        # holds the send-time snapshot, which no node ever gets (each takes a copy), so a copy
+        # made later is the same copy; a reception never taken (a node that does not listen)
+        # costs no copy and keeps no copied objects alive.
         snr = rec.snr_db
         if self._snr_std > 0.0 and snr == snr:  # NaN (no loss model) stays NaN
             noise = self._snr_noise
@@ -209,17 +209,21 @@ class _NodeCore:
                 if rng is None:
                     rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
                 noise.extend(rng.standard_normal(256)[::-1].tolist())
-            rec = Reception(pkt, rec.rx_local, snr + self._snr_std * noise.pop(), rec.pressure)
-        elif pkt is not rec.packet:
-            rec = Reception(pkt, rec.rx_local, snr, rec.pressure)
-        kind = pkt.kind
+            rec = Reception(rec.packet, rec.rx_local, snr + self._snr_std * noise.pop(), rec.pressure)
+        kind = rec.packet.kind
         waiters = self.waiters
         for i, (ev, kinds) in enumerate(waiters):
             if kinds is None or kind in kinds:
                 del waiters[i]
-                ev.succeed(rec)
+                ev.succeed(_taken(rec))
                 return
         self.inbox.append(rec)
+
+    def take_pending(self) -> list[Reception]:
+        """Every buffered reception, oldest first, as the node takes it (:func:`_taken`)."""
+        out = [_taken(rec) for rec in self.inbox]
+        self.inbox.clear()
+        return out
 
     def recv(self, timeout: float | None, kinds: str | Iterable[str] | None, view: NodeEnv) -> simpy.Event:
         """The node's receive event (its ``env`` is the node's ``view``); the expiry timer is
@@ -235,11 +239,11 @@ class _NodeCore:
         inbox = self.inbox
         if inbox:
             if ks is None:
-                return ev.succeed(inbox.popleft())
+                return ev.succeed(_taken(inbox.popleft()))
             for i, rec in enumerate(inbox):
                 if rec.packet.kind in ks:
                     del inbox[i]
-                    return ev.succeed(rec)
+                    return ev.succeed(_taken(rec))
         entry = (ev, ks)
         self.waiters.append(entry)
         if timeout is not None:
@@ -292,10 +296,11 @@ class _NodeCore:
     # -- logging ----------------------------------------------------------------------------------
 
     def log(self, table: str, columns: Mapping[str, Any]) -> None:
-        reserved = {"time", "node", "protocol"} & set(columns)
-        if reserved:
-            raise ValueError(f"log(): columns {sorted(reserved)} are added by the kernel")
-        self.sim.trace.append(table, time=self.env.now, node=self.index, protocol=self.protocol, **columns)
+        if "time" in columns or "node" in columns or "protocol" in columns:
+            reserved = sorted({"time", "node", "protocol"} & set(columns))
+            raise ValueError(f"log(): columns {reserved} are added by the kernel")
+        # straight to the table: one keyword packing per row (a protocol may log per reception)
+        self.sim.trace.table(table).append(time=self.env.now, node=self.index, protocol=self.protocol, **columns)
 
     def log_estimate(
         self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]
@@ -340,6 +345,17 @@ class _NodeCore:
             error=err,
             **extra,
         )
+
+
+def _taken(rec: Reception) -> Reception:
+    """``rec`` as a node takes it: with its own copy of the payload (the packet's send-time
+    snapshot shared only when it is immutable, :func:`~aquasim_py.packet.copy_payload`)."""
+    pkt = rec.packet
+    payload = copy_payload(pkt.payload)
+    if payload is pkt.payload:
+        return rec
+    pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
+    return Reception(pkt, rec.rx_local, rec.snr_db, rec.pressure)
 
 
 #: young-generation threshold of the garbage collector while a simulation runs (Python's

@@ -262,11 +262,9 @@ class Node:
 
     def take_pending(self) -> list[Reception]:
         """Every buffered reception, oldest first, taken now without an event each (what
-        ``recv()`` while ``pending()`` returns, one SimPy event per reception)."""
-        inbox = self.__k.inbox
-        out = list(inbox)
-        inbox.clear()
-        return out
+        ``recv()`` while ``pending()`` returns, one SimPy event per reception), each with its
+        own copy of the payload as ``recv`` gives it."""
+        return self.__k.take_pending()
 
     # -- sensors --------------------------------------------------------------------------------
 

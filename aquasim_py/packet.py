@@ -2,12 +2,13 @@
 
 Payloads are copied, never shared: a packet carries a snapshot taken when the sender calls
 ``broadcast``/``send`` (:func:`snapshot_payload`), and each receiver gets its own copy of that
-snapshot (:func:`copy_payload`). So a sender changing its object after sending reaches no
-receiver, and receivers cannot write into each other's packets (either would be an instant,
-distance-free side channel). Cost: both are a deep copy, O(payload size) per send and per
-reception; immutable parts (None, numbers, strings, bytes, numpy scalars, and tuples and
-frozensets made only of those) are shared, not copied, so the usual payloads (small dicts of
-numbers, tuples of numbers, short lists, 3-vectors) cost a few microseconds. Built-in
+snapshot (:func:`copy_payload`) when it takes the reception (``recv``; the snapshot itself
+reaches no node, so a copy made later is the same copy). So a sender changing its object after
+sending reaches no receiver, and receivers cannot write into each other's packets (either would
+be an instant, distance-free side channel). Cost: both are a deep copy, O(payload size) per
+send and per reception taken; immutable parts (None, numbers, strings, bytes, numpy scalars,
+and tuples and frozensets made only of those) are shared, not copied, so the usual payloads
+(small dicts of numbers, tuples of numbers, short lists, 3-vectors) cost a few microseconds. Built-in
 containers (dict, list, tuple, set, frozenset) and numpy arrays are copied by hand (fast
 path); anything else goes through :func:`copy.deepcopy`.
 """

@@ -11,6 +11,8 @@ exact and platform independent, so the same run gives byte-identical CSV files.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -26,7 +28,17 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
-__all__ = ["SCHEMAS", "Table", "TableNotKept", "Trace", "TraceConfig", "TraceFiles", "load", "read_table"]
+__all__ = [
+    "SCHEMAS",
+    "Table",
+    "TableNotKept",
+    "Trace",
+    "TraceConfig",
+    "TraceFiles",
+    "load",
+    "read_table",
+    "table_columns",
+]
 
 #: Column kinds: "f" float64, "i" int64, "c" string category (None = missing), "o" any object.
 SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
@@ -207,17 +219,18 @@ class _Column:
         else:
             self.push_many(tuple(values.tolist()))
 
-    def series(self, name: str) -> pd.Series:
+    def series(self, name: str, index: pd.Index | None = None) -> pd.Series:
         if self.kind == "f":
-            return pd.Series(np.frombuffer(self.data, dtype=np.float64).copy(), name=name)
+            return pd.Series(np.frombuffer(self.data, dtype=np.float64).copy(), name=name, index=index)
         if self.kind == "i":
-            return pd.Series(np.frombuffer(self.data, dtype=np.int64).copy(), name=name)
+            return pd.Series(np.frombuffer(self.data, dtype=np.int64).copy(), name=name, index=index)
         if self.kind == "c":
             inv = np.empty(len(self.cats), dtype=object)
             inv[:] = list(self.cats)
             codes = np.frombuffer(self.data, dtype=np.int32) if len(self.data) else np.zeros(0, np.int32)
-            return pd.Series(inv[codes] if len(inv) else np.empty(0, dtype=object), name=name, dtype=object)
-        return pd.Series(self.data, name=name, dtype=object)
+            values = inv[codes] if len(inv) else np.empty(0, dtype=object)
+            return pd.Series(values, name=name, dtype=object, index=index)
+        return pd.Series(self.data, name=name, dtype=object, index=index)
 
 
 def _kind_of(v: Any) -> str:
@@ -252,7 +265,12 @@ class Table:
         self._n = 0
         self.columns: dict[str, _Column] = {c: _Column(k) for c, k in schema}
         self._schema = tuple(self.columns)
+        # the columns of the row tuples in _buf, in order: the schema, a prefix of self.columns
+        # (append_fast, row_buffer); a table without one: every column, as its last complete
+        # row named them (append)
+        self._buf_keys = self._schema
         self._buf: list[tuple[Any, ...]] = []
+        self._batch = self._BATCH  # rows buffered before they move into the columns
         self._sink: _Sink | None = None
         self._chunk_rows = self._next_spill = 0
         self._streamed = 0  # rows handed to the sink
@@ -282,17 +300,21 @@ class Table:
             return
         buf = self._buf[:]
         self._buf.clear()  # the same list object: hot-path writers may hold it (see row_buffer)
-        for key, values in zip(self._schema, zip(*buf)):
+        for key, values in zip(self._buf_keys, zip(*buf)):
             self.columns[key].push_many(values)
-        if len(self.columns) != len(self._schema):
-            for key in list(self.columns)[len(self._schema) :]:
+        if len(self.columns) != len(self._buf_keys):
+            for key in list(self.columns)[len(self._buf_keys) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
         self._maybe_spill()
 
     def _maybe_spill(self) -> None:
-        if self._sink is not None and self._n >= self._next_spill:
-            self._spill(final=False)
+        if self._sink is not None:
+            if self._n >= self._next_spill:
+                self._spill(final=False)
+            # buffer no more rows than reach the next hand-over: rows go to the sink where
+            # they would if appended one by one, and a small chunk stays small in memory
+            self._batch = max(1, min(self._BATCH, self._next_spill - self._n))
 
     def _spill(self, final: bool) -> None:
         """Hand the rows held (for a time-ordered table: those before the watermark) to the sink."""
@@ -324,7 +346,9 @@ class Table:
             self._streamed += len(df)
 
     def _held_frame(self) -> pd.DataFrame:
-        return pd.DataFrame({k: c.series(k) for k, c in self.columns.items()})
+        # one index object shared by every column: pandas then skips aligning them (half the cost)
+        index = pd.RangeIndex(self._n) if self.columns else None  # (no columns: no rows, as before)
+        return pd.DataFrame({k: c.series(k, index) for k, c in self.columns.items()}, index=index)
 
     def _reset_columns(self) -> None:
         """Empty every column, keeping its (possibly widened) type."""
@@ -348,7 +372,18 @@ class Table:
         return self._sink.path
 
     def append(self, **row: Any) -> None:
-        """Append one row; unknown columns are created (earlier rows get missing values)."""
+        """Append one row; unknown columns are created (earlier rows get missing values).
+
+        A row of every column in the buffer's order (a protocol logging the same columns each
+        time) is buffered as :meth:`append_fast` buffers: ``push_many`` widens a column's type
+        exactly as ``push`` would, row by row."""
+        keys = tuple(row)
+        if keys == self._buf_keys and len(keys) == len(self.columns):
+            buf = self._buf
+            buf.append(tuple(row.values()))
+            if len(buf) >= self._batch:
+                self._flush()
+            return
         if self._buf:
             self._flush()
         cols = self.columns
@@ -362,6 +397,8 @@ class Table:
                 if key not in row:
                     col.fill_missing()
         self._n += 1
+        if not self._schema and len(row) == len(cols):  # later rows like this one are buffered
+            self._buf_keys = keys
         self._maybe_spill()
 
     def row_buffer(self) -> list[tuple[Any, ...]]:
@@ -370,14 +407,14 @@ class Table:
         return self._buf
 
     def flush_if_large(self) -> None:
-        if len(self._buf) >= self._BATCH:
+        if len(self._buf) >= self._batch:
             self._flush()
 
     def append_fast(self, values: tuple[Any, ...]) -> None:
         """Append a row given in schema order (the kernel's hot path: no checks, no new columns)."""
         buf = self._buf
         buf.append(values)
-        if len(buf) >= self._BATCH:
+        if len(buf) >= self._batch:
             self._flush()
 
     def extend(self, **cols: np.ndarray) -> None:
@@ -563,6 +600,101 @@ def _reformats(old: Mapping[str, str], new: Mapping[str, str]) -> bool:
     return any(k not in old for k in new) or any(old[k] == "i" and new[k] == "f" for k in old)
 
 
+#: strings whose CSV field text a sink remembers (category values: a handful per column)
+_QUOTED_MAX = 65_536
+
+
+def _csv_field(s: str) -> str:
+    """``s`` as ``csv.writer`` writes it in a row of several fields (QUOTE_MINIMAL, the dialect
+    ``DataFrame.to_csv`` uses): asked of the csv module itself, so its quoting rules apply."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([s, "x"])
+    return buf.getvalue()[:-3]  # without ",x\n"
+
+
+def _float_fields(cols: list[np.ndarray]) -> list[list[str]]:
+    """The fields ``DataFrame.to_csv`` writes for float64 columns: numpy's ``astype(str)``,
+    which gives the digits of Python's ``repr`` (shortest round trip; tests/test_trace_csv.py
+    holds the two equal), and "" for NaN. ``repr`` costs about 0.4 us per value, so each
+    distinct value of the chunk (by its bits: -0.0 is not 0.0) is formatted once: a static
+    link's delay and SNR recur with every packet on it, a perfect clock's reading is the time."""
+    n = len(cols[0])
+    u, inv = np.unique(np.concatenate([c.view(np.int64) for c in cols]), return_inverse=True)
+    values = u.view(np.float64)
+    text = np.empty(len(u), dtype=object)
+    text[:] = list(map(float.__repr__, values.tolist()))
+    text[np.isnan(values)] = ""
+    fields = text[inv.ravel()]
+    return [fields[i * n : (i + 1) * n].tolist() for i in range(len(cols))]
+
+
+def _int_fields(a: np.ndarray) -> list[str]:
+    """The fields ``DataFrame.to_csv`` writes for an int64 column (``str`` of each value);
+    through a table of the range's texts when the range is no wider than the column (ids,
+    counts, uids of one chunk)."""
+    lo, hi = int(a.min()), int(a.max())
+    if hi - lo < len(a):
+        table = np.empty(hi - lo + 1, dtype=object)
+        table[:] = list(map(str, range(lo, hi + 1)))
+        return table[a - lo].tolist()
+    return list(map(int.__repr__, a.tolist()))
+
+
+_OBJECT_TYPES = frozenset((str, type(None), bool))
+
+
+def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | None:
+    """The fields ``DataFrame.to_csv`` writes for an object column of strings, None and bools
+    ("" for None, csv quoting for strings, ``str`` for bools); None if it holds anything else
+    (NaN, numbers, arrays: pandas' and csv's own rules then apply, through pandas).
+
+    ``quoted`` maps each value met so far to its field (no other types share a key with
+    these: 1 == True is excluded by the type test), so a column is one C-level ``map``."""
+    if not _OBJECT_TYPES.issuperset(map(type, values)):
+        return None
+    try:
+        return list(map(quoted.__getitem__, values))
+    except KeyError:
+        for v in set(values).difference(quoted):
+            quoted[v] = "" if v is None else str(v) if type(v) is bool else _csv_field(v)
+        return list(map(quoted.__getitem__, values))
+
+
+def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
+    """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
+    column at a time instead of through pandas' per-field path (about 5 us per ``packets``
+    row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
+    fields across calls. None when ``df`` has a column other than float64, int64 or an object
+    column of strings / None / bools, a single column (csv writes an empty lone field as
+    ``""``), no rows or a label that is not a string: the caller then uses pandas.
+
+    tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
+    labels = list(df.columns)
+    if len(df) == 0 or len(labels) < 2 or not all(type(c) is str for c in labels):
+        return None
+    cols: list[list[str] | None] = [None] * len(labels)
+    floats: dict[int, np.ndarray] = {}
+    for i, c in enumerate(labels):
+        a = df[c].to_numpy()
+        if a.dtype == np.float64:
+            floats[i] = a
+        elif a.dtype == np.int64:
+            cols[i] = _int_fields(a)
+        elif a.dtype == object:
+            cols[i] = _object_fields(a.tolist(), quoted)
+            if cols[i] is None:
+                return None
+        else:
+            return None
+    if floats:
+        for i, f in zip(floats, _float_fields(list(floats.values()))):
+            cols[i] = f
+    rows = "\n".join(map(",".join, zip(*cols))) + "\n"
+    if not header:
+        return rows
+    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n" + rows
+
+
 class _CsvSink:
     """A table appended to ``path`` chunk by chunk, byte for byte what :func:`write_frames`
     writes for the whole table.
@@ -575,14 +707,21 @@ class _CsvSink:
     def __init__(self, path: Path) -> None:
         self.path = path
         self._kinds: dict[str, str] | None = None
+        self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_csv_text), kept across chunks
 
     def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
         if self._kinds is not None and _reformats(self._kinds, kinds):
             self._rewrite(kinds)
         first = self._kinds is None
+        text = _csv_text(df, first, self._quoted)
         with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
-            df.to_csv(f, index=False, header=first, lineterminator="\n")
+            if text is None:  # a column the bulk formatter does not take: pandas writes the chunk
+                df.to_csv(f, index=False, header=first, lineterminator="\n")
+            else:
+                f.write(text)
         self._kinds = dict(kinds)
+        if len(self._quoted) > _QUOTED_MAX:  # a column of ever new strings: do not keep them all
+            self._quoted.clear()
 
     def _rewrite(self, kinds: Mapping[str, str]) -> None:
         assert self._kinds is not None
@@ -695,8 +834,9 @@ def _csv_header(path: Path) -> pd.Index | None:
         return None
 
 
-def _read_csv(path: Path, name: str) -> pd.DataFrame:
-    """One CSV table with exact floats and its schema's dtypes.
+def _read_csv(path: Path, name: str, columns: Sequence[str] | None = None) -> pd.DataFrame:
+    """One CSV table with exact floats and its schema's dtypes (``columns``: only those, each
+    parsed and typed as in the whole table: pandas infers a column's dtype from it alone).
 
     Only an empty field is missing (the writer's ``na_rep``): pandas' default NA strings would
     turn a category such as "NA" or "null" into NaN. Schema columns get their dtypes back even
@@ -708,9 +848,16 @@ def _read_csv(path: Path, name: str) -> pd.DataFrame:
     header = _csv_header(path)
     if header is None:  # a table without columns is written as an empty line
         return pd.DataFrame()
+    kw: dict[str, Any] = dict(_READ_CSV_KW)
+    if columns is not None:
+        header = [c for c in header if c in columns]
+    if len(set(header)) == len(header):
+        # the columns named even when all are read: the parse then peaks about 25 MiB lower
+        # on STVF's 500-s estimates (14.5 MB; docs/performance.md, "End to end")
+        kw["usecols"] = list(header)
     # categories as text: "007" or "1.50" must not become numbers
     dtype = {c: str for c in header if kinds.get(c) == "c"}
-    df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, **_READ_CSV_KW)
+    df = pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=dtype, **kw)
     for c in header:
         kind = kinds.get(c)
         if kind in ("f", "i") and len(df) == 0:  # no rows: the header alone reads as object
@@ -721,6 +868,21 @@ def _read_csv(path: Path, name: str) -> pd.DataFrame:
                 np.where(col.isna(), None, col.to_numpy(dtype=object)), index=df.index, dtype=object, name=c
             )
     return df
+
+
+def table_columns(tables: Mapping[str, pd.DataFrame], name: str, columns: Sequence[str]) -> pd.DataFrame | None:
+    """``tables[name]``'s ``columns`` (those it has, in its order); None when ``tables`` has no
+    such table. From a streamed run's files (:meth:`TraceFiles.columns`, or a view of them with
+    a ``columns`` method) only those columns are parsed. A table the run did not keep raises
+    :class:`TableNotKept`, as ``tables[name]`` does."""
+    read = getattr(tables, "columns", None)
+    try:
+        if read is not None:
+            return read(name, columns)
+        df = tables[name]
+    except KeyError:
+        return None
+    return df[[c for c in df.columns if c in columns]]
 
 
 def read_table(path: str | os.PathLike[str], name: str | None = None) -> pd.DataFrame:
@@ -769,6 +931,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         self._rows = dict(rows or {})
         self._dropped = set(dropped) - set(self._files)
         self._cache: dict[str, pd.DataFrame] = {}
+        self._column_cache: dict[tuple[str, tuple[str, ...]], pd.DataFrame] = {}
         if scratch is not None:
             weakref.finalize(self, shutil.rmtree, scratch, True)
 
@@ -798,6 +961,27 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
     def path(self, name: str) -> Path:
         """The file table ``name`` was written to."""
         return self._files[name]
+
+    def columns(self, name: str, columns: Sequence[str]) -> pd.DataFrame:
+        """Table ``name``'s ``columns`` (those it has, in its order), as ``self[name]`` has them,
+        parsing only those from the file (a metric that needs 4 of ``packets``' 13 columns
+        reads about a quarter); kept until :meth:`clear`. Missing table: as ``self[name]``."""
+        if name in self._cache or name not in self._files:
+            df = self[name]
+            return df[[c for c in df.columns if c in columns]]
+        key = (name, tuple(columns))
+        df = self._column_cache.get(key)
+        if df is None:
+            path = self._files[name]
+            if path.suffix == ".parquet":
+                import pyarrow.parquet as pq
+
+                names = pq.read_schema(path).names
+                df = pd.read_parquet(path, columns=[c for c in names if c in columns])
+            else:
+                df = _read_csv(path, name, columns)
+            self._column_cache[key] = df
+        return df
 
     def rows(self, name: str) -> int:
         """Number of rows of table ``name`` (without reading it)."""
@@ -837,6 +1021,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
     def clear(self) -> None:
         """Forget the tables read so far (they are read again when asked for)."""
         self._cache.clear()
+        self._column_cache.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:

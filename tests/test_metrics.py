@@ -170,6 +170,23 @@ def test_positions_at_interpolates_linear_motion_exactly():
     np.testing.assert_allclose(got, expect)
 
 
+def test_positions_at_answers_each_query_as_if_asked_alone():
+    """Queries of several nodes in any order (repeated nodes, a node without samples, times
+    outside the samples): the batch gives each query's answer alone, bit for bit."""
+    rng = np.random.default_rng(3)
+    rows = []
+    for nid in (2, 5, 11):  # each node sampled at its own times
+        t = np.sort(rng.uniform(0.0, 50.0, 12))
+        rows.append(pd.DataFrame({"time": t, "node": nid, "x": rng.normal(size=12), "y": rng.normal(size=12)}))
+    pos = pd.concat(rows, ignore_index=True).sample(frac=1.0, random_state=1).assign(z=1.0, vx=0.5, vy=-0.25, vz=0.0)
+    q_node = rng.choice([2, 5, 11, 8], size=60)
+    q_time = rng.uniform(-5.0, 55.0, size=60)
+    got = metrics.positions_at(pos, q_node, q_time)
+    alone = np.vstack([metrics.positions_at(pos, [n], [t]) for n, t in zip(q_node, q_time)])
+    assert np.array_equal(got, alone, equal_nan=True)
+    assert np.isnan(got[q_node == 8]).all() and np.isfinite(got[q_node != 8]).all()
+
+
 def test_summarize_adds_protocol_metrics_with_prefix(est):
     class Proto:
         name = "demo"

@@ -28,10 +28,13 @@ from pydantic import BaseModel, ConfigDict, Field
 from aquasim_py.metrics import positions_at
 from aquasim_py.node import Node, Role, SensorUnavailable
 from aquasim_py.registry import register
+from aquasim_py.trace import table_columns
 
 __all__ = ["BeaconNode", "range_errors", "true_ranges"]
 
 _BROADCASTERS = (Role.ANCHOR, Role.BUOY)
+#: the columns of ``ranges`` the metrics read (only these are parsed from a streamed run's file)
+_RANGE_COLUMNS = ("uid", "node", "anchor", "range_m")
 
 
 @register
@@ -142,8 +145,8 @@ def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None 
     """True ranges (m) for the rows of ``ranges``: the distance from the sender's position when
     the first bit left to the receiver's position when it arrived (the times from the
     ``packets`` table by uid, the positions interpolated from the ``positions`` table)."""
-    r = tables.get("ranges") if ranges is None else ranges
-    packets = tables.get("packets")
+    r = table_columns(tables, "ranges", _RANGE_COLUMNS) if ranges is None else ranges
+    packets = table_columns(tables, "packets", ["event", "uid", "node", "time"])
     positions = tables.get("positions")
     if r is None or len(r) == 0 or packets is None or positions is None:
         return pd.DataFrame(columns=["uid", "node", "anchor", "t_tx", "t_rx", "true_range_m"])
@@ -159,7 +162,7 @@ def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None 
 
 def range_errors(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     """The ``ranges`` rows with their true range and error = estimate - truth (m)."""
-    r = tables.get("ranges")
+    r = table_columns(tables, "ranges", _RANGE_COLUMNS)
     if r is None or len(r) == 0:
         return pd.DataFrame(columns=["uid", "node", "anchor", "range_m", "true_range_m", "error_m"])
     truth = true_ranges(tables, r)
