@@ -209,26 +209,6 @@ class LateListener(Listener):
         yield from super().run()
 
 
-def test_receptions_taken_from_the_inbox_are_own_copies_of_the_snapshot() -> None:
-    """Node 1 takes (and writes into) its receptions first, node 2 later: node 2 still gets the
-    send-time snapshot, in its own objects."""
-    Listener.got = {}
-    LateListener.delay = {1: 2.0, 2: 4.0}
-    sim = Simulation(5, ssp=C, channel=ChannelConfig(collision="none"))
-    sim.add_group(type("T", (Talker,), {"n": 3}), 1, positions=[P0])
-    sim.add_group(LateListener, 2, positions=[P1, P2])
-    sim.run(20.0)
-    for rid in (1, 2):
-        got = Listener.got[rid]
-        assert [k for k, _, _ in got] == ["d", "a"] * 3
-        for i in range(3):
-            (_, d, _), (_, a, _) = got[2 * i], got[2 * i + 1]
-            assert d["seq"] == i and d["pos"][0] == 1.0 and d["pos"][1] == 99.0  # its own write only
-            assert a[0] == float(i) and a[1] == 99.0
-    for (_, x, _), (_, y, _) in zip(Listener.got[1], Listener.got[2]):
-        assert x is not y
-
-
 class LateTaker(Listener):
     """Takes its whole inbox at once (``take_pending``) after ``delay`` s, writing into each."""
 
@@ -245,20 +225,22 @@ class LateTaker(Listener):
                 rec.packet.payload[1] = 99.0
 
 
-def test_receptions_taken_at_once_are_own_copies_of_the_snapshot() -> None:
-    """As above, through take_pending: node 2 still gets the snapshot after node 1 wrote."""
+@pytest.mark.parametrize("late", [LateListener, LateTaker], ids=["recv", "take_pending"])
+def test_receptions_taken_from_the_inbox_are_own_copies_of_the_snapshot(late: type[LateListener | LateTaker]) -> None:
+    """Node 1 takes (and writes into) its receptions first, node 2 later, one by one with recv or
+    all at once with take_pending: node 2 still gets the send-time snapshot, in its own objects."""
     Listener.got = {}
-    LateTaker.delay = {1: 2.0, 2: 4.0}
+    late.delay = {1: 2.0, 2: 4.0}
     sim = Simulation(5, ssp=C, channel=ChannelConfig(collision="none"))
     sim.add_group(type("T", (Talker,), {"n": 3}), 1, positions=[P0])
-    sim.add_group(LateTaker, 2, positions=[P1, P2])
+    sim.add_group(late, 2, positions=[P1, P2])
     sim.run(20.0)
     for rid in (1, 2):
         got = Listener.got[rid]
         assert [k for k, _, _ in got] == ["d", "a"] * 3
         for i in range(3):
             (_, d, _), (_, a, _) = got[2 * i], got[2 * i + 1]
-            assert d["seq"] == i and d["pos"][0] == 1.0 and d["pos"][1] == 99.0
+            assert d["seq"] == i and d["pos"][0] == 1.0 and d["pos"][1] == 99.0  # its own write only
             assert a[0] == float(i) and a[1] == 99.0
     for (_, x, _), (_, y, _) in zip(Listener.got[1], Listener.got[2]):
         assert x is not y

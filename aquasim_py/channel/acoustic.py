@@ -627,15 +627,7 @@ class AcousticChannel:
                     [],
                 )
         else:  # any other model gets the whole ray, as _straight_moving makes it
-            ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
-            ray = Eigenray(
-                time=times,
-                length=length,
-                launch_angle=ang,
-                arrival_angle=ang.copy(),
-                turning_depth=np.full(length.shape, np.nan),
-                path=np.full(length.shape, np.int8(PathKind.DIRECT)),
-            )
+            ray = _direct_rays(times, length, np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1])))
             snr = np.asarray(model(ray, self.config), dtype=float)
         return self._sorted_links(cand.tolist(), times, self._direct, snr)
 
@@ -925,6 +917,20 @@ def _linear_fixed_point(
     return _secant_fixed_point(_travel_time_fn(ssp, refl, p_src, path), p0, v, t_start, slope)
 
 
+def _direct_rays(time: NDArray[np.float64], length: NDArray[np.float64], ang: NDArray[np.float64]) -> Eigenray:
+    """Straight rays (constant profile) with delays ``time`` (s), lengths (m) and elevation
+    ``ang`` (rad, launch = arrival); the arrival angle is its own array because the fixed point
+    writes rows of each field."""
+    return Eigenray(
+        time=time,
+        length=length,
+        launch_angle=ang,
+        arrival_angle=ang.copy(),
+        turning_depth=np.full(length.shape, np.nan),
+        path=np.full(length.shape, np.int8(PathKind.DIRECT)),
+    )
+
+
 def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArray[np.float64]], Eigenray]:
     """``eigenray(ssp, p_src, dst)`` for a constant profile and one source, as a function of
     the receivers dst (k, 3): the same arithmetic as ``raytrace._constant_direct`` (so the same
@@ -949,14 +955,7 @@ def _straight_rays(ssp: Constant, p_src: NDArray[np.float64]) -> Callable[[NDArr
             ok[...] = False
         bad = ~ok
         if not bad.any():  # the usual case: the np.where below would change nothing
-            return Eigenray(
-                time=dist / c,
-                length=dist,
-                launch_angle=ang,
-                arrival_angle=ang.copy(),  # own array: the fixed point writes rows of each field
-                turning_depth=np.full(dist.shape, np.nan),
-                path=np.full(dist.shape, direct),
-            )
+            return _direct_rays(dist / c, dist, ang)
         return Eigenray(
             time=np.where(bad, np.nan, dist / c),
             length=np.where(bad, np.nan, dist),
@@ -1007,15 +1006,7 @@ def _straight_moving(
     time = dist / c
     if not bool((np.abs(time - t) <= FIXED_POINT_TOL_S).all()):
         return None
-    ang = np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1]))
-    return Eigenray(
-        time=time,
-        length=dist,
-        launch_angle=ang,
-        arrival_angle=ang.copy(),
-        turning_depth=np.full(dist.shape, np.nan),
-        path=np.full(dist.shape, np.int8(PathKind.DIRECT)),
-    )
+    return _direct_rays(time, dist, np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1])))
 
 
 def _constant_start(
