@@ -257,6 +257,20 @@ class _Modem:
         self.rx_end = array("d")
         self.log_cap = 8  # prune the own transmissions beyond this many (see _prune)
 
+    def record(self, sig: _Signal, forget: float) -> None:
+        """Keep ``sig`` in the signal log (rx_log with its arrival and end times, sorted by
+        arrival; after equal arrivals, as ``insort``), first forgetting the signals that
+        arrived before ``forget`` (true s)."""
+        keys = self.rx_arr
+        if keys and keys[0] < forget:
+            j = bisect_left(keys, forget)
+            del keys[:j], self.rx_end[:j], self.rx_log[:j]
+        arr = sig[0]
+        j = bisect_right(keys, arr)
+        keys.insert(j, arr)
+        self.rx_end.insert(j, sig[1])
+        self.rx_log.insert(j, sig)
+
 
 class _Deliveries:
     """The deliveries of one transmission, as one entry at a time on SimPy's event queue.
@@ -475,14 +489,7 @@ class AcousticChannel:
                 # delivery's context
                 sig = (arr, end, s, rx, pkt, T, path, -1)
                 if track:
-                    keys = rx.rx_arr
-                    if keys and keys[0] < forget:
-                        j = bisect_left(keys, forget)
-                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
-                    j = bisect_right(keys, arr)  # after equal arrivals, as insort
-                    keys.insert(j, arr)
-                    rx.rx_end.insert(j, end)
-                    rx.rx_log.insert(j, sig)
+                    rx.record(sig, forget)
                 sigs.append(sig)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
@@ -494,14 +501,7 @@ class AcousticChannel:
                 end = arr + duration
                 sig = (arr, end, s, rx, pkt, T, path, dst)
                 if track:
-                    keys = rx.rx_arr
-                    if keys and keys[0] < forget:
-                        j = bisect_left(keys, forget)
-                        del keys[:j], rx.rx_end[:j], rx.rx_log[:j]
-                    j = bisect_right(keys, arr)
-                    keys.insert(j, arr)
-                    rx.rx_end.insert(j, end)
-                    rx.rx_log.insert(j, sig)
+                    rx.record(sig, forget)
                 if intended:
                     sigs.append(sig)
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
