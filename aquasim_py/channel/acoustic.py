@@ -42,7 +42,7 @@ from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
-from heapq import heappush
+from heapq import heappop, heappush
 from itertools import repeat
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, cast
@@ -362,6 +362,8 @@ class AcousticChannel:
         self._eid: Any = getattr(env, "_eid", None)
         known = isinstance(self._queue, list) and hasattr(self._eid, "__next__")
         self._push = self._push_queue if known else self._push_schedule
+        if not known:
+            self._queue = []  # _next_delivery then leaves every pop to Environment.step
 
         # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
         obs = config.obstacles
@@ -770,16 +772,32 @@ class AcousticChannel:
     # -- receive ----------------------------------------------------------------------------------
 
     def _next_delivery(self, ev: _Deliveries) -> None:
-        """Decide the transmission's current delivery, then queue its next one."""
-        sigs = ev.sigs
-        k = ev.k
-        self._on_delivery(sigs[k])
-        k += 1
-        if k < len(sigs):
-            ev.k = k
-            ev.callbacks = self._next_cb  # Environment.step set it to None
-            t0 = ev.t0
-            self._push(ev, t0 + (sigs[k][1] - t0))
+        """Decide the transmission's current delivery and queue its next one; then, while the
+        head of SimPy's queue is another delivery entry of this channel, take it off the queue
+        and decide it here, as ``Environment.step`` would have next (the same pop of the same
+        heap: the same order and times), without a step and its callback loop each."""
+        queue = self._queue
+        cb = self._next_cb
+        decide = self._on_delivery
+        push = self._push
+        while True:
+            sigs = ev.sigs
+            k = ev.k
+            decide(sigs[k])
+            k += 1
+            if k < len(sigs):
+                ev.k = k
+                ev.callbacks = cb  # Environment.step set it to None (the loop below leaves it)
+                t0 = ev.t0
+                push(ev, t0 + (sigs[k][1] - t0))
+            if not queue:  # empty, or no access to SimPy's queue (_push_schedule)
+                return
+            head = queue[0]
+            ev = head[3]
+            if ev.callbacks is not cb:  # an event of SimPy's or of a node: step() takes it
+                return
+            heappop(queue)
+            self._env._now = head[0]
 
     def _push_queue(self, ev: _Deliveries, at: float) -> None:
         """Queue ``ev`` at true time ``at`` exactly, as ``Environment.schedule`` would with
