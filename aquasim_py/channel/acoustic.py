@@ -84,8 +84,11 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-# signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
-_Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
+# signal records: [arrival, end, snr_db, receiver modem, packet, tof, path, dst, verdict], a
+# list so that the destructive model can set the verdict (None, "half_duplex" or "collision")
+# before the delivery (_Modem.record_destructive, _Modem.transmitting)
+_Signal = list[Any]
+_VERDICT = 8
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
@@ -270,6 +273,76 @@ class _Modem:
         keys.insert(j, arr)
         self.rx_end.insert(j, sig[1])
         self.rx_log.insert(j, sig)
+
+    def record_destructive(self, sig: _Signal, forget: float, longest: float) -> None:
+        """``record`` for the destructive model, deciding the overlaps ``sig`` takes part in
+        now, at its transmission's start, instead of at each delivery.
+
+        An overlap destroys both signals and the test is symmetric (a arrived before b's end
+        and b before a's end), so every signal of the log overlapping ``sig`` and ``sig``
+        itself are doomed ("collision", unless already "half_duplex"). Every signal that can
+        overlap a reception is recorded before that reception's delivery (it starts before
+        the reception ends), so by then its verdict is complete. ``sig`` is cut by an own
+        transmission of this modem already started; one starting later dooms it in
+        :meth:`transmitting`. ``longest``: the longest packet so far (s); a signal that
+        arrived before arr - longest ended before arr (a float argument in
+        docs/performance.md), so the scans stop there."""
+        keys = self.rx_arr
+        ends = self.rx_end
+        log = self.rx_log
+        if keys and keys[0] < forget:
+            j = bisect_left(keys, forget)
+            del keys[:j], ends[:j], log[:j]
+        arr = sig[0]
+        end = sig[1]
+        # half duplex: own transmissions started before end and ended after arr (as
+        # _on_delivery's scan; a start before arr - 2 longest ended before arr)
+        starts = self.tx_start
+        i = bisect_left(starts, arr - 2.0 * longest)
+        n = len(starts)
+        while i < n and starts[i] < end:
+            if self.tx_end[i] > arr:
+                sig[_VERDICT] = "half_duplex"
+                break
+            i += 1
+        j = bisect_right(keys, arr)
+        # earlier arrivals (<= arr) back to arr - longest, then later ones up to end
+        i = j - 1
+        lo = arr - longest
+        while i >= 0 and keys[i] >= lo:
+            if ends[i] > arr and keys[i] < end:
+                e = log[i]
+                if e[_VERDICT] is None:
+                    e[_VERDICT] = "collision"
+                if sig[_VERDICT] is None:
+                    sig[_VERDICT] = "collision"
+            i -= 1
+        i = j
+        n = len(keys)
+        while i < n and keys[i] < end:
+            if ends[i] > arr:
+                e = log[i]
+                if e[_VERDICT] is None:
+                    e[_VERDICT] = "collision"
+                if sig[_VERDICT] is None:
+                    sig[_VERDICT] = "collision"
+            i += 1
+        keys.insert(j, arr)
+        ends.insert(j, end)
+        log.insert(j, sig)
+
+    def transmitting(self, start: float, end: float, longest: float) -> None:
+        """Destructive model: this modem transmits during [start, end) (true s), so every
+        logged signal overlapping it (arrived before end, ends after start) is cut:
+        "half_duplex", which takes precedence over "collision"."""
+        keys = self.rx_arr
+        ends = self.rx_end
+        i = bisect_left(keys, start - longest)
+        n = len(keys)
+        while i < n and keys[i] < end:
+            if ends[i] > start:
+                self.rx_log[i][_VERDICT] = "half_duplex"
+            i += 1
 
 
 class _Deliveries:
@@ -481,16 +554,23 @@ class AcousticChannel:
         track = self._destructive or self._capture  # overlaps matter only with a collision model
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
-        forget = t0 - 2.0 * self._max_duration
+        longest = self._max_duration
+        forget = t0 - 2.0 * longest
+        if self._destructive:
+            # the destructive model decides overlaps as signals are recorded: this
+            # transmission cuts the signals arriving here during it
+            modem.transmitting(t0, modem.tx_end[-1], longest)
         sigs: list[_Signal] = []
         if dst is None:
             for rx, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
-                # one tuple is both the receiver's signal record (sorted by arrival) and the
+                # one record is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context
-                sig = (arr, end, s, rx, pkt, T, path, -1)
-                if track:
+                sig = [arr, end, s, rx, pkt, T, path, -1, None]
+                if self._destructive:
+                    rx.record_destructive(sig, forget, longest)
+                elif track:
                     rx.record(sig, forget)
                 sigs.append(sig)
         else:
@@ -501,8 +581,10 @@ class AcousticChannel:
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = (arr, end, s, rx, pkt, T, path, dst)
-                if track:
+                sig = [arr, end, s, rx, pkt, T, path, dst, None]
+                if self._destructive:
+                    rx.record_destructive(sig, forget, longest)
+                elif track:
                     rx.record(sig, forget)
                 if intended:
                     sigs.append(sig)
@@ -811,7 +893,39 @@ class AcousticChannel:
 
     def _on_delivery(self, sig: _Signal) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        arr, end, snr, rx, pkt, tof, path, dst_code = sig
+        arr, end, snr, rx, pkt, tof, path, dst_code, reason = sig
+        if not self._destructive:  # (destructive: decided as the signals were recorded)
+            reason = self._scan(sig)
+        if reason is not None:
+            self._row(
+                (
+                    arr,
+                    "drop",
+                    reason,
+                    rx.index,
+                    pkt.src,
+                    dst_code,
+                    pkt.uid,
+                    pkt.kind,
+                    pkt.bits,
+                    tof,
+                    snr,
+                    path,
+                    math.nan,
+                )
+            )
+            return
+        # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
+        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
+        p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
+        rx.deliver(Reception(pkt, rx_local, snr, p))
+        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+
+    def _scan(self, sig: _Signal) -> str | None:
+        """The verdict of a delivery from the receiver's logs at the delivery: "half_duplex",
+        "collision" or None (the capture and "none" models; for the destructive model, the
+        scan its verdicts set in advance must agree with, which the tests check)."""
+        arr, end, snr, rx = sig[0], sig[1], sig[2], sig[3]
         reason = None
         # own transmissions overlapping [arr, end): started before end and, lasting at most
         # the longest packet, after arr - longest packet (twice that here, so the rounding of
@@ -846,30 +960,7 @@ class AcousticChannel:
                 i += 1
             if hit and (self._destructive or not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
-        if reason is not None:
-            self._row(
-                (
-                    arr,
-                    "drop",
-                    reason,
-                    rx.index,
-                    pkt.src,
-                    dst_code,
-                    pkt.uid,
-                    pkt.kind,
-                    pkt.bits,
-                    tof,
-                    snr,
-                    path,
-                    math.nan,
-                )
-            )
-            return
-        # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
-        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
-        p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
-        rx.deliver(Reception(pkt, rx_local, snr, p))
-        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+        return reason
 
     def _pressure(self, pkt: Packet, rx: _Modem, t_send: float, t_arr: float) -> float:
         """Hydrophone reading of a sound emission (sender at send time, receiver at arrival),
