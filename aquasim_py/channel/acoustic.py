@@ -52,7 +52,7 @@ import simpy
 from numpy.typing import NDArray
 from simpy.events import NORMAL
 
-from ..packet import Packet, Reception
+from ..packet import Packet
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
 from .neighbours import NeighbourIndex
@@ -854,20 +854,53 @@ class AcousticChannel:
     # -- receive ----------------------------------------------------------------------------------
 
     def _next_delivery(self, ev: _Deliveries) -> None:
-        """Decide the transmission's current delivery and queue its next one; then, while the
-        head of SimPy's queue is another delivery entry of this channel, take it off the queue
-        and decide it here, as ``Environment.step`` would have next (the same pop of the same
-        heap: the same order and times), without a step and its callback loop each."""
+        """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace;
+        then queue the transmission's next delivery. And while the head of SimPy's queue is
+        another delivery entry of this channel, take it off the queue and do the same here, as
+        ``Environment.step`` would have next (the same pop of the same heap: the same order
+        and times), without a step and its callback loop each."""
         queue = self._queue
         cb = self._next_cb
-        decide = self._on_delivery
         push = self._push
+        row = self._row
+        destructive = self._destructive
+        plain = self._jitter_std <= 0.0  # without jitter the clock's stamp is the MAC stamp
+        pressure_kind = self.config.pressure_kind
+        nan = math.nan
         while True:
             sigs = ev.sigs
             k = ev.k
-            decide(sigs[k])
+            sig = sigs[k]
+            arr, _end, snr, rx, pkt, tof, path, dst_code, reason = sig
+            if not destructive:  # (destructive: decided as the signals were recorded)
+                reason = self._scan(sig)
+            if reason is not None:
+                row(
+                    (arr, "drop", reason, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, nan)
+                )
+            else:
+                rx_local = rx.clock_stamp(arr) if plain else self._stamp(rx, arr)
+                p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == pressure_kind else nan
+                rx.deliver(pkt, rx_local, snr, p)
+                row(
+                    (
+                        arr,
+                        "rx",
+                        None,
+                        rx.index,
+                        pkt.src,
+                        dst_code,
+                        pkt.uid,
+                        pkt.kind,
+                        pkt.bits,
+                        tof,
+                        snr,
+                        path,
+                        rx_local,
+                    )
+                )
             k += 1
-            if k < len(sigs):
+            if k < len(sigs):  # queued after the delivery's own events (their sequence numbers)
                 ev.k = k
                 ev.callbacks = cb  # Environment.step set it to None (the loop below leaves it)
                 t0 = ev.t0
@@ -890,36 +923,6 @@ class AcousticChannel:
         """Fallback for a SimPy without ``_queue`` / ``_eid``: the public ``schedule`` (its
         time now + (at - now) can differ from ``at`` by an ulp early in a run)."""
         self._env.schedule(cast(simpy.Event, ev), NORMAL, at - self._env.now)
-
-    def _on_delivery(self, sig: _Signal) -> None:
-        """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        arr, end, snr, rx, pkt, tof, path, dst_code, reason = sig
-        if not self._destructive:  # (destructive: decided as the signals were recorded)
-            reason = self._scan(sig)
-        if reason is not None:
-            self._row(
-                (
-                    arr,
-                    "drop",
-                    reason,
-                    rx.index,
-                    pkt.src,
-                    dst_code,
-                    pkt.uid,
-                    pkt.kind,
-                    pkt.bits,
-                    tof,
-                    snr,
-                    path,
-                    math.nan,
-                )
-            )
-            return
-        # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
-        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
-        p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
-        rx.deliver(Reception(pkt, rx_local, snr, p))
-        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
 
     def _scan(self, sig: _Signal) -> str | None:
         """The verdict of a delivery from the receiver's logs at the delivery: "half_duplex",
