@@ -380,6 +380,9 @@ class AcousticChannel:
     #: use the compiled links (channel/straight.py) where they apply; False forces the numpy
     #: path (tests compare the two; the results are the same bits)
     compiled_links = True
+    #: decide consecutive deliveries at the head of SimPy's queue in one loop (_next_delivery);
+    #: False gives each its own Environment.step (tests compare: the same rows in the same order)
+    drain_deliveries = True
 
     def __init__(
         self,
@@ -859,7 +862,7 @@ class AcousticChannel:
         another delivery entry of this channel, take it off the queue and do the same here, as
         ``Environment.step`` would have next (the same pop of the same heap: the same order
         and times), without a step and its callback loop each."""
-        queue = self._queue
+        queue = self._queue if self.drain_deliveries else []
         cb = self._next_cb
         push = self._push
         row = self._row
