@@ -84,7 +84,7 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-# signal records: [arrival, end, snr_db, receiver modem, packet, tof, path, dst, verdict], a
+# signal records: [arrival, end, snr_db, receiver id, packet, tof, path, dst, verdict], a
 # list so that the destructive model can set the verdict (None, "half_duplex" or "collision")
 # before the delivery (_Modem.record_destructive, _Modem.transmitting)
 _Signal = list[Any]
@@ -225,6 +225,7 @@ class _Modem:
     """The channel's own state for one node's modem, and the node's port (its bound methods)."""
 
     __slots__ = (
+        "busy_until",
         "clock_stamp",
         "deliver",
         "index",
@@ -233,6 +234,7 @@ class _Modem:
         "port",
         "pressure_rng",
         "rx_arr",
+        "rx_cap",
         "rx_end",
         "rx_log",
         "tx_end",
@@ -253,11 +255,13 @@ class _Modem:
         # half-duplex test reads a slice of doubles, not a tuple and two floats per entry)
         self.tx_start = array("d")
         self.tx_end = array("d")
+        self.busy_until = -math.inf  # the latest of tx_end (true s)
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
         # their arrival and end times (true s), the collision scan's keys: contiguous doubles,
         # so a scan does not chase a tuple and two float objects per signal
         self.rx_arr = array("d")
         self.rx_end = array("d")
+        self.rx_cap = 8  # record_destructive forgets old signals when the log has this many
         self.log_cap = 8  # prune the own transmissions beyond this many (see _prune)
 
     def record(self, sig: _Signal, forget: float) -> None:
@@ -290,21 +294,23 @@ class _Modem:
         keys = self.rx_arr
         ends = self.rx_end
         log = self.rx_log
-        if keys and keys[0] < forget:
+        if len(keys) >= self.rx_cap and keys[0] < forget:
             j = bisect_left(keys, forget)
             del keys[:j], ends[:j], log[:j]
+            self.rx_cap = max(8, 2 * len(keys))
         arr = sig[0]
         end = sig[1]
-        # half duplex: own transmissions started before end and ended after arr (as
-        # _on_delivery's scan; a start before arr - 2 longest ended before arr)
-        starts = self.tx_start
-        i = bisect_left(starts, arr - 2.0 * longest)
-        n = len(starts)
-        while i < n and starts[i] < end:
-            if self.tx_end[i] > arr:
-                sig[_VERDICT] = "half_duplex"
-                break
-            i += 1
+        # half duplex: own transmissions started before end and ended after arr (as _scan;
+        # a start before arr - 2 longest ended before arr), none if all ended by arr
+        if self.busy_until > arr:
+            starts = self.tx_start
+            i = bisect_left(starts, arr - 2.0 * longest)
+            n = len(starts)
+            while i < n and starts[i] < end:
+                if self.tx_end[i] > arr:
+                    sig[_VERDICT] = "half_duplex"
+                    break
+                i += 1
         j = bisect_right(keys, arr)
         # earlier arrivals (<= arr) back to arr - longest, then later ones up to end
         i = j - 1
@@ -474,7 +480,9 @@ class AcousticChannel:
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks
-        (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
+        (bounded by the overlap window, not by the run length: with the destructive model, at
+        most 8 or twice those of the window, as the log is trimmed when it doubles; for
+        diagnostics and tests)."""
         return len(self._modems[node].rx_log)
 
     def packets_watermark(self) -> float:
@@ -541,6 +549,8 @@ class AcousticChannel:
         self._table.flush_if_large()
         modem.tx_start.append(t0)
         modem.tx_end.append(t0 + duration)
+        if modem.tx_end[-1] > modem.busy_until:
+            modem.busy_until = modem.tx_end[-1]
         if len(modem.tx_start) > modem.log_cap:
             self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
@@ -570,7 +580,7 @@ class AcousticChannel:
                 end = arr + duration
                 # one record is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context
-                sig = [arr, end, s, rx, pkt, T, path, -1, None]
+                sig = [arr, end, s, rx.index, pkt, T, path, -1, None]
                 if self._destructive:
                     rx.record_destructive(sig, forget, longest)
                 elif track:
@@ -584,7 +594,7 @@ class AcousticChannel:
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = [arr, end, s, rx, pkt, T, path, dst, None]
+                sig = [arr, end, s, rx.index, pkt, T, path, dst, None]
                 if self._destructive:
                     rx.record_destructive(sig, forget, longest)
                 elif track:
@@ -864,8 +874,13 @@ class AcousticChannel:
         and times), without a step and its callback loop each."""
         queue = self._queue if self.drain_deliveries else []
         cb = self._next_cb
+        # the push of _push_queue written out (one call less per delivery), unless the
+        # fallback _push_schedule is in use
+        eid = self._eid if self._push == self._push_queue else None
         push = self._push
+        q = self._queue
         row = self._row
+        modems = self._modems
         destructive = self._destructive
         plain = self._jitter_std <= 0.0  # without jitter the clock's stamp is the MAC stamp
         pressure_kind = self.config.pressure_kind
@@ -874,40 +889,26 @@ class AcousticChannel:
             sigs = ev.sigs
             k = ev.k
             sig = sigs[k]
-            arr, _end, snr, rx, pkt, tof, path, dst_code, reason = sig
+            arr, _end, snr, rid, pkt, tof, path, dst_code, reason = sig
             if not destructive:  # (destructive: decided as the signals were recorded)
                 reason = self._scan(sig)
-            if reason is not None:
-                row(
-                    (arr, "drop", reason, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, nan)
-                )
-            else:
+            if reason is None:
+                rx = modems[rid]
                 rx_local = rx.clock_stamp(arr) if plain else self._stamp(rx, arr)
                 p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == pressure_kind else nan
                 rx.deliver(pkt, rx_local, snr, p)
-                row(
-                    (
-                        arr,
-                        "rx",
-                        None,
-                        rx.index,
-                        pkt.src,
-                        dst_code,
-                        pkt.uid,
-                        pkt.kind,
-                        pkt.bits,
-                        tof,
-                        snr,
-                        path,
-                        rx_local,
-                    )
-                )
+                row((arr, "rx", None, rid, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+            else:
+                row((arr, "drop", reason, rid, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, nan))
             k += 1
             if k < len(sigs):  # queued after the delivery's own events (their sequence numbers)
                 ev.k = k
                 ev.callbacks = cb  # Environment.step set it to None (the loop below leaves it)
                 t0 = ev.t0
-                push(ev, t0 + (sigs[k][1] - t0))
+                if eid is not None:
+                    heappush(q, (t0 + (sigs[k][1] - t0), NORMAL, next(eid), ev))
+                else:
+                    push(ev, t0 + (sigs[k][1] - t0))
             if not queue:  # empty, or no access to SimPy's queue (_push_schedule)
                 return
             head = queue[0]
@@ -931,7 +932,7 @@ class AcousticChannel:
         """The verdict of a delivery from the receiver's logs at the delivery: "half_duplex",
         "collision" or None (the capture and "none" models; for the destructive model, the
         scan its verdicts set in advance must agree with, which the tests check)."""
-        arr, end, snr, rx = sig[0], sig[1], sig[2], sig[3]
+        arr, end, snr, rx = sig[0], sig[1], sig[2], self._modems[sig[3]]
         reason = None
         # own transmissions overlapping [arr, end): started before end and, lasting at most
         # the longest packet, after arr - longest packet (twice that here, so the rounding of
