@@ -26,9 +26,14 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    ``capture_threshold_db``).
 
 Each delivery is decided at the instant its last bit arrives (the deliveries of one
-transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`): by then
-every signal that can overlap the reception and every transmission of the receiver that can
-cut it are known (they started before that instant), so the verdict needs no second event.
+transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`, and consecutive
+entries at the queue's head are decided in one loop, ``_next_delivery``): by then every signal
+that can overlap the reception and every transmission of the receiver that can cut it are
+known (they started before that instant), so the verdict needs no second event. With the
+destructive model the verdict is even complete before: an overlap destroys both signals, so
+each signal dooms the logged ones it overlaps as it is recorded, and a transmission the
+signals it cuts as it starts (``_Modem.record_destructive``, ``_Modem.transmitting``); the
+delivery reads it.
 
 MAC stamps: transmit stamped when the first bit leaves (t0), receive when the first bit
 arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_std_s``.
@@ -289,8 +294,8 @@ class _Modem:
         the reception ends), so by then its verdict is complete. ``sig`` is cut by an own
         transmission of this modem already started; one starting later dooms it in
         :meth:`transmitting`. ``longest``: the longest packet so far (s); a signal that
-        arrived before arr - longest ended before arr (a float argument in
-        docs/performance.md), so the scans stop there."""
+        arrived before fl(arr - longest) ended at or before arr, even in floating point
+        (docs/performance.md, "Kernel"), so the scans stop there."""
         keys = self.rx_arr
         ends = self.rx_end
         log = self.rx_log
@@ -872,13 +877,13 @@ class AcousticChannel:
         another delivery entry of this channel, take it off the queue and do the same here, as
         ``Environment.step`` would have next (the same pop of the same heap: the same order
         and times), without a step and its callback loop each."""
-        queue = self._queue if self.drain_deliveries else []
+        heap = self._queue
+        drain = heap if self.drain_deliveries else []  # whose head the loop may take
         cb = self._next_cb
-        # the push of _push_queue written out (one call less per delivery), unless the
-        # fallback _push_schedule is in use
+        # _push_queue's push written out (one call less per delivery), unless the fallback
+        # _push_schedule is in use
         eid = self._eid if self._push == self._push_queue else None
         push = self._push
-        q = self._queue
         row = self._row
         modems = self._modems
         destructive = self._destructive
@@ -906,16 +911,16 @@ class AcousticChannel:
                 ev.callbacks = cb  # Environment.step set it to None (the loop below leaves it)
                 t0 = ev.t0
                 if eid is not None:
-                    heappush(q, (t0 + (sigs[k][1] - t0), NORMAL, next(eid), ev))
+                    heappush(heap, (t0 + (sigs[k][1] - t0), NORMAL, next(eid), ev))
                 else:
                     push(ev, t0 + (sigs[k][1] - t0))
-            if not queue:  # empty, or no access to SimPy's queue (_push_schedule)
+            if not drain:  # empty, or no access to SimPy's queue (_push_schedule)
                 return
-            head = queue[0]
+            head = drain[0]
             ev = head[3]
             if ev.callbacks is not cb:  # an event of SimPy's or of a node: step() takes it
                 return
-            heappop(queue)
+            heappop(drain)
             self._env._now = head[0]
 
     def _push_queue(self, ev: _Deliveries, at: float) -> None:
