@@ -326,6 +326,9 @@ class Table:
         self._streamed = 0  # rows handed to the sink
         self._watermark: Callable[[], float] | None = None
         self._floor = -math.inf  # every row not yet handed over has time >= this
+        # columns -> how many rows handed to the sink had each combination of their values
+        # (None: not countable, see tally)
+        self._tallies: dict[tuple[str, ...], dict[tuple[Any, ...], int] | None] = {}
 
     @property
     def n(self) -> int:
@@ -338,6 +341,40 @@ class Table:
         stable time order (the order :meth:`frame` gives). A row that breaks the promise is an
         error (the file could not be sorted), never a silently misordered file."""
         self._watermark = watermark
+
+    def tally(self, columns: tuple[str, ...]) -> None:
+        """Count, as rows are handed to the sink, the rows of each combination of the values
+        of ``columns`` (categorical ones): a statistic of the streamed file (the packet counts)
+        without reading it back. Given up (:attr:`tallies` None) if rows were handed over
+        before this call, or a chunk lacks a column or holds one that is not categorical."""
+        self._tallies[tuple(columns)] = {} if not self._streamed else None
+
+    @property
+    def tallies(self) -> dict[tuple[str, ...], dict[tuple[Any, ...], int] | None]:
+        """columns -> {values: rows} of every :meth:`tally` (None where it was given up)."""
+        return self._tallies
+
+    def _count(self, chunk: _Chunk) -> None:
+        """Add a chunk's rows to the tallies."""
+        for cols, counts in self._tallies.items():
+            if counts is None:
+                continue
+            parts = [chunk.columns.get(c) for c in cols]
+            if any(p is None or p[0] != "c" for p in parts):
+                self._tallies[cols] = None
+                continue
+            # one code per combination (mixed radix over the categories), counted in C
+            code = np.zeros(chunk.n, dtype=np.int64)
+            for _, codes, cats in parts:
+                code = code * len(cats) + codes
+            n = np.bincount(code)
+            for k in np.flatnonzero(n).tolist():
+                key, rest = [], k
+                for _, _, cats in reversed(parts):
+                    rest, i = divmod(rest, len(cats))
+                    key.append(cats[i])
+                values = tuple(reversed(key))
+                counts[values] = counts.get(values, 0) + int(n[k])
 
     def stream_to(self, sink: _Sink, chunk_rows: int) -> None:
         """Hand rows to ``sink`` in chunks of about ``chunk_rows`` (rows held so far included)."""
@@ -399,6 +436,8 @@ class Table:
         if chunk.n:
             sink.write(chunk, {k: c.kind for k, c in self.columns.items()})
             self._streamed += chunk.n
+            if self._tallies:
+                self._count(chunk)
 
     def _held_frame(self) -> pd.DataFrame:
         return _Chunk.take(self.columns, self._n).frame()
@@ -1009,12 +1048,15 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         rows: Mapping[str, int] | None = None,
         dropped: Iterable[str] = (),
         scratch: Path | None = None,
+        tallies: Mapping[str, Mapping[tuple[str, ...], dict[tuple[Any, ...], int] | None]] | None = None,
     ) -> None:
         self._files = dict(files)
         self._rows = dict(rows or {})
         self._dropped = set(dropped) - set(self._files)
+        self._tallies = {(name, cols): t for name, ts in (tallies or {}).items() for cols, t in ts.items()}
         self._cache: dict[str, pd.DataFrame] = {}
         self._column_cache: dict[tuple[str, tuple[str, ...]], pd.DataFrame] = {}
+        self._memo: dict[Any, Any] = {}
         if scratch is not None:
             weakref.finalize(self, shutil.rmtree, scratch, True)
 
@@ -1095,6 +1137,20 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
             path, usecols=have, dtype=str, keep_default_na=False, na_values=[""], chunksize=chunk_rows
         )
 
+    def tally(self, name: str, columns: tuple[str, ...]) -> dict[tuple[Any, ...], int] | None:
+        """Rows of table ``name`` per combination of the values of ``columns``, counted as the
+        file was written (:meth:`Table.tally`); None when nobody counted them."""
+        if name not in self._files:
+            return None
+        return self._tallies.get((name, tuple(columns)))
+
+    def memo(self, key: Any, compute: Callable[[], Any]) -> Any:
+        """``compute()``, computed once per ``key`` and kept until :meth:`clear`: what two
+        readers of these tables derive alike (a protocol's metrics and its derived tables)."""
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
+
     def relocate(self, old: Path, new: Path) -> None:
         """The files under ``old`` now live under ``new`` (a staged output moved into place)."""
         for name, p in self._files.items():
@@ -1105,6 +1161,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         """Forget the tables read so far (they are read again when asked for)."""
         self._cache.clear()
         self._column_cache.clear()
+        self._memo.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:
