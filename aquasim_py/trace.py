@@ -478,13 +478,18 @@ class Table:
         A row of every column in the buffer's order (a protocol logging the same columns each
         time) is buffered as :meth:`append_fast` buffers: ``push_many`` widens a column's type
         exactly as ``push`` would, row by row."""
-        keys = tuple(row)
+        self.append_row(tuple(row), tuple(row.values()))
+
+    def append_row(self, keys: tuple[str, ...], values: tuple[Any, ...]) -> None:
+        """:meth:`append` of the row whose columns ``keys`` (distinct) hold ``values``: a
+        writer that has them as tuples (a node's ``log``) need not build the dict."""
         if keys == self._buf_keys and len(keys) == len(self.columns):
             buf = self._buf
-            buf.append(tuple(row.values()))
+            buf.append(values)
             if len(buf) >= self._batch:
                 self._flush()
             return
+        row = dict(zip(keys, values))
         if self._buf:
             self._flush()
         cols = self.columns
