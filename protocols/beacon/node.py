@@ -63,7 +63,7 @@ class BeaconNode(Node):
         # without a fix (sensors.position_fix = false) sends no position: ranging and its
         # metrics do not need it.
         try:
-            return [float(v) for v in np.asarray(self.known_position(), dtype=float).ravel()]
+            return np.asarray(self.known_position(), dtype=float).ravel().tolist()  # Python floats
         except SensorUnavailable:
             return None
 
