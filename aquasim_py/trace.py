@@ -190,10 +190,13 @@ class _Column:
         try:
             if self.kind == "c":
                 cats = self.cats
-                try:  # every value a known category (the common case): one C-level map
+                try:  # every value a known category: one C-level map
                     codes = list(map(cats.__getitem__, values))
-                except KeyError:
-                    codes = [cats[v] if v in cats else self._code(v) for v in values]
+                except KeyError:  # new categories (a chunk's columns start without any)
+                    for v in dict.fromkeys(values):  # in order of first appearance
+                        if v not in cats:
+                            self._code(v)
+                    codes = list(map(cats.__getitem__, values))
                 data.extend(array("i", codes))
             else:
                 # array(typecode, tuple) takes a fast path that array.extend(tuple) does not,
