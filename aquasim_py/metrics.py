@@ -239,6 +239,7 @@ def packet_counts(
     if packets is None:
         return out
     reasons: dict[str, int] = {}
+    frames: Iterable[pd.DataFrame] = [packets] if isinstance(packets, pd.DataFrame) else ()
     if isinstance(packets, Mapping):
         for (event, reason), n in packets.items():
             key = {"tx": "sent", "rx": "received", "drop": "dropped"}.get(event)
@@ -247,8 +248,9 @@ def packet_counts(
             if event == "drop":  # missing and "" are "unknown", as below
                 why = "unknown" if reason is None or reason == "" else str(reason)
                 reasons[why] = reasons.get(why, 0) + n
-        packets = ()
-    for chunk in [packets] if isinstance(packets, pd.DataFrame) else packets:
+    elif not isinstance(packets, pd.DataFrame):
+        frames = packets
+    for chunk in frames:
         if len(chunk) == 0:
             continue
         ev = chunk["event"].astype(str)

@@ -233,10 +233,6 @@ class _Column:
         dtype = np.float64 if self.kind == "f" else np.int64 if self.kind == "i" else np.int32
         return np.frombuffer(self.data, dtype=dtype) if len(self.data) else np.zeros(0, dtype)
 
-    def series(self, name: str, index: pd.Index | None = None) -> pd.Series:
-        a = self.array()
-        return _series(name, self.kind, a.copy() if self.kind in "fi" else a, list(self.cats), index)
-
 
 def _series(name: str, kind: str, values: Any, cats: list[Any], index: pd.Index | None) -> pd.Series:
     """A column as a Series (``kind``, ``values`` and ``cats`` as :meth:`_Column.array` gives
@@ -362,8 +358,9 @@ class Table:
         for cols, counts in self._tallies.items():
             if counts is None:
                 continue
-            parts = [chunk.columns.get(c) for c in cols]
-            if any(p is None or p[0] != "c" for p in parts):
+            found = [chunk.columns.get(c) for c in cols]
+            parts = [p for p in found if p is not None and p[0] == "c"]
+            if len(parts) != len(cols):
                 self._tallies[cols] = None
                 continue
             # one code per combination (mixed radix over the categories), counted in C
