@@ -301,8 +301,10 @@ class _NodeCore:
         if "time" in columns or "node" in columns or "protocol" in columns:
             reserved = sorted({"time", "node", "protocol"} & set(columns))
             raise ValueError(f"log(): columns {reserved} are added by the kernel")
-        # straight to the table: one keyword packing per row (a protocol may log per reception)
-        self.sim.trace.table(table).append(time=self.env.now, node=self.index, protocol=self.protocol, **columns)
+        # straight to the table as tuples, no keyword packing (a protocol may log per reception)
+        self.sim.trace.table(table).append_row(
+            ("time", "node", "protocol", *columns), (self.env.now, self.index, self.protocol, *columns.values())
+        )
 
     def log_estimate(
         self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]

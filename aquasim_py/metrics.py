@@ -221,17 +221,36 @@ def _fmt_pct(p: float) -> str:
     return f"{p:g}".replace(".", "_")
 
 
-def packet_counts(packets: pd.DataFrame | Iterable[pd.DataFrame] | None) -> dict[str, int]:
+#: the columns of a table whose value combinations a streamed run counts as it writes them
+#: (:meth:`aquasim_py.trace.Table.tally`): the packet counts, without reading ``packets`` back
+TALLIED: dict[str, tuple[str, ...]] = {"packets": ("event", "reason")}
+
+
+def packet_counts(
+    packets: pd.DataFrame | Iterable[pd.DataFrame] | Mapping[tuple[Any, Any], int] | None,
+) -> dict[str, int]:
     """Packets sent (tx), received (rx) and dropped, the drops also split by ``reason``.
 
     ``packets``: the ``packets`` table, or its ``event`` / ``reason`` columns in chunks
     (:meth:`aquasim_py.trace.TraceFiles.chunks`), so that a long run's table need not be
-    held at once."""
+    held at once; or the rows per (event, reason) of a table of strings / None, as a
+    streamed run counts them (:meth:`aquasim_py.trace.TraceFiles.tally`)."""
     out = {"sent": 0, "received": 0, "dropped": 0}
     if packets is None:
         return out
     reasons: dict[str, int] = {}
-    for chunk in [packets] if isinstance(packets, pd.DataFrame) else packets:
+    frames: Iterable[pd.DataFrame] = [packets] if isinstance(packets, pd.DataFrame) else ()
+    if isinstance(packets, Mapping):
+        for (event, reason), n in packets.items():
+            key = {"tx": "sent", "rx": "received", "drop": "dropped"}.get(event)
+            if key is not None:
+                out[key] += n
+            if event == "drop":  # missing and "" are "unknown", as below
+                why = "unknown" if reason is None or reason == "" else str(reason)
+                reasons[why] = reasons.get(why, 0) + n
+    elif not isinstance(packets, pd.DataFrame):
+        frames = packets
+    for chunk in frames:
         if len(chunk) == 0:
             continue
         ev = chunk["event"].astype(str)
@@ -364,9 +383,12 @@ def summarize(
     metrics and the protocols' alike (one time window for every family).
     """
     out: dict[str, float] = {}
-    chunks = getattr(tables, "chunks", None)  # a streamed run's files: count without loading
-    # 16384 rows a chunk: two text columns, about 2 MB; 4096-row chunks took twice the CPU
-    packets = chunks("packets", ["event", "reason"], 16384) if chunks is not None and "packets" in tables else None
+    tally = getattr(tables, "tally", None)  # a streamed run's files: counted as written
+    chunks = getattr(tables, "chunks", None)  # or read in chunks, without loading the table
+    packets: Any = tally("packets", TALLIED["packets"]) if tally is not None else None
+    if packets is None and chunks is not None and "packets" in tables:
+        # 16384 rows a chunk: two text columns, about 2 MB; 4096-row chunks took twice the CPU
+        packets = chunks("packets", ["event", "reason"], 16384)
     for k, v in packet_counts(packets if packets is not None else tables.get("packets")).items():
         out[f"packets.{k}"] = v
     if warmup_s > 0:

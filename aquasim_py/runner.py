@@ -297,9 +297,12 @@ def _streamed_trace(sim: Any, sc: Scenario, dest: Path | None) -> Iterator[Calla
         done = sim.trace.close()
         files = {k: p for k, (p, _) in done.items() if p is not None}
         dropped = [k for k, (p, _) in done.items() if p is None]
-        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch)
+        tallies = {k: t.tallies for k, t in sim.trace.tables.items() if t.tallies}
+        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch, tallies)
 
     try:
+        for name, columns in metrics.TALLIED.items():  # counted as written, not read back
+            sim.trace.table(name).tally(columns)
         sim.trace.stream(route, fmt)
         yield finish
     except BaseException:

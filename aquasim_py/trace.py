@@ -190,7 +190,13 @@ class _Column:
         try:
             if self.kind == "c":
                 cats = self.cats
-                codes = [cats[v] if v in cats else self._code(v) for v in values]
+                try:  # every value a known category: one C-level map
+                    codes = list(map(cats.__getitem__, values))
+                except KeyError:  # new categories (a chunk's columns start without any)
+                    for v in dict.fromkeys(values):  # in order of first appearance
+                        if v not in cats:
+                            self._code(v)
+                    codes = list(map(cats.__getitem__, values))
                 data.extend(array("i", codes))
             else:
                 # array(typecode, tuple) takes a fast path that array.extend(tuple) does not,
@@ -219,18 +225,25 @@ class _Column:
         else:
             self.push_many(tuple(values.tolist()))
 
-    def series(self, name: str, index: pd.Index | None = None) -> pd.Series:
-        if self.kind == "f":
-            return pd.Series(np.frombuffer(self.data, dtype=np.float64).copy(), name=name, index=index)
-        if self.kind == "i":
-            return pd.Series(np.frombuffer(self.data, dtype=np.int64).copy(), name=name, index=index)
-        if self.kind == "c":
-            inv = np.empty(len(self.cats), dtype=object)
-            inv[:] = list(self.cats)
-            codes = np.frombuffer(self.data, dtype=np.int32) if len(self.data) else np.zeros(0, np.int32)
-            values = inv[codes] if len(inv) else np.empty(0, dtype=object)
-            return pd.Series(values, name=name, dtype=object, index=index)
-        return pd.Series(self.data, name=name, dtype=object, index=index)
+    def array(self) -> Any:
+        """The values as an array without a copy: float64 ("f"), int64 ("i"), int32 codes into
+        :attr:`cats` ("c"); the list itself ("o"). A view: valid until the column grows."""
+        if self.kind == "o":
+            return self.data
+        dtype = np.float64 if self.kind == "f" else np.int64 if self.kind == "i" else np.int32
+        return np.frombuffer(self.data, dtype=dtype) if len(self.data) else np.zeros(0, dtype)
+
+
+def _series(name: str, kind: str, values: Any, cats: list[Any], index: pd.Index | None) -> pd.Series:
+    """A column as a Series (``kind``, ``values`` and ``cats`` as :meth:`_Column.array` gives
+    them; float64 / int64 values are used, not copied): "c" and "o" as object columns."""
+    if kind in "fi":
+        return pd.Series(values, name=name, index=index)
+    if kind == "c":
+        inv = np.empty(len(cats), dtype=object)
+        inv[:] = cats
+        values = inv[values] if len(inv) else np.empty(0, dtype=object)
+    return pd.Series(values, name=name, dtype=object, index=index)
 
 
 def _kind_of(v: Any) -> str:
@@ -243,6 +256,42 @@ def _kind_of(v: Any) -> str:
     if isinstance(v, str):
         return "c"
     return "o"
+
+
+class _Chunk:
+    """Rows a streamed table hands to its sink, as arrays in the table's column order: the CSV
+    sink formats them as they are (no DataFrame round trip), :meth:`frame` gives the DataFrame
+    :meth:`Table.frame` would (the parquet sink, pandas' CSV path).
+
+    ``columns``: name -> (kind, values, categories), as :meth:`_Column.array` gives them
+    (float64 / int64 arrays, int32 codes into the categories, a list of objects), each owned."""
+
+    __slots__ = ("columns", "n")
+
+    def __init__(self, columns: dict[str, tuple[str, Any, list[Any]]], n: int) -> None:
+        self.columns = columns
+        self.n = n
+
+    @classmethod
+    def take(cls, columns: Mapping[str, _Column], n: int, rows: np.ndarray | None = None) -> _Chunk:
+        """Copies of the ``n`` rows held in ``columns``, or of the rows ``rows`` (indices, in
+        that order)."""
+        out: dict[str, tuple[str, Any, list[Any]]] = {}
+        for key, col in columns.items():
+            a = col.array()
+            if col.kind == "o":
+                a = list(a) if rows is None else [a[i] for i in rows.tolist()]
+            else:
+                a = a.copy() if rows is None else a[rows]
+            out[key] = (col.kind, a, list(col.cats))
+        return cls(out, n if rows is None else len(rows))
+
+    def frame(self) -> pd.DataFrame:
+        # one index object shared by every column: pandas then skips aligning them (half the cost)
+        index = pd.RangeIndex(self.n) if self.columns else None  # (no columns: no rows)
+        return pd.DataFrame(
+            {k: _series(k, kind, a, cats, index) for k, (kind, a, cats) in self.columns.items()}, index=index
+        )
 
 
 class Table:
@@ -276,6 +325,9 @@ class Table:
         self._streamed = 0  # rows handed to the sink
         self._watermark: Callable[[], float] | None = None
         self._floor = -math.inf  # every row not yet handed over has time >= this
+        # columns -> how many rows handed to the sink had each combination of their values
+        # (None: not countable, see tally)
+        self._tallies: dict[tuple[str, ...], dict[tuple[Any, ...], int] | None] = {}
 
     @property
     def n(self) -> int:
@@ -288,6 +340,41 @@ class Table:
         stable time order (the order :meth:`frame` gives). A row that breaks the promise is an
         error (the file could not be sorted), never a silently misordered file."""
         self._watermark = watermark
+
+    def tally(self, columns: tuple[str, ...]) -> None:
+        """Count, as rows are handed to the sink, the rows of each combination of the values
+        of ``columns`` (categorical ones): a statistic of the streamed file (the packet counts)
+        without reading it back. Given up (:attr:`tallies` None) if rows were handed over
+        before this call, or a chunk lacks a column or holds one that is not categorical."""
+        self._tallies[tuple(columns)] = {} if not self._streamed else None
+
+    @property
+    def tallies(self) -> dict[tuple[str, ...], dict[tuple[Any, ...], int] | None]:
+        """columns -> {values: rows} of every :meth:`tally` (None where it was given up)."""
+        return self._tallies
+
+    def _count(self, chunk: _Chunk) -> None:
+        """Add a chunk's rows to the tallies."""
+        for cols, counts in self._tallies.items():
+            if counts is None:
+                continue
+            found = [chunk.columns.get(c) for c in cols]
+            parts = [p for p in found if p is not None and p[0] == "c"]
+            if len(parts) != len(cols):
+                self._tallies[cols] = None
+                continue
+            # one code per combination (mixed radix over the categories), counted in C
+            code = np.zeros(chunk.n, dtype=np.int64)
+            for _, codes, cats in parts:
+                code = code * len(cats) + codes
+            n = np.bincount(code)
+            for k in np.flatnonzero(n).tolist():
+                key, rest = [], k
+                for _, _, cats in reversed(parts):
+                    rest, i = divmod(rest, len(cats))
+                    key.append(cats[i])
+                values = tuple(reversed(key))
+                counts[values] = counts.get(values, 0) + int(n[k])
 
     def stream_to(self, sink: _Sink, chunk_rows: int) -> None:
         """Hand rows to ``sink`` in chunks of about ``chunk_rows`` (rows held so far included)."""
@@ -322,44 +409,58 @@ class Table:
         assert sink is not None
         if not self._n:
             return
-        df = self._held_frame()
-        keep = None
+        columns = self.columns
+        rows = kept = None  # the rows handed over, in order (None: all, as held); those kept back
         if self._watermark is not None:
-            t = df["time"].to_numpy(np.float64)
+            col = columns["time"]
+            t = col.array() if col.kind == "f" else np.asarray(col.values(), dtype=np.float64)
             if t.min() < self._floor:
                 raise RuntimeError(
                     f"trace table {self.name}: a row at t={t.min()!r} s came after rows up to "
                     f"{self._floor!r} s were written (its writer broke order_by_time's promise)"
                 )
-            if not final:
+            if final:
+                rows = np.argsort(t, kind="stable")  # pandas' sort_values(kind="mergesort") order
+            else:
                 self._floor = max(self._floor, float(self._watermark()))
                 early = t < self._floor
-                keep, df = df[~early], df[early]
-            df = df.sort_values("time", kind="mergesort", ignore_index=True)
+                rows = np.flatnonzero(early)
+                rows = rows[np.argsort(t[rows], kind="stable")]
+                kept = np.flatnonzero(~early)
+        chunk = _Chunk.take(columns, self._n, rows)
         self._reset_columns()
-        if keep is not None and len(keep):
-            self._push_frame(keep)
+        if kept is not None and len(kept):
+            self._push_rows(columns, kept)
         # rows kept back wait for the watermark: try again only when as many have come again
         self._next_spill = self._chunk_rows + self._n
-        if len(df):
-            sink.write(df, {k: c.kind for k, c in self.columns.items()})
-            self._streamed += len(df)
+        if chunk.n:
+            sink.write(chunk, {k: c.kind for k, c in self.columns.items()})
+            self._streamed += chunk.n
+            if self._tallies:
+                self._count(chunk)
 
     def _held_frame(self) -> pd.DataFrame:
-        # one index object shared by every column: pandas then skips aligning them (half the cost)
-        index = pd.RangeIndex(self._n) if self.columns else None  # (no columns: no rows, as before)
-        return pd.DataFrame({k: c.series(k, index) for k, c in self.columns.items()}, index=index)
+        return _Chunk.take(self.columns, self._n).frame()
 
     def _reset_columns(self) -> None:
         """Empty every column, keeping its (possibly widened) type."""
         self.columns = {k: _Column(c.kind) for k, c in self.columns.items()}
         self._n = 0
 
-    def _push_frame(self, df: pd.DataFrame) -> None:
-        """Put rows taken from :meth:`_held_frame` back (the few a time-ordered table keeps)."""
+    def _push_rows(self, columns: Mapping[str, _Column], rows: np.ndarray) -> None:
+        """Put the rows ``rows`` (indices) of ``columns``, the columns before
+        :meth:`_reset_columns`, back (the few a time-ordered table keeps)."""
         for key, col in self.columns.items():
-            col.push_many(tuple(df[key].tolist()))
-        self._n = len(df)
+            old = columns[key]
+            a = old.array()
+            if old.kind in "fi":  # the same kind: the bytes as they are
+                col.data.frombytes(a[rows].tobytes())
+            elif old.kind == "c":
+                inv = list(old.cats)
+                col.push_many(tuple([inv[c] for c in a[rows].tolist()]))
+            else:
+                col.push_many(tuple([a[i] for i in rows.tolist()]))
+        self._n = len(rows)
 
     def close(self) -> Path | None:
         """Hand every remaining row to the sink and close it; returns the file written (None
@@ -377,13 +478,18 @@ class Table:
         A row of every column in the buffer's order (a protocol logging the same columns each
         time) is buffered as :meth:`append_fast` buffers: ``push_many`` widens a column's type
         exactly as ``push`` would, row by row."""
-        keys = tuple(row)
+        self.append_row(tuple(row), tuple(row.values()))
+
+    def append_row(self, keys: tuple[str, ...], values: tuple[Any, ...]) -> None:
+        """:meth:`append` of the row whose columns ``keys`` (distinct) hold ``values``: a
+        writer that has them as tuples (a node's ``log``) need not build the dict."""
         if keys == self._buf_keys and len(keys) == len(self.columns):
             buf = self._buf
-            buf.append(tuple(row.values()))
+            buf.append(values)
             if len(buf) >= self._batch:
                 self._flush()
             return
+        row = dict(zip(keys, values))
         if self._buf:
             self._flush()
         cols = self.columns
@@ -571,8 +677,8 @@ class _Sink(Protocol):
         """The file written (None: nothing is)."""
         ...
 
-    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
-        """Append the rows of ``df``; ``kinds``: every column's type so far (as :class:`_Column`)."""
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
+        """Append the rows of ``chunk``; ``kinds``: every column's type so far (as :class:`_Column`)."""
         ...
 
     def close(self, empty: pd.DataFrame) -> None:
@@ -585,7 +691,7 @@ class _Discard:
 
     path: Path | None = None
 
-    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
         pass
 
     def close(self, empty: pd.DataFrame) -> None:
@@ -615,16 +721,17 @@ def _csv_field(s: str) -> str:
 def _float_fields(cols: list[np.ndarray]) -> list[list[str]]:
     """The fields ``DataFrame.to_csv`` writes for float64 columns: numpy's ``astype(str)``,
     which gives the digits of Python's ``repr`` (shortest round trip; tests/test_trace_csv.py
-    holds the two equal), and "" for NaN. ``repr`` costs about 0.4 us per value, so each
+    holds the two equal), and "" for NaN. ``repr`` costs about 0.45 us per value, so each
     distinct value of the chunk (by its bits: -0.0 is not 0.0) is formatted once: a static
-    link's delay and SNR recur with every packet on it, a perfect clock's reading is the time."""
+    link's delay and SNR recur with every packet on it, a perfect clock's reading is the time.
+    (pandas' hash-based factorize finds them in about half the time of a sort.)"""
     n = len(cols[0])
-    u, inv = np.unique(np.concatenate([c.view(np.int64) for c in cols]), return_inverse=True)
+    inv, u = pd.factorize(np.concatenate([c.view(np.int64) for c in cols]))
     values = u.view(np.float64)
     text = np.empty(len(u), dtype=object)
     text[:] = list(map(float.__repr__, values.tolist()))
     text[np.isnan(values)] = ""
-    fields = text[inv.ravel()]
+    fields = text[inv]
     return [fields[i * n : (i + 1) * n].tolist() for i in range(len(cols))]
 
 
@@ -662,30 +769,50 @@ def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | Non
 
 def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
     """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
-    column at a time instead of through pandas' per-field path (about 5 us per ``packets``
-    row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
-    fields across calls. None when ``df`` has a column other than float64, int64 or an object
-    column of strings / None / bools, a single column (csv writes an empty lone field as
-    ``""``), no rows or a label that is not a string: the caller then uses pandas.
+    column at a time (:func:`_csv_lines`). None when ``df`` has a column other than float64,
+    int64 or object, or a label that is not a string; or as :func:`_csv_lines`.
 
     tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
     labels = list(df.columns)
-    if len(df) == 0 or len(labels) < 2 or not all(type(c) is str for c in labels):
+    if not all(type(c) is str for c in labels):
+        return None
+    columns: list[tuple[str, Any, list[Any]]] = []
+    for c in labels:
+        a = df[c].to_numpy()
+        kind = {np.dtype(np.float64): "f", np.dtype(np.int64): "i", np.dtype(object): "o"}.get(a.dtype)
+        if kind is None:
+            return None
+        columns.append((kind, a.tolist() if kind == "o" else a, []))
+    return _csv_lines(labels, columns, len(df), header, quoted)
+
+
+def _csv_lines(
+    labels: list[str], columns: list[tuple[str, Any, list[Any]]], n: int, header: bool, quoted: dict[Any, str]
+) -> str | None:
+    """The CSV text of ``n`` rows given as columns (kind, values, categories) as in
+    :class:`_Chunk`, byte for byte what ``DataFrame.to_csv`` writes for them, formatted a
+    column at a time instead of through pandas' per-field path (about 5 us per ``packets``
+    row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
+    fields across calls. None when an object column holds something other than strings /
+    None / bools, for a single column (csv writes an empty lone field as ``""``) and for no
+    rows: the caller then uses pandas."""
+    if n == 0 or len(labels) < 2:
         return None
     cols: list[list[str] | None] = [None] * len(labels)
     floats: dict[int, np.ndarray] = {}
-    for i, c in enumerate(labels):
-        a = df[c].to_numpy()
-        if a.dtype == np.float64:
+    for i, (kind, a, cats) in enumerate(columns):
+        if kind == "f":
             floats[i] = a
-        elif a.dtype == np.int64:
+        elif kind == "i":
             cols[i] = _int_fields(a)
-        elif a.dtype == object:
-            cols[i] = _object_fields(a.tolist(), quoted)
+        elif kind == "c":  # each category's field once, then one take by the codes
+            table = np.empty(len(cats), dtype=object)
+            table[:] = _object_fields(cats, quoted)
+            cols[i] = table[a].tolist()
+        else:
+            cols[i] = _object_fields(a, quoted)
             if cols[i] is None:
                 return None
-        else:
-            return None
     if floats:
         for i, f in zip(floats, _float_fields(list(floats.values()))):
             cols[i] = f
@@ -709,14 +836,14 @@ class _CsvSink:
         self._kinds: dict[str, str] | None = None
         self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_csv_text), kept across chunks
 
-    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
         if self._kinds is not None and _reformats(self._kinds, kinds):
             self._rewrite(kinds)
         first = self._kinds is None
-        text = _csv_text(df, first, self._quoted)
+        text = _csv_lines(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
         with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
             if text is None:  # a column the bulk formatter does not take: pandas writes the chunk
-                df.to_csv(f, index=False, header=first, lineterminator="\n")
+                chunk.frame().to_csv(f, index=False, header=first, lineterminator="\n")
             else:
                 f.write(text)
         self._kinds = dict(kinds)
@@ -765,11 +892,11 @@ class _ParquetSink:
 
         return pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
 
-    def write(self, df: pd.DataFrame, kinds: Mapping[str, str]) -> None:
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        t = self._arrow(df)
+        t = self._arrow(chunk.frame())
         if self._writer is None:
             self._schema = t.schema
             self._writer = pq.ParquetWriter(self._file, t.schema)
@@ -926,12 +1053,15 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         rows: Mapping[str, int] | None = None,
         dropped: Iterable[str] = (),
         scratch: Path | None = None,
+        tallies: Mapping[str, Mapping[tuple[str, ...], dict[tuple[Any, ...], int] | None]] | None = None,
     ) -> None:
         self._files = dict(files)
         self._rows = dict(rows or {})
         self._dropped = set(dropped) - set(self._files)
+        self._tallies = {(name, cols): t for name, ts in (tallies or {}).items() for cols, t in ts.items()}
         self._cache: dict[str, pd.DataFrame] = {}
         self._column_cache: dict[tuple[str, tuple[str, ...]], pd.DataFrame] = {}
+        self._memo: dict[Any, Any] = {}
         if scratch is not None:
             weakref.finalize(self, shutil.rmtree, scratch, True)
 
@@ -1012,6 +1142,20 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
             path, usecols=have, dtype=str, keep_default_na=False, na_values=[""], chunksize=chunk_rows
         )
 
+    def tally(self, name: str, columns: tuple[str, ...]) -> dict[tuple[Any, ...], int] | None:
+        """Rows of table ``name`` per combination of the values of ``columns``, counted as the
+        file was written (:meth:`Table.tally`); None when nobody counted them."""
+        if name not in self._files:
+            return None
+        return self._tallies.get((name, tuple(columns)))
+
+    def memo(self, key: Any, compute: Callable[[], Any]) -> Any:
+        """``compute()``, computed once per ``key`` and kept until :meth:`clear`: what two
+        readers of these tables derive alike (a protocol's metrics and its derived tables)."""
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
+
     def relocate(self, old: Path, new: Path) -> None:
         """The files under ``old`` now live under ``new`` (a staged output moved into place)."""
         for name, p in self._files.items():
@@ -1022,6 +1166,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         """Forget the tables read so far (they are read again when asked for)."""
         self._cache.clear()
         self._column_cache.clear()
+        self._memo.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:

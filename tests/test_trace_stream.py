@@ -9,6 +9,7 @@ import subprocess
 import sys
 import textwrap
 import tracemalloc
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -136,6 +137,44 @@ def test_dropped_table_keeps_nothing_and_says_so(tmp_path):
     assert "noise" not in files
     with pytest.raises(TableNotKept, match="noise"):
         files.get("noise")  # a metric reading it fails loudly, never a silent None
+
+
+# values of a categorical column: missing, empty, csv's specials, texts read as missing elsewhere
+_cat = st.one_of(st.none(), st.sampled_from(["", "tx", "rx", "drop", "NA", "null", "a,b", 'q"', "x\ny"]))
+
+
+@settings(max_examples=30)
+@given(rows=st.lists(st.tuples(_cat, _cat), max_size=80), chunk=st.integers(1, 9))
+def test_a_tally_counts_the_rows_handed_to_the_file(tmp_path_factory, rows, chunk):
+    """Table.tally counts each (event, reason) of the rows as chunks go to the file: the
+    counts of the whole table kept in memory, and the packet counts of the file read back."""
+    tmp = tmp_path_factory.mktemp("tally")
+    ref, tr = Trace(), Trace()
+    tr.table("packets").tally(("event", "reason"))
+    tr.stream(lambda n: tmp / f"{n}.csv", chunk_rows=chunk)
+    for t in (ref, tr):
+        for i, (event, reason) in enumerate(rows):
+            t.append("packets", time=float(i), event=event, reason=reason)
+    tr.close()
+    tally = tr.tables["packets"].tallies[("event", "reason")]
+    whole = ref.frames()["packets"]
+    expected = Counter(zip(whole["event"], whole["reason"])) if rows else Counter()
+    assert tally == dict(expected)
+    back = trace.read_table(tmp / "packets.csv", "packets")
+    assert metrics.packet_counts(tally) == metrics.packet_counts(back)
+
+
+def test_a_tally_gives_up_on_a_column_that_is_not_categorical_and_the_counts_read_the_file(tmp_path):
+    tr = Trace()
+    tr.table("packets").tally(("event", "reason"))
+    tr.stream(lambda n: tmp_path / f"{n}.csv", chunk_rows=2)
+    for i, event in enumerate(["tx", "rx", "drop", 7, "rx"]):  # 7: the column becomes "o"
+        tr.append("packets", time=float(i), event=event, reason="collision" if event == "drop" else None)
+    done = tr.close()
+    assert tr.tables["packets"].tallies[("event", "reason")] is None
+    files = TraceFiles({k: p for k, (p, _) in done.items() if p}, tallies={"packets": tr.tables["packets"].tallies})
+    assert files.tally("packets", ("event", "reason")) is None
+    assert metrics.summarize(files, [])["packets.received"] == 2  # counted from the file
 
 
 def _peak_streaming(rows: int, tmp: Path) -> int:

@@ -11,8 +11,11 @@ time (``time.process_time``) of each stage, each stage's own time without the st
 it:
 
 * build: ``scenario.build`` (nodes, channel, processes);
-* simulate: ``Simulation.run`` without the trace files (kernel, channel, protocol, row appends);
-* trace files: the sinks' ``write`` (formatting and writing chunks) and ``Trace.close``;
+* simulate: ``Simulation.run`` without the trace rows and files (kernel, channel, protocol,
+  row appends to the tables' buffers);
+* trace rows: ``Table._flush`` (a table's buffered row tuples into its typed columns);
+* trace files: ``Table._spill`` (a chunk's hand-over: time order, the rows kept back), the
+  sinks' ``write`` (formatting and writing chunks) and ``Trace.close``;
 * metrics: ``metrics.summarize`` (reads the tables back);
 * outputs: ``RunResult.write_into`` (derived tables, summary.json);
 * rest: the process's CPU otherwise (imports, loading the scenario, the CLI, exit).
@@ -22,6 +25,9 @@ the long run - of the short), so what every run pays once cancels; the median ov
 (short and long alternating) is reported. ``--ablate listen`` adds runs whose listeners take each
 beacon and do nothing with it (no payload read, no ``ranges`` row): the simulate stage's
 difference is the protocol's receive work.
+
+``--root DIR`` runs the children with another checkout's code (``DIR/.venv/bin/python`` in
+``DIR``), for A/B runs against it in one session.
 
 The floor (in this process, advanced alternately a simulated second at a time, as
 bench_kernel.run_both): bare SimPy's one timeout per delivery (the acceptance baseline) against
@@ -49,7 +55,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 ROOT = Path(__file__).resolve().parents[1]
-STAGES = ("build", "simulate", "trace files", "metrics", "outputs", "rest")
+STAGES = ("build", "simulate", "trace rows", "trace files", "metrics", "outputs", "rest")
 
 
 # --------------------------------------------------------------------------- the child run
@@ -91,7 +97,9 @@ def child(toml: Path, out: Path, ablate: str) -> dict[str, float]:
     clock = _Clock()
     clock.wrap(scenario, "build", "build")
     clock.wrap(Simulation, "run", "simulate")
-    for owner, attr in ((trace._CsvSink, "write"), (trace._ParquetSink, "write"), (trace.Trace, "close")):
+    clock.wrap(trace.Table, "_flush", "trace rows")
+    files = ((trace.Table, "_spill"), (trace._CsvSink, "write"), (trace._ParquetSink, "write"), (trace.Trace, "close"))
+    for owner, attr in files:
         clock.wrap(owner, attr, "trace files")
     clock.wrap(metrics, "summarize", "metrics")
     clock.wrap(runner.RunResult, "write_into", "outputs")
@@ -106,15 +114,16 @@ def child(toml: Path, out: Path, ablate: str) -> dict[str, float]:
     return clock.total
 
 
-def _child_run(toml: Path, out: Path, ablate: str) -> tuple[dict[str, float], int, int]:
-    """One child process: its stage CPU, the receptions it decided (rx + drop rows) and the
-    receptions a listener's process took (``ranges`` rows)."""
+def _child_run(toml: Path, out: Path, ablate: str, root: Path) -> tuple[dict[str, float], int, int]:
+    """One child process (``root``'s code): its stage CPU, the receptions it decided (rx + drop
+    rows) and the receptions a listener's process took (``ranges`` rows)."""
     import pandas as pd
 
+    python = sys.executable if root == ROOT else str(root / ".venv" / "bin" / "python")
     res = subprocess.run(
-        [sys.executable, __file__, "--child", str(toml), str(out), ablate],
+        [python, __file__, "--child", str(toml), str(out), ablate],
         check=True,
-        cwd=ROOT,
+        cwd=root,
         capture_output=True,
         text=True,
     )
@@ -125,7 +134,9 @@ def _child_run(toml: Path, out: Path, ablate: str) -> tuple[dict[str, float], in
     return stages, int(ev.isin(["rx", "drop"]).sum()), taken
 
 
-def stages(speed: float, short: float, long: float, rounds: int, seed: int, ablate: str) -> dict[str, Any]:
+def stages(
+    speed: float, short: float, long: float, rounds: int, seed: int, ablate: str, root: Path = ROOT
+) -> dict[str, Any]:
     """Median over ``rounds`` of each stage's CPU per reception (us), long run minus short."""
     import bench_acceptance as ba
     import bench_kernel as bk
@@ -140,7 +151,7 @@ def stages(speed: float, short: float, long: float, rounds: int, seed: int, abla
             tomls[dur].write_text(ba._scenario(pos, rng_m, speed, dur, seed))
         for r in range(rounds):
             (a, ra, ta), (b, rb, tb) = (
-                _child_run(tomls[d], Path(tmp) / f"out_{r}_{d:g}", ablate) for d in (short, long)
+                _child_run(tomls[d], Path(tmp) / f"out_{r}_{d:g}", ablate, root) for d in (short, long)
             )
             receptions, taken = rb - ra, tb - ta
             for s in STAGES:
@@ -233,9 +244,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--durations", default="10,60", help="short,long simulated seconds")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--ablate", default="", help="'listen': also runs whose listeners only drain")
-    ap.add_argument("--floor-until", type=float, default=30.0, help="simulated s of the floor runs")
+    ap.add_argument("--floor-until", type=float, default=30.0, help="simulated s of the floor runs (0: none)")
     ap.add_argument("--floor-only", action="store_true")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--root", type=Path, default=ROOT, help="checkout whose code the CLI runs use")
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args(argv)
     if args.child:
@@ -249,7 +261,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for speed in (float(s) for s in args.speeds.split(",")):
             for ablate in ("", *([args.ablate] if args.ablate else [])):
-                rows.append(stages(speed, short, long, args.rounds, args.seed, ablate))
+                rows.append(stages(speed, short, long, args.rounds, args.seed, ablate, args.root.resolve()))
                 r = rows[-1]
                 label = f"{'moving' if speed else 'static'}{', ' + ablate + ' ablated' if ablate else ''}"
                 print(
@@ -259,6 +271,8 @@ def main(argv: list[str] | None = None) -> int:
                     flush=True,
                 )
         results["stages"] = rows
+    if args.floor_until <= 0:
+        return _dump(results, args.json)
     fl = floor(args.floor_until, args.seed)
     results["floor"] = fl
     print(
@@ -274,9 +288,13 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['taken']:.3f} of receptions resume a listener; floor {us:.2f} us per reception, "
             f"best ratio {fl['bare_us'] / us:.3f}; measured {r['total']:.2f} us, ratio {fl['bare_us'] / r['total']:.3f}"
         )
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=1))
+    return _dump(results, args.json)
+
+
+def _dump(results: dict[str, Any], path: Path | None) -> int:
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(results, indent=1))
     return 0
 
 

@@ -63,7 +63,7 @@ class BeaconNode(Node):
         # without a fix (sensors.position_fix = false) sends no position: ranging and its
         # metrics do not need it.
         try:
-            return [float(v) for v in np.asarray(self.known_position(), dtype=float).ravel()]
+            return np.asarray(self.known_position(), dtype=float).ravel().tolist()  # Python floats
         except SensorUnavailable:
             return None
 
@@ -161,7 +161,16 @@ def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None 
 
 
 def range_errors(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
-    """The ``ranges`` rows with their true range and error = estimate - truth (m)."""
+    """The ``ranges`` rows with their true range and error = estimate - truth (m); computed
+    once per run's tables (``memo`` of :class:`~aquasim_py.trace.TraceFiles`), whose metrics,
+    derived table and report all use it."""
+    memo = getattr(tables, "memo", None)
+    if memo is not None:  # (a copy each: a caller may change its frame)
+        return memo("beacon.range_errors", lambda: _range_errors(tables)).copy()
+    return _range_errors(tables)
+
+
+def _range_errors(tables: Mapping[str, pd.DataFrame]) -> pd.DataFrame:
     r = table_columns(tables, "ranges", _RANGE_COLUMNS)
     if r is None or len(r) == 0:
         return pd.DataFrame(columns=["uid", "node", "anchor", "range_m", "true_range_m", "error_m"])

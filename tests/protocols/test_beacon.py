@@ -175,3 +175,20 @@ def test_shipped_scenario_runs_in_seconds(tmp_path, capsys):
     assert cpu < 10.0
     m = trace.read_summary(tmp_path / "o")["metrics"]
     assert m["beacon.ranges"] > 1000
+
+
+def test_range_errors_of_a_runs_files_are_shared_and_a_callers_change_stays_its_own(tmp_path):
+    """The metrics, the derived table and the report of a run share one range-error frame:
+    each caller gets a copy (changing it changes no other's), equal to the frame computed
+    afresh from the same tables read as an analyst reads them."""
+    from aquasim_py import run_scenario
+
+    sc = make(tmp_path, sensor_clock="clock = { skew_std_ppm = 40.0 }", channel="jitter_std_s = 1e-4")
+    res = run_scenario(sc, out=tmp_path / "out", progress=False)
+    first = range_errors(res.tables)
+    first["error_m"] = 0.0
+    again = range_errors(res.tables)
+    fresh = range_errors(trace.load(tmp_path / "out"))
+    assert len(fresh) and fresh["error_m"].abs().max() > 0.0
+    np.testing.assert_array_equal(again.to_numpy(), fresh.to_numpy())
+    assert BeaconNode.metrics(res.tables) == BeaconNode.metrics(trace.load(tmp_path / "out"))
