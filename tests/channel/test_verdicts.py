@@ -54,8 +54,8 @@ def _run(xs: list[int], plan: dict[int, list[tuple[float, int | None, int]]], co
     return sim.trace.frames()["packets"]
 
 
-def _brute_force(xs: list[int], p: pd.DataFrame) -> list[tuple[int, int, str, str | None]]:
-    """(uid, node, event, reason) of every reception, from the transmissions alone: a reception
+def _brute_force(xs: list[int], p: pd.DataFrame) -> list[tuple[int, int, float, str, str | None]]:
+    """(uid, node, arrival, event, reason) of every reception, from the transmissions alone: a reception
     at r is cut by r's own transmission [s, e) if s < end and e > arr ("half_duplex", first),
     else by any other signal at r with arrival < end and end > arr ("collision")."""
     tx = p[p.event == "tx"]
@@ -75,16 +75,15 @@ def _brute_force(xs: list[int], p: pd.DataFrame) -> list[tuple[int, int, str, st
             reason = "half_duplex"
         elif any(o[0] == r and o[3] != uid and o[1] < end and o[2] > arr for o in sig):
             reason = "collision"
-        out.append((int(uid), r, "rx" if reason is None else "drop", reason))
+        out.append((int(uid), r, arr, "rx" if reason is None else "drop", reason))
     return sorted(out, key=lambda x: (x[0], x[1]))
 
 
-def _observed(p: pd.DataFrame) -> list[tuple[int, int, str, str | None]]:
+def _observed(p: pd.DataFrame) -> list[tuple[int, int, float, str, str | None]]:
     rec = p[p.event != "tx"]
     reasons = [None if not isinstance(r, str) else r for r in rec.reason]
-    return sorted(
-        zip(rec.uid.astype(int), rec.node.astype(int), rec.event, reasons, strict=True), key=lambda x: (x[0], x[1])
-    )
+    rows = zip(rec.uid.astype(int), rec.node.astype(int), rec.time, rec.event, reasons, strict=True)
+    return sorted(rows, key=lambda x: (x[0], x[1]))
 
 
 @st.composite
