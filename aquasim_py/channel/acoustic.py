@@ -29,11 +29,7 @@ Each delivery is decided at the instant its last bit arrives (the deliveries of 
 transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`, and consecutive
 entries at the queue's head are decided in one loop, ``_next_delivery``): by then every signal
 that can overlap the reception and every transmission of the receiver that can cut it are
-known (they started before that instant), so the verdict needs no second event. With the
-destructive model the verdict is even complete before: an overlap destroys both signals, so
-each signal dooms the logged ones it overlaps as it is recorded, and a transmission the
-signals it cuts as it starts (``_Modem.record_destructive``, ``_Modem.transmitting``); the
-delivery reads it.
+known (they started before that instant), so the verdict needs no second event.
 
 MAC stamps: transmit stamped when the first bit leaves (t0), receive when the first bit
 arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_std_s``.
@@ -89,11 +85,8 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-# signal records: [arrival, end, snr_db, receiver id, packet, tof, path, dst, verdict], a
-# list so that the destructive model can set the verdict (None, "half_duplex" or "collision")
-# before the delivery (_Modem.record_destructive, _Modem.transmitting)
-_Signal = list[Any]
-_VERDICT = 8
+# signal records: (arrival, end, snr_db, receiver id, packet, tof, path, dst)
+_Signal = tuple[float, float, float, int, Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
@@ -239,7 +232,6 @@ class _Modem:
         "port",
         "pressure_rng",
         "rx_arr",
-        "rx_cap",
         "rx_end",
         "rx_log",
         "tx_end",
@@ -266,7 +258,6 @@ class _Modem:
         # so a scan does not chase a tuple and two float objects per signal
         self.rx_arr = array("d")
         self.rx_end = array("d")
-        self.rx_cap = 8  # record_destructive forgets old signals when the log has this many
         self.log_cap = 8  # prune the own transmissions beyond this many (see _prune)
 
     def record(self, sig: _Signal, forget: float) -> None:
@@ -282,78 +273,6 @@ class _Modem:
         keys.insert(j, arr)
         self.rx_end.insert(j, sig[1])
         self.rx_log.insert(j, sig)
-
-    def record_destructive(self, sig: _Signal, forget: float, longest: float) -> None:
-        """``record`` for the destructive model, deciding the overlaps ``sig`` takes part in
-        now, at its transmission's start, instead of at each delivery.
-
-        An overlap destroys both signals and the test is symmetric (a arrived before b's end
-        and b before a's end), so every signal of the log overlapping ``sig`` and ``sig``
-        itself are doomed ("collision", unless already "half_duplex"). Every signal that can
-        overlap a reception is recorded before that reception's delivery (it starts before
-        the reception ends), so by then its verdict is complete. ``sig`` is cut by an own
-        transmission of this modem already started; one starting later dooms it in
-        :meth:`transmitting`. ``longest``: the longest packet so far (s); a signal that
-        arrived before fl(arr - longest) ended at or before arr, even in floating point
-        (docs/performance.md, "Kernel"), so the scans stop there."""
-        keys = self.rx_arr
-        ends = self.rx_end
-        log = self.rx_log
-        if len(keys) >= self.rx_cap and keys[0] < forget:
-            j = bisect_left(keys, forget)
-            del keys[:j], ends[:j], log[:j]
-            self.rx_cap = max(8, 2 * len(keys))
-        arr = sig[0]
-        end = sig[1]
-        # half duplex: own transmissions started before end and ended after arr (as _scan;
-        # a start before arr - 2 longest ended before arr), none if all ended by arr
-        if self.busy_until > arr:
-            starts = self.tx_start
-            i = bisect_left(starts, arr - 2.0 * longest)
-            n = len(starts)
-            while i < n and starts[i] < end:
-                if self.tx_end[i] > arr:
-                    sig[_VERDICT] = "half_duplex"
-                    break
-                i += 1
-        j = bisect_right(keys, arr)
-        # earlier arrivals (<= arr) back to arr - longest, then later ones up to end
-        i = j - 1
-        lo = arr - longest
-        while i >= 0 and keys[i] >= lo:
-            if ends[i] > arr and keys[i] < end:
-                e = log[i]
-                if e[_VERDICT] is None:
-                    e[_VERDICT] = "collision"
-                if sig[_VERDICT] is None:
-                    sig[_VERDICT] = "collision"
-            i -= 1
-        i = j
-        n = len(keys)
-        while i < n and keys[i] < end:
-            if ends[i] > arr:
-                e = log[i]
-                if e[_VERDICT] is None:
-                    e[_VERDICT] = "collision"
-                if sig[_VERDICT] is None:
-                    sig[_VERDICT] = "collision"
-            i += 1
-        keys.insert(j, arr)
-        ends.insert(j, end)
-        log.insert(j, sig)
-
-    def transmitting(self, start: float, end: float, longest: float) -> None:
-        """Destructive model: this modem transmits during [start, end) (true s), so every
-        logged signal overlapping it (arrived before end, ends after start) is cut:
-        "half_duplex", which takes precedence over "collision"."""
-        keys = self.rx_arr
-        ends = self.rx_end
-        i = bisect_left(keys, start - longest)
-        n = len(keys)
-        while i < n and keys[i] < end:
-            if ends[i] > start:
-                self.rx_log[i][_VERDICT] = "half_duplex"
-            i += 1
 
 
 class _Deliveries:
@@ -485,9 +404,7 @@ class AcousticChannel:
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks
-        (bounded by the overlap window, not by the run length: with the destructive model, at
-        most 8 or twice those of the window, as the log is trimmed when it doubles; for
-        diagnostics and tests)."""
+        (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
         return len(self._modems[node].rx_log)
 
     def packets_watermark(self) -> float:
@@ -572,12 +489,7 @@ class AcousticChannel:
         track = self._destructive or self._capture  # overlaps matter only with a collision model
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
-        longest = self._max_duration
-        forget = t0 - 2.0 * longest
-        if self._destructive:
-            # the destructive model decides overlaps as signals are recorded: this
-            # transmission cuts the signals arriving here during it
-            modem.transmitting(t0, modem.tx_end[-1], longest)
+        forget = t0 - 2.0 * self._max_duration
         sigs: list[_Signal] = []
         if dst is None:
             for rx, T, path, s in heard:
@@ -585,10 +497,8 @@ class AcousticChannel:
                 end = arr + duration
                 # one record is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context
-                sig = [arr, end, s, rx.index, pkt, T, path, -1, None]
-                if self._destructive:
-                    rx.record_destructive(sig, forget, longest)
-                elif track:
+                sig = (arr, end, s, rx.index, pkt, T, path, -1)
+                if track:
                     rx.record(sig, forget)
                 sigs.append(sig)
         else:
@@ -599,10 +509,8 @@ class AcousticChannel:
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = [arr, end, s, rx.index, pkt, T, path, dst, None]
-                if self._destructive:
-                    rx.record_destructive(sig, forget, longest)
-                elif track:
+                sig = (arr, end, s, rx.index, pkt, T, path, dst)
+                if track:
                     rx.record(sig, forget)
                 if intended:
                     sigs.append(sig)
@@ -886,7 +794,7 @@ class AcousticChannel:
         push = self._push
         row = self._row
         modems = self._modems
-        destructive = self._destructive
+        scan = self._scan
         plain = self._jitter_std <= 0.0  # without jitter the clock's stamp is the MAC stamp
         pressure_kind = self.config.pressure_kind
         nan = math.nan
@@ -894,9 +802,8 @@ class AcousticChannel:
             sigs = ev.sigs
             k = ev.k
             sig = sigs[k]
-            arr, _end, snr, rid, pkt, tof, path, dst_code, reason = sig
-            if not destructive:  # (destructive: decided as the signals were recorded)
-                reason = self._scan(sig)
+            arr, _end, snr, rid, pkt, tof, path, dst_code = sig
+            reason = scan(sig)
             if reason is None:
                 rx = modems[rid]
                 rx_local = rx.clock_stamp(arr) if plain else self._stamp(rx, arr)
@@ -935,21 +842,22 @@ class AcousticChannel:
 
     def _scan(self, sig: _Signal) -> str | None:
         """The verdict of a delivery from the receiver's logs at the delivery: "half_duplex",
-        "collision" or None (the capture and "none" models; for the destructive model, the
-        scan its verdicts set in advance must agree with, which the tests check)."""
+        "collision" or None."""
         arr, end, snr, rx = sig[0], sig[1], sig[2], self._modems[sig[3]]
         reason = None
         # own transmissions overlapping [arr, end): started before end and, lasting at most
         # the longest packet, after arr - longest packet (twice that here, so the rounding of
-        # start + duration cannot hide one); the exact test decides within that slice
-        starts = rx.tx_start
-        i = bisect_left(starts, arr - 2.0 * self._max_duration)
-        n = len(starts)
-        while i < n and starts[i] < end:
-            if rx.tx_end[i] > arr:
-                reason = "half_duplex"
-                break
-            i += 1
+        # start + duration cannot hide one); the exact test decides within that slice; none
+        # when every own transmission ended by arr
+        if rx.busy_until > arr:
+            starts = rx.tx_start
+            i = bisect_left(starts, arr - 2.0 * self._max_duration)
+            n = len(starts)
+            while i < n and starts[i] < end:
+                if rx.tx_end[i] > arr:
+                    reason = "half_duplex"
+                    break
+                i += 1
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined

@@ -107,8 +107,8 @@ def networks(draw: st.DrawFn) -> tuple[list[int], dict[int, list[tuple[float, in
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(networks())
 def test_destructive_verdicts_match_a_brute_force_over_every_signal(net) -> None:
-    """The destructive model's verdicts, decided as signals are recorded and as receivers
-    start transmitting, are those of testing every pair of signals at the delivery."""
+    """The destructive model's verdicts (the channel's bisected scans of the receiver's logs at
+    each delivery) are those of testing every pair of signals and every own transmission."""
     xs, plan = net
     p = _run(xs, plan, "destructive")
     assert _observed(p) == _brute_force(xs, p)
