@@ -142,7 +142,8 @@ class _NodeCore:
         self._snr_noise: list[float] = []  # standard normals drawn ahead, in blocks (consumed from the end)
         self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
         cap = getattr(group.node_cls, "inbox_capacity", None)
-        self.inbox: deque[Reception] = deque(maxlen=cap)
+        # receptions not taken yet: (packet, rx_local, snr_db, pressure), see deliver
+        self.inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
         self.waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
         self.channel.attach(self)
 
@@ -193,15 +194,15 @@ class _NodeCore:
         # the packet carries a snapshot: the sender's later changes to its object reach no one
         return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
 
-    def deliver(self, rec: Reception) -> None:
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
         # What the node gets: the modem's SNR estimate (the channel traced the true SNR), drawn
-        # here in delivery order, and its own copy of the payload (_taken), made when the node
-        # takes the reception: at once for a waiting recv, from the inbox in recv. The packet
-        # holds the send-time snapshot, which no node ever gets (each takes a copy), so a copy
-        # made later is the same copy; a reception never taken (a node that does not listen)
-        # costs no copy and keeps no copied objects alive.
-        snr = rec.snr_db
-        if self._snr_std > 0.0 and snr == snr:  # NaN (no loss model) stays NaN
+        # here in delivery order, and its own copy of the payload in a Reception (_taken),
+        # made when the node takes it: at once for a waiting recv, from the inbox (which keeps
+        # the fields as a tuple) in recv / take_pending. The packet holds the send-time
+        # snapshot, which no node ever gets (each takes a copy), so a copy made later is the
+        # same copy; a reception never taken (a node that does not listen) costs no copy and
+        # no Reception.
+        if self._snr_std > 0.0 and snr_db == snr_db:  # NaN (no loss model) stays NaN
             noise = self._snr_noise
             if not noise:
                 # blocks of draws: one numpy call per 256 receptions, not one per reception
@@ -209,19 +210,20 @@ class _NodeCore:
                 if rng is None:
                     rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
                 noise.extend(rng.standard_normal(256)[::-1].tolist())
-            rec = Reception(rec.packet, rec.rx_local, snr + self._snr_std * noise.pop(), rec.pressure)
-        kind = rec.packet.kind
+            snr_db = snr_db + self._snr_std * noise.pop()
         waiters = self.waiters
-        for i, (ev, kinds) in enumerate(waiters):
-            if kinds is None or kind in kinds:
-                del waiters[i]
-                ev.succeed(_taken(rec))
-                return
-        self.inbox.append(rec)
+        if waiters:
+            kind = packet.kind
+            for i, (ev, kinds) in enumerate(waiters):
+                if kinds is None or kind in kinds:
+                    del waiters[i]
+                    ev.succeed(_taken(packet, rx_local, snr_db, pressure))
+                    return
+        self.inbox.append((packet, rx_local, snr_db, pressure))
 
     def take_pending(self) -> list[Reception]:
         """Every buffered reception, oldest first, as the node takes it (:func:`_taken`)."""
-        out = [_taken(rec) for rec in self.inbox]
+        out = [_taken(*rec) for rec in self.inbox]
         self.inbox.clear()
         return out
 
@@ -239,11 +241,11 @@ class _NodeCore:
         inbox = self.inbox
         if inbox:
             if ks is None:
-                return ev.succeed(_taken(inbox.popleft()))
+                return ev.succeed(_taken(*inbox.popleft()))
             for i, rec in enumerate(inbox):
-                if rec.packet.kind in ks:
+                if rec[0].kind in ks:
                     del inbox[i]
-                    return ev.succeed(_taken(rec))
+                    return ev.succeed(_taken(*rec))
         entry = (ev, ks)
         self.waiters.append(entry)
         if timeout is not None:
@@ -349,15 +351,13 @@ class _NodeCore:
         )
 
 
-def _taken(rec: Reception) -> Reception:
-    """``rec`` as a node takes it: with its own copy of the payload (the packet's send-time
-    snapshot shared only when it is immutable, :func:`~aquasim_py.packet.copy_payload`)."""
-    pkt = rec.packet
+def _taken(pkt: Packet, rx_local: float, snr_db: float, pressure: float) -> Reception:
+    """The reception as a node takes it: with its own copy of the payload (the packet's
+    send-time snapshot shared only when it is immutable, :func:`~aquasim_py.packet.copy_payload`)."""
     payload = copy_payload(pkt.payload)
-    if payload is pkt.payload:
-        return rec
-    pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
-    return Reception(pkt, rec.rx_local, rec.snr_db, rec.pressure)
+    if payload is not pkt.payload:
+        pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
+    return Reception(pkt, rx_local, snr_db, pressure)
 
 
 #: young-generation threshold of the garbage collector while a simulation runs (Python's

@@ -30,7 +30,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from .packet import Reception
+from .packet import Packet
 
 __all__ = ["PACKET_FIELDS", "NetworkView", "PacketLog", "RadioPort"]
 
@@ -96,8 +96,9 @@ class RadioPort(Protocol):
         """The node's own random stream ("node", id, ``purpose``), e.g. its hydrophone noise."""
         ...
 
-    def deliver(self, reception: Reception) -> None:
-        """Hand a reception to the node (its waiting ``recv`` or its inbox)."""
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        """Hand a reception to the node (its waiting ``recv`` or its inbox): the fields of its
+        :class:`~aquasim_py.packet.Reception` (the node makes one when it takes the reception)."""
         ...
 
 

@@ -11,7 +11,7 @@ import simpy
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig, no_snr
-from aquasim_py.packet import Reception
+from aquasim_py.packet import Packet, Reception
 from aquasim_py.radio import PACKET_FIELDS
 from aquasim_py.trace import SCHEMAS
 
@@ -53,8 +53,8 @@ class StubPort:
         self.jitter_asked += 1
         return np.random.default_rng(self.index)
 
-    def deliver(self, reception: Reception) -> None:
-        self.got.append(reception)
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        self.got.append(Reception(packet, rx_local, snr_db, pressure))
 
 
 class ListLog:

@@ -26,9 +26,10 @@ On a transmission at true time t0 from position p_s = p_src(t0):
    ``capture_threshold_db``).
 
 Each delivery is decided at the instant its last bit arrives (the deliveries of one
-transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`): by then
-every signal that can overlap the reception and every transmission of the receiver that can
-cut it are known (they started before that instant), so the verdict needs no second event.
+transmission take turns as one entry on SimPy's queue, :class:`_Deliveries`, and consecutive
+entries at the queue's head are decided in one loop, ``_next_delivery``): by then every signal
+that can overlap the reception and every transmission of the receiver that can cut it are
+known (they started before that instant), so the verdict needs no second event.
 
 MAC stamps: transmit stamped when the first bit leaves (t0), receive when the first bit
 arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_std_s``.
@@ -42,7 +43,7 @@ from bisect import bisect_left, bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import lru_cache
-from heapq import heappush
+from heapq import heappop, heappush
 from itertools import repeat
 from operator import itemgetter
 from typing import TYPE_CHECKING, Any, Literal, cast
@@ -52,7 +53,7 @@ import simpy
 from numpy.typing import NDArray
 from simpy.events import NORMAL
 
-from ..packet import Packet, Reception
+from ..packet import Packet
 from ..radio import NetworkView, PacketLog, RadioPort
 from . import isogradient
 from .neighbours import NeighbourIndex
@@ -84,8 +85,8 @@ PATH_NAMES = {
 }
 
 _DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
-# signal records: (arrival, end, snr_db, receiver modem, packet, tof, path, dst)
-_Signal = tuple[float, float, float, "_Modem", Packet, float, str, int]
+# signal records: (arrival, end, snr_db, receiver id, packet, tof, path, dst)
+_Signal = tuple[float, float, float, int, Packet, float, str, int]
 
 #: fixed-point tolerance on the arrival time (s)
 FIXED_POINT_TOL_S = 1e-10
@@ -222,6 +223,7 @@ class _Modem:
     """The channel's own state for one node's modem, and the node's port (its bound methods)."""
 
     __slots__ = (
+        "busy_until",
         "clock_stamp",
         "deliver",
         "index",
@@ -250,6 +252,7 @@ class _Modem:
         # half-duplex test reads a slice of doubles, not a tuple and two floats per entry)
         self.tx_start = array("d")
         self.tx_end = array("d")
+        self.busy_until = -math.inf  # the latest of tx_end (true s)
         self.rx_log: list[_Signal] = []  # signals here, sorted by arrival (see _start)
         # their arrival and end times (true s), the collision scan's keys: contiguous doubles,
         # so a scan does not chase a tuple and two float objects per signal
@@ -307,6 +310,9 @@ class AcousticChannel:
     #: use the compiled links (channel/straight.py) where they apply; False forces the numpy
     #: path (tests compare the two; the results are the same bits)
     compiled_links = True
+    #: decide consecutive deliveries at the head of SimPy's queue in one loop (_next_delivery);
+    #: False gives each its own Environment.step (tests compare: the same rows in the same order)
+    drain_deliveries = True
 
     def __init__(
         self,
@@ -362,6 +368,8 @@ class AcousticChannel:
         self._eid: Any = getattr(env, "_eid", None)
         known = isinstance(self._queue, list) and hasattr(self._eid, "__next__")
         self._push = self._push_queue if known else self._push_schedule
+        if not known:
+            self._queue = []  # _next_delivery then leaves every pop to Environment.step
 
         # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
         obs = config.obstacles
@@ -463,6 +471,8 @@ class AcousticChannel:
         self._table.flush_if_large()
         modem.tx_start.append(t0)
         modem.tx_end.append(t0 + duration)
+        if modem.tx_end[-1] > modem.busy_until:
+            modem.busy_until = modem.tx_end[-1]
         if len(modem.tx_start) > modem.log_cap:
             self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
@@ -485,9 +495,9 @@ class AcousticChannel:
             for rx, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
-                # one tuple is both the receiver's signal record (sorted by arrival) and the
+                # one record is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context
-                sig = (arr, end, s, rx, pkt, T, path, -1)
+                sig = (arr, end, s, rx.index, pkt, T, path, -1)
                 if track:
                     rx.record(sig, forget)
                 sigs.append(sig)
@@ -499,7 +509,7 @@ class AcousticChannel:
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = (arr, end, s, rx, pkt, T, path, dst)
+                sig = (arr, end, s, rx.index, pkt, T, path, dst)
                 if track:
                     rx.record(sig, forget)
                 if intended:
@@ -770,16 +780,55 @@ class AcousticChannel:
     # -- receive ----------------------------------------------------------------------------------
 
     def _next_delivery(self, ev: _Deliveries) -> None:
-        """Decide the transmission's current delivery, then queue its next one."""
-        sigs = ev.sigs
-        k = ev.k
-        self._on_delivery(sigs[k])
-        k += 1
-        if k < len(sigs):
-            ev.k = k
-            ev.callbacks = self._next_cb  # Environment.step set it to None
-            t0 = ev.t0
-            self._push(ev, t0 + (sigs[k][1] - t0))
+        """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace;
+        then queue the transmission's next delivery. And while the head of SimPy's queue is
+        another delivery entry of this channel, take it off the queue and do the same here, as
+        ``Environment.step`` would have next (the same pop of the same heap: the same order
+        and times), without a step and its callback loop each."""
+        heap = self._queue
+        drain = heap if self.drain_deliveries else []  # whose head the loop may take
+        cb = self._next_cb
+        # _push_queue's push written out (one call less per delivery), unless the fallback
+        # _push_schedule is in use
+        eid = self._eid if self._push == self._push_queue else None
+        push = self._push
+        row = self._row
+        modems = self._modems
+        scan = self._scan
+        plain = self._jitter_std <= 0.0  # without jitter the clock's stamp is the MAC stamp
+        pressure_kind = self.config.pressure_kind
+        nan = math.nan
+        while True:
+            sigs = ev.sigs
+            k = ev.k
+            sig = sigs[k]
+            arr, _end, snr, rid, pkt, tof, path, dst_code = sig
+            reason = scan(sig)
+            if reason is None:
+                rx = modems[rid]
+                rx_local = rx.clock_stamp(arr) if plain else self._stamp(rx, arr)
+                p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == pressure_kind else nan
+                rx.deliver(pkt, rx_local, snr, p)
+                row((arr, "rx", None, rid, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+            else:
+                row((arr, "drop", reason, rid, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, nan))
+            k += 1
+            if k < len(sigs):  # queued after the delivery's own events (their sequence numbers)
+                ev.k = k
+                ev.callbacks = cb  # Environment.step set it to None (the loop below leaves it)
+                t0 = ev.t0
+                if eid is not None:
+                    heappush(heap, (t0 + (sigs[k][1] - t0), NORMAL, next(eid), ev))
+                else:
+                    push(ev, t0 + (sigs[k][1] - t0))
+            if not drain:  # empty, or no access to SimPy's queue (_push_schedule)
+                return
+            head = drain[0]
+            ev = head[3]
+            if ev.callbacks is not cb:  # an event of SimPy's or of a node: step() takes it
+                return
+            heappop(drain)
+            self._env._now = head[0]
 
     def _push_queue(self, ev: _Deliveries, at: float) -> None:
         """Queue ``ev`` at true time ``at`` exactly, as ``Environment.schedule`` would with
@@ -791,21 +840,24 @@ class AcousticChannel:
         time now + (at - now) can differ from ``at`` by an ulp early in a run)."""
         self._env.schedule(cast(simpy.Event, ev), NORMAL, at - self._env.now)
 
-    def _on_delivery(self, sig: _Signal) -> None:
-        """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace."""
-        arr, end, snr, rx, pkt, tof, path, dst_code = sig
+    def _scan(self, sig: _Signal) -> str | None:
+        """The verdict of a delivery from the receiver's logs at the delivery: "half_duplex",
+        "collision" or None."""
+        arr, end, snr, rx = sig[0], sig[1], sig[2], self._modems[sig[3]]
         reason = None
         # own transmissions overlapping [arr, end): started before end and, lasting at most
         # the longest packet, after arr - longest packet (twice that here, so the rounding of
-        # start + duration cannot hide one); the exact test decides within that slice
-        starts = rx.tx_start
-        i = bisect_left(starts, arr - 2.0 * self._max_duration)
-        n = len(starts)
-        while i < n and starts[i] < end:
-            if rx.tx_end[i] > arr:
-                reason = "half_duplex"
-                break
-            i += 1
+        # start + duration cannot hide one); the exact test decides within that slice; none
+        # when every own transmission ended by arr
+        if rx.busy_until > arr:
+            starts = rx.tx_start
+            i = bisect_left(starts, arr - 2.0 * self._max_duration)
+            n = len(starts)
+            while i < n and starts[i] < end:
+                if rx.tx_end[i] > arr:
+                    reason = "half_duplex"
+                    break
+                i += 1
         if reason is None and (self._destructive or self._capture):
             # rx_log is sorted by arrival; a signal overlapping [arr, end) arrived in
             # (arr - longest packet, end), so only that slice is examined
@@ -828,30 +880,7 @@ class AcousticChannel:
                 i += 1
             if hit and (self._destructive or not (snr - 10.0 * math.log10(power) >= self.config.capture_threshold_db)):
                 reason = "collision"
-        if reason is not None:
-            self._row(
-                (
-                    arr,
-                    "drop",
-                    reason,
-                    rx.index,
-                    pkt.src,
-                    dst_code,
-                    pkt.uid,
-                    pkt.kind,
-                    pkt.bits,
-                    tof,
-                    snr,
-                    path,
-                    math.nan,
-                )
-            )
-            return
-        # without jitter the clock's stamp is the MAC stamp: one call on the per-reception path
-        rx_local = self._stamp(rx, arr) if self._jitter_std > 0.0 else rx.clock_stamp(arr)
-        p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self.config.pressure_kind else math.nan
-        rx.deliver(Reception(pkt, rx_local, snr, p))
-        self._row((arr, "rx", None, rx.index, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
+        return reason
 
     def _pressure(self, pkt: Packet, rx: _Modem, t_send: float, t_arr: float) -> float:
         """Hydrophone reading of a sound emission (sender at send time, receiver at arrival),

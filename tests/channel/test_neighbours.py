@@ -151,6 +151,7 @@ def test_public_schedule_fallback_gives_the_same_packets(monkeypatch: pytest.Mon
     def no_queue(self: AcousticChannel, *a: Any, **k: Any) -> None:
         orig(self, *a, **k)
         self._push = self._push_schedule
+        self._queue = []  # and no access to SimPy's queue: every pop is Environment.step's
 
     monkeypatch.setattr(AcousticChannel, "__init__", no_queue)
     fallback = _packets(4, True, monkeypatch)
