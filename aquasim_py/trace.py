@@ -119,12 +119,15 @@ class _Column:
     collection of a long run).
     """
 
-    __slots__ = ("append", "cats", "data", "kind")
+    __slots__ = ("append", "cats", "data", "floated", "kind")
 
     def __init__(self, kind: str, n_missing: int = 0, streamed: int = 0) -> None:
         """``n_missing`` rows held here without a value; ``streamed`` earlier rows already
         handed to the table's sink (also without a value, and they count for the type)."""
         self.kind = kind
+        # an int column turned float here (its ints became floats, whatever it became later):
+        # the text of ints already written must change as the whole column's would
+        self.floated = False
         self.cats: dict[Any, int] = {}
         if kind == "f":
             self.data: Any = array("d", [math.nan]) * n_missing
@@ -159,6 +162,7 @@ class _Column:
 
     def _to_kind(self, kind: str) -> None:
         old = self.values()
+        self.floated = self.floated or (self.kind == "i" and kind == "f")
         self.kind = kind
         self.cats = {}
         if kind == "f":
@@ -434,7 +438,8 @@ class Table:
         # rows kept back wait for the watermark: try again only when as many have come again
         self._next_spill = self._chunk_rows + self._n
         if chunk.n:
-            sink.write(chunk, {k: c.kind for k, c in self.columns.items()})
+            floated = frozenset(k for k, c in columns.items() if c.floated)
+            sink.write(chunk, {k: c.kind for k, c in self.columns.items()}, floated)
             self._streamed += chunk.n
             if self._tallies:
                 self._count(chunk)
@@ -677,8 +682,10 @@ class _Sink(Protocol):
         """The file written (None: nothing is)."""
         ...
 
-    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
-        """Append the rows of ``chunk``; ``kinds``: every column's type so far (as :class:`_Column`)."""
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str], floated: frozenset[str] = frozenset()) -> None:
+        """Append the rows of ``chunk``; ``kinds``: every column's type so far (as :class:`_Column`);
+        ``floated``: the columns that went from int to float in this chunk (even if they are
+        objects now)."""
         ...
 
     def close(self, empty: pd.DataFrame) -> None:
@@ -691,19 +698,26 @@ class _Discard:
 
     path: Path | None = None
 
-    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str], floated: frozenset[str] = frozenset()) -> None:
         pass
 
     def close(self, empty: pd.DataFrame) -> None:
         pass
 
 
-def _reformats(old: Mapping[str, str], new: Mapping[str, str]) -> bool:
+def _widened(old: Mapping[str, str], new: Mapping[str, str], floated: frozenset[str], k: str) -> bool:
+    """Whether the ints written so far in column ``k`` are floats in the whole table: it was
+    an int column and turned float since, even if it holds objects now (int -> float ->
+    object converts the ints on the way; int -> object keeps them)."""
+    return old[k] == "i" and (new[k] == "f" or k in floated)
+
+
+def _reformats(old: Mapping[str, str], new: Mapping[str, str], floated: frozenset[str] = frozenset()) -> bool:
     """Whether text already written must change: a column added (a new header field and an
-    empty field on every earlier row) or an int column turned float ("3" becomes "3.0"). Any
-    other change (to "o", any object) keeps each value's text: pandas writes a float, an int
-    or a string in an object column as in a typed one."""
-    return any(k not in old for k in new) or any(old[k] == "i" and new[k] == "f" for k in old)
+    empty field on every earlier row) or an int column turned float ("3" becomes "3.0",
+    :func:`_widened`). Any other change (to "o", any object) keeps each value's text: pandas
+    writes a float, an int or a string in an object column as in a typed one."""
+    return any(k not in old for k in new) or any(_widened(old, new, floated, k) for k in old)
 
 
 #: strings whose CSV field text a sink remembers (category values: a handful per column)
@@ -836,9 +850,9 @@ class _CsvSink:
         self._kinds: dict[str, str] | None = None
         self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_csv_text), kept across chunks
 
-    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
-        if self._kinds is not None and _reformats(self._kinds, kinds):
-            self._rewrite(kinds)
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str], floated: frozenset[str] = frozenset()) -> None:
+        if self._kinds is not None and _reformats(self._kinds, kinds, floated):
+            self._rewrite(kinds, floated)
         first = self._kinds is None
         text = _csv_lines(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
         with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
@@ -850,9 +864,9 @@ class _CsvSink:
         if len(self._quoted) > _QUOTED_MAX:  # a column of ever new strings: do not keep them all
             self._quoted.clear()
 
-    def _rewrite(self, kinds: Mapping[str, str]) -> None:
+    def _rewrite(self, kinds: Mapping[str, str], floated: frozenset[str]) -> None:
         assert self._kinds is not None
-        widened = [k for k, kind in self._kinds.items() if kind == "i" and kinds[k] == "f"]
+        widened = [k for k in self._kinds if _widened(self._kinds, kinds, floated, k)]
         added = [k for k in kinds if k not in self._kinds]
         tmp = self.path.with_name(self.path.name + ".rewrite")
         with open(tmp, "w", encoding="utf-8", newline="") as f:
@@ -892,7 +906,7 @@ class _ParquetSink:
 
         return pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
 
-    def write(self, chunk: _Chunk, kinds: Mapping[str, str]) -> None:
+    def write(self, chunk: _Chunk, kinds: Mapping[str, str], floated: frozenset[str] = frozenset()) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
