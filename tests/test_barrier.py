@@ -164,14 +164,16 @@ class Listener(Node):
     got: ClassVar[dict[int, list[Any]]] = {}
 
     def run(self) -> Any:
-        mine = self.got.setdefault(self.id, [])
         while True:
-            rec = yield self.recv()
-            mine.append((rec.packet.kind, rec.packet.payload, rec.snr_db))
-            if rec.packet.kind == "d":
-                rec.packet.payload["pos"][1] = 99.0  # writes into its own copy only
-            else:
-                rec.packet.payload[1] = 99.0
+            self.keep((yield self.recv()))
+
+    def keep(self, rec: Any) -> None:
+        """Keep (kind, payload, SNR) of ``rec`` and write 99 into its payload (its own copy only)."""
+        self.got.setdefault(self.id, []).append((rec.packet.kind, rec.packet.payload, rec.snr_db))
+        if rec.packet.kind == "d":
+            rec.packet.payload["pos"][1] = 99.0
+        else:
+            rec.packet.payload[1] = 99.0
 
 
 def _talk_sim(n: int, std: float | None, seed: int = 5) -> Simulation:
@@ -216,13 +218,8 @@ class LateTaker(Listener):
 
     def run(self) -> Any:
         yield self.sleep(self.delay[self.id])
-        mine = self.got.setdefault(self.id, [])
         for rec in self.take_pending():
-            mine.append((rec.packet.kind, rec.packet.payload, rec.snr_db))
-            if rec.packet.kind == "d":
-                rec.packet.payload["pos"][1] = 99.0
-            else:
-                rec.packet.payload[1] = 99.0
+            self.keep(rec)
 
 
 @pytest.mark.parametrize("late", [LateListener, LateTaker], ids=["recv", "take_pending"])

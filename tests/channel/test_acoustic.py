@@ -8,11 +8,11 @@ from the receiver's closed-form trajectory, and hand-computed timelines in a 150
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
 import numpy as np
 import pytest
 from scipy.optimize import brentq
+from scripted import Script, planned
 
 from aquasim_py.channel import Constant, Isogradient, acoustic, travel_time
 from aquasim_py.channel.acoustic import ChannelConfig
@@ -33,24 +33,6 @@ except NotImplementedError:
 BOX = Box([-10_000.0, -10_000.0, 0.0], [10_000.0, 10_000.0, 1000.0])
 
 
-class Script(Node):
-    """Transmits at given local times: params-free, the plan is set on the class by each test."""
-
-    name = "script"
-    plan: ClassVar[dict[int, list[tuple[float, int | None, int]]]] = {}  # id -> [(local time, dst, bits)]
-
-    def run(self):
-        for t_local, dst, bits in self.plan.get(self.id, []):
-            wait = t_local - self.local_time()
-            if wait > 0:
-                yield self.sleep(wait)
-            if dst is None:
-                stamp = yield self.broadcast("data", {"from": self.id}, bits)
-            else:
-                stamp = yield self.send(dst, "data", {"from": self.id}, bits)
-            self.log("sent", stamp=stamp)
-
-
 class Listener(Node):
     name = "listener"
 
@@ -60,10 +42,6 @@ class Listener(Node):
             self.log("got", src=rec.packet.src, uid=rec.packet.uid, tx_local=rec.packet.tx_local, rx_local=rec.rx_local)
 
 
-def _plan(cls_plan: dict[int, list[tuple[float, int | None, int]]]) -> type[Node]:
-    return type("Planned", (Script,), {"plan": cls_plan, "name": "planned"})
-
-
 def _packets(sim: Simulation):
     return sim.trace.frames()["packets"]
 
@@ -71,7 +49,7 @@ def _packets(sim: Simulation):
 def test_static_delay_equals_travel_time():
     src, dst = [0.0, 0.0, 50.0], [800.0, 300.0, 120.0]
     sim = Simulation(1, ssp=PROFILE, channel=ChannelConfig(collision="none"))
-    sim.add_group(_plan({0: [(0.3, None, 64)]}), 1, positions=[src])
+    sim.add_group(planned({0: [(0.3, None, 64)]}), 1, positions=[src])
     sim.add_group(Listener, 1, positions=[dst])
     sim.run(5.0)
     p = _packets(sim)
@@ -90,7 +68,7 @@ def test_moving_receiver_delay_at_arrival_position():
     assert math.isclose(np.linalg.norm(v_r), 2.0)
     sim = Simulation(2, ssp=PROFILE, volume=BOX, channel=ChannelConfig(collision="none"))
     sim.add_group(
-        _plan({0: [(5.0, None, 64), (40.0, None, 64)]}), 1, mobility=ConstantVelocity([p_s0], BOX, velocity=v_s)
+        planned({0: [(5.0, None, 64), (40.0, None, 64)]}), 1, mobility=ConstantVelocity([p_s0], BOX, velocity=v_s)
     )
     sim.add_group(Listener, 1, mobility=ConstantVelocity([p_r0], BOX, velocity=v_r))
     sim.run(60.0)
@@ -115,7 +93,7 @@ def test_mac_timestamps_follow_local_clocks():
     skews, offsets = [40e-6, -25e-6, 0.0], [0.37, -1.25, 0.0]
     clocks = [Clock(skew=s, offset=o) for s, o in zip(skews, offsets)]
     positions = [[0.0, 0.0, 30.0], [1000.0, 0.0, 30.0], [0.0, 900.0, 60.0]]
-    cls = _plan({0: [(2.0, None, 100), (9.0, 1, 100)], 1: [(4.0, None, 80)]})
+    cls = planned({0: [(2.0, None, 100), (9.0, 1, 100)], 1: [(4.0, None, 80)]})
 
     class Both(cls):  # sends its plan and logs what it receives
         def run(self):
@@ -159,7 +137,7 @@ def _run_three(plan, positions, **cfg) -> tuple[Simulation, object]:
     kw = dict(max_range_m=2000.0, snr_threshold_db=-1e9)
     kw.update(cfg)
     sim = Simulation(4, ssp=C, channel=ChannelConfig(**kw))
-    sim.add_group(_plan(plan), len(positions), positions=positions)
+    sim.add_group(planned(plan), len(positions), positions=positions)
     sim.run(10.0)
     return sim, _packets(sim)
 
@@ -198,7 +176,7 @@ def test_capture_timeline(threshold, b_survives):
     B_NEAR = [750.0, 0.0, 10.0]
     kw = dict(max_range_m=2000.0, snr_threshold_db=-1e9, collision="capture", capture_threshold_db=threshold)
     sim = Simulation(5, ssp=C, channel=ChannelConfig(**kw), loss_model=_spherical)
-    sim.add_group(_plan({0: [(0.0, None, 200)], 2: [(0.55, None, 200)]}), 3, positions=[A, R, B_NEAR])
+    sim.add_group(planned({0: [(0.0, None, 200)], 2: [(0.55, None, 200)]}), 3, positions=[A, R, B_NEAR])
     sim.run(10.0)
     at_r = _at(_packets(sim), 1).set_index("src")
     assert at_r.loc[0, "event"] == "drop" and at_r.loc[0, "reason"] == "collision"
@@ -282,7 +260,7 @@ def test_unicast_overheard_signal_still_collides():
 def test_snr_and_no_path_drops(monkeypatch):
     weak = lambda ray, cfg: np.full(np.shape(ray.time), 3.0)  # noqa: E731
     sim = Simulation(8, ssp=C, channel=ChannelConfig(snr_threshold_db=5.0), loss_model=weak)
-    sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[A, R])
+    sim.add_group(planned({0: [(0.0, None, 100)]}), 2, positions=[A, R])
     sim.run(3.0)
     d = _at(_packets(sim), 1, "drop").iloc[0]
     assert d.reason == "snr" and d.snr_db == 3.0 and math.isclose(d.time, 1.0)
@@ -296,7 +274,7 @@ def test_snr_and_no_path_drops(monkeypatch):
 
     monkeypatch.setattr(acoustic, "eigenray", shadow)
     sim = Simulation(8, ssp=C)
-    sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[A, R])
+    sim.add_group(planned({0: [(0.0, None, 100)]}), 2, positions=[A, R])
     sim.run(3.0)
     d = _at(_packets(sim), 1, "drop").iloc[0]
     assert d.reason == "no_path" and d.path == "none"
@@ -335,7 +313,7 @@ def test_real_shadow_zone_and_reflected_path():
     assert np.isnan(travel_time(ssp, src, dst, reflections="none"))
     for refl in ("none", "fallback"):
         sim = Simulation(10, ssp=ssp, channel=ChannelConfig(max_range_m=7000.0, reflections=refl))
-        sim.add_group(_plan({0: [(0.0, None, 100)]}), 2, positions=[src, dst])
+        sim.add_group(planned({0: [(0.0, None, 100)]}), 2, positions=[src, dst])
         sim.run(10.0)
         r = _at(_packets(sim), 1).iloc[0]
         if refl == "none":
@@ -353,7 +331,7 @@ def test_default_loss_model_wires_the_config():
 
     def snr(**cfg):
         sim = Simulation(12, ssp=C, channel=ChannelConfig(collision="none", snr_threshold_db=-1e9, **cfg))
-        sim.add_group(_plan({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
+        sim.add_group(planned({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
         sim.run(5.0)
         p = _packets(sim)
         return p[p.event == "rx"].set_index("node")["snr_db"]
@@ -367,7 +345,7 @@ def test_default_loss_model_wires_the_config():
     expected = 20 * math.log10(4.0) + 1.5 * float(thorp_absorption_db_per_km(10.0))  # 1.5 km more
     assert math.isclose(base[1] - base[2], expected, abs_tol=1e-9)
     sim = Simulation(12, ssp=C, channel=ChannelConfig(snr_threshold_db=float(base[2]) + 0.5, spreading=2.0))
-    sim.add_group(_plan({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
+    sim.add_group(planned({0: [(0.0, None, 64)]}), 3, positions=[R, [500.0, 0.0, 10.0], [0.0, 2000.0, 10.0]])
     sim.run(5.0)
     p = _packets(sim)
     assert list(p[p.node == 1].event) == ["rx"] and list(p[p.node == 2].reason) == ["snr"]
@@ -407,7 +385,7 @@ def test_turning_receiver_delay_at_arrival_position():
         return p_r0 + (speed / w) * np.array([np.sin(h0 + w * t) - np.sin(h0), np.cos(h0) - np.cos(h0 + w * t), 0.0])
 
     sim = Simulation(14, ssp=PROFILE, volume=BOX, channel=ChannelConfig(collision="none"))
-    sim.add_group(_plan({0: [(3.0, None, 64), (17.5, None, 64)]}), 1, positions=[src])
+    sim.add_group(planned({0: [(3.0, None, 64), (17.5, None, 64)]}), 1, positions=[src])
     sim.add_group(Listener, 1, mobility=CoordinatedTurn([p_r0], BOX, speed=speed, turn_rate=w, heading=h0))
     sim.run(30.0)
     p = _packets(sim)
@@ -480,7 +458,7 @@ def test_moving_receiver_delay_constant_profile():
     c = 1500.0
     p_s, p_r0, v_r = np.array([0.0, 0.0, 100.0]), np.array([-900.0, 1300.0, 60.0]), np.array([3.2, -2.4, 0.0])
     sim = Simulation(4, ssp=Constant(c), volume=BOX, channel=ChannelConfig(collision="none"))
-    sim.add_group(_plan({0: [(2.0, None, 64), (31.0, None, 64)]}), 1, positions=[p_s])
+    sim.add_group(planned({0: [(2.0, None, 64), (31.0, None, 64)]}), 1, positions=[p_s])
     sim.add_group(Listener, 1, mobility=ConstantVelocity([p_r0], BOX, velocity=v_r))
     sim.run(40.0)
     p = _packets(sim)

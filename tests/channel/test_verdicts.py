@@ -11,42 +11,23 @@ its addressee gets a row.
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scripted import Plan, planned
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.kernel import Simulation
-from aquasim_py.node import Node
 
 C = 1024.0  # m/s
 BITRATE = 1024.0  # bit/s
 GRID = 1.0 / 16.0  # s
 
 
-class Plan(Node):
-    """Transmits at given local times (a perfect clock: true times), ``plan`` set per example."""
-
-    name = "verdict_plan"
-    plan: ClassVar[dict[int, list[tuple[float, int | None, int]]]] = {}
-
-    def run(self):
-        for t, dst, bits in self.plan.get(self.id, []):
-            wait = t - self.local_time()
-            if wait > 0:
-                yield self.sleep(wait)
-            if dst is None:
-                yield self.broadcast("data", None, bits)
-            else:
-                yield self.send(dst, "data", None, bits)
-
-
-def _run(xs: list[int], plan: dict[int, list[tuple[float, int | None, int]]], collision: str) -> pd.DataFrame:
-    cls = type("P", (Plan,), {"plan": plan})
+def _run(xs: list[int], plan: Plan, collision: str) -> pd.DataFrame:
+    cls = planned(plan)
     cfg = ChannelConfig(max_range_m=1e6, bitrate_bps=BITRATE, snr_threshold_db=-1e9, collision=collision)
     sim = Simulation(1, ssp=Constant(C), channel=cfg)
     sim.add_group(cls, len(xs), positions=[[64.0 * x, 0.0, 10.0] for x in xs])
@@ -87,10 +68,10 @@ def _observed(p: pd.DataFrame) -> list[tuple[int, int, float, str, str | None]]:
 
 
 @st.composite
-def networks(draw: st.DrawFn) -> tuple[list[int], dict[int, list[tuple[float, int | None, int]]]]:
+def networks(draw: st.DrawFn) -> tuple[list[int], Plan]:
     n = draw(st.integers(2, 6))
     xs = draw(st.lists(st.integers(0, 24), min_size=n, max_size=n, unique=True))
-    plan: dict[int, list[tuple[float, int | None, int]]] = {}
+    plan: Plan = {}
     for i in range(n):
         slots = draw(st.lists(st.integers(0, 40), max_size=4, unique=True))
         plan[i] = [
