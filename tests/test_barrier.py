@@ -185,19 +185,24 @@ def _talk_sim(n: int, std: float | None, seed: int = 5) -> Simulation:
     return sim
 
 
-def test_payload_is_a_snapshot_and_each_receiver_has_its_own() -> None:
-    sim = _talk_sim(3, None)
-    sim.run(20.0)
+def _assert_own_snapshots() -> None:
+    """Each listener (1, 2) got the Talker's three send-time snapshots (its later changes
+    unseen) with its own write of 99 in each, in objects of its own."""
     for rid in (1, 2):
         got = Listener.got[rid]
         assert [k for k, _, _ in got] == ["d", "a"] * 3
         for i in range(3):
             (_, d, _), (_, a, _) = got[2 * i], got[2 * i + 1]
-            assert d["seq"] == i and d["pos"][0] == 1.0  # the sender's later changes: unseen
-            assert a[0] == float(i)
-    # each listener wrote 99 into its own copy; the other listener's copies are its own too
-    assert all(d["pos"][1] == 99.0 for k, d, _ in Listener.got[1] if k == "d")
-    assert Listener.got[1][0][1] is not Listener.got[2][0][1]
+            assert d["seq"] == i and d["pos"][0] == 1.0 and d["pos"][1] == 99.0  # its own write only
+            assert a[0] == float(i) and a[1] == 99.0
+    for (_, x, _), (_, y, _) in zip(Listener.got[1], Listener.got[2], strict=True):
+        assert x is not y
+
+
+def test_payload_is_a_snapshot_and_each_receiver_has_its_own() -> None:
+    sim = _talk_sim(3, None)
+    sim.run(20.0)
+    _assert_own_snapshots()
 
 
 class LateListener(Listener):
@@ -232,15 +237,7 @@ def test_receptions_taken_from_the_inbox_are_own_copies_of_the_snapshot(late: ty
     sim.add_group(type("T", (Talker,), {"n": 3}), 1, positions=[P0])
     sim.add_group(late, 2, positions=[P1, P2])
     sim.run(20.0)
-    for rid in (1, 2):
-        got = Listener.got[rid]
-        assert [k for k, _, _ in got] == ["d", "a"] * 3
-        for i in range(3):
-            (_, d, _), (_, a, _) = got[2 * i], got[2 * i + 1]
-            assert d["seq"] == i and d["pos"][0] == 1.0 and d["pos"][1] == 99.0  # its own write only
-            assert a[0] == float(i) and a[1] == 99.0
-    for (_, x, _), (_, y, _) in zip(Listener.got[1], Listener.got[2]):
-        assert x is not y
+    _assert_own_snapshots()
 
 
 def test_snr_is_an_estimate_with_the_configured_noise_and_the_trace_keeps_truth() -> None:
