@@ -1,7 +1,834 @@
-/* the channel's delivery decisions (see aquasim_py/channel/acoustic.py); placeholder until implemented. */
+/* The acoustic channel's per-reception work in C (aquasim_py/channel/acoustic.py is the
+ * reference and the fallback: AcousticChannel.compiled_delivery = False runs it).
+ *
+ * Core: every node's channel-side state in contiguous memory, owned by one AcousticChannel:
+ *   - own transmissions (start, end) and busy_until (the Python _Modem.tx_start / tx_end /
+ *     busy_until, pruned as AcousticChannel._prune prunes them);
+ *   - the signal log (arrival, end, SNR, transmission uid), sorted by arrival and pruned as
+ *     _Modem.record prunes it;
+ *   - the affine clock (1 + skew, offset) of nodes whose stamp is exact (_NodeCore.exact_stamp).
+ * Core.start records one transmission's signals at every receiver (AcousticChannel._start's
+ * loop) and queues its Deliveries entry on SimPy's heap; Core.run is the entry's callback and
+ * mirrors AcousticChannel._next_delivery (with _scan): verdict, stamp, delivery to the node
+ * (a Python call: the node side stays Python), packets row, next entry, and the drain of
+ * consecutive channel entries at the head of SimPy's queue.
+ *
+ * Every float expression is the Python one in the same order (built with -ffp-contract=off:
+ * no fused multiply-add), so the rows have the same bits; SimPy's heap is driven through
+ * heapq's own functions with next(env._eid) drawn where Python draws it, so the order of
+ * events is the same.
+ */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <structmember.h>
+#include <math.h>
+#include <string.h>
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_delivery", "the channel's delivery decisions (see aquasim_py/channel/acoustic.py)", 0, NULL};
+/* ------------------------------------------------------------------------------------------ */
+/* interned strings and heapq */
 
-PyMODINIT_FUNC PyInit__delivery(void) { return PyModule_Create(&module); }
+static PyObject *s_rx, *s_drop, *s_half_duplex, *s_collision, *s_now, *s_index;
+static PyObject *s_uid, *s_src, *s_kind, *s_bits;
+static PyObject *heappush_fn, *heappop_fn;
+
+/* ------------------------------------------------------------------------------------------ */
+/* growable double arrays */
+
+typedef struct {
+    double busy_until;   /* latest end of own transmissions (true s) */
+    double a, b;         /* exact clock: local = a * t + b, a = 1.0 + skew */
+    int exact;           /* the clock's stamp is the affine map (no drift, no jitter) */
+    Py_ssize_t ntx, captx, log_cap;
+    double *tx_start, *tx_end;       /* own transmissions, in order of start */
+    Py_ssize_t nsig, capsig;
+    double *sig_arr, *sig_end, *sig_snr; /* signal log, sorted by arrival */
+    long long *sig_uid;                  /* the transmission of each signal ("e is not sig") */
+    PyObject *deliver;   /* the port's deliver(pkt, rx_local, snr, pressure) */
+    PyObject *rid;       /* the node id as a Python int (row field) */
+} Node;
+
+static int grow(void **p, Py_ssize_t cap, size_t size) {
+    void *q = PyMem_Realloc(*p, (size_t)cap * size);
+    if (q == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    *p = q;
+    return 0;
+}
+
+/* bisect.bisect_left / bisect_right on a sorted double array */
+static Py_ssize_t bisect_left(const double *a, Py_ssize_t n, double x) {
+    Py_ssize_t lo = 0, hi = n;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (a[mid] < x) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+static Py_ssize_t bisect_right(const double *a, Py_ssize_t n, double x) {
+    Py_ssize_t lo = 0, hi = n;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (x < a[mid]) hi = mid;
+        else lo = mid + 1;
+    }
+    return lo;
+}
+
+/* ------------------------------------------------------------------------------------------ */
+/* Links: the heard receivers of one transmission, packed (sorted by delay, as _links gives them) */
+
+typedef struct {
+    PyObject_HEAD
+    Py_ssize_t n;
+    Py_ssize_t *rid;
+    double *tof, *snr;
+    PyObject **tof_obj, **snr_obj, **path; /* the row's objects (shared, as the Python rows share them) */
+} Links;
+
+static void Links_dealloc(Links *self) {
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        Py_XDECREF(self->tof_obj[i]);
+        Py_XDECREF(self->snr_obj[i]);
+        Py_XDECREF(self->path[i]);
+    }
+    PyMem_Free(self->rid);
+    PyMem_Free(self->tof);
+    PyMem_Free(self->snr);
+    PyMem_Free(self->tof_obj);
+    PyMem_Free(self->snr_obj);
+    PyMem_Free(self->path);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyTypeObject LinksType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "aquasim_py.channel._delivery.Links",
+    .tp_basicsize = sizeof(Links),
+    .tp_dealloc = (destructor)Links_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "the heard receivers of one transmission, packed (Core.pack)",
+};
+
+/* ------------------------------------------------------------------------------------------ */
+/* Core */
+
+typedef struct {
+    PyObject_HEAD
+    Node *nodes;
+    Py_ssize_t n, cap;
+    double max_duration;   /* the channel's longest packet so far (s), kept in step by Python */
+    int collision;         /* 0 none, 1 destructive, 2 capture */
+    int drain;             /* AcousticChannel.drain_deliveries */
+    int jitter;            /* jitter_std_s > 0: every stamp through Python */
+    double capture_db;
+    PyObject *queue;       /* SimPy's heap (list) */
+    PyObject *eid;         /* SimPy's sequence counter */
+    PyObject *env;
+    PyObject *priority;    /* simpy.events.NORMAL */
+    PyObject *rows;        /* the packets row buffer (list) */
+    PyObject *stamp;       /* stamp(rid, t) -> local s, for clocks that are not exact or with jitter */
+    PyObject *pressure;    /* pressure(pkt, rid, t_send, t_arr) -> float */
+    PyObject *pressure_kind;
+    PyObject *cb;          /* [self.run]: the callbacks of every channel entry */
+    PyObject *nan;
+} Core;
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *callbacks;   /* what Environment.step reads and clears */
+    Core *core;
+    Links *links;
+    PyObject *pkt, *src, *uid, *kind, *bits, *dst_code;
+    long long uid_v;
+    double t0, duration;
+    Py_ssize_t k, n;       /* next delivery, one past the last */
+    int pressure;          /* the packet is a sound emission (kind == pressure_kind) */
+} Deliveries;
+
+static PyTypeObject CoreType;
+static PyTypeObject DeliveriesType;
+
+static int Core_traverse(Core *self, visitproc visit, void *arg) {
+    for (Py_ssize_t i = 0; i < self->n; i++) Py_VISIT(self->nodes[i].deliver);
+    Py_VISIT(self->queue);
+    Py_VISIT(self->eid);
+    Py_VISIT(self->env);
+    Py_VISIT(self->rows);
+    Py_VISIT(self->stamp);
+    Py_VISIT(self->pressure);
+    Py_VISIT(self->cb);
+    return 0;
+}
+
+static int Core_clear(Core *self) {
+    for (Py_ssize_t i = 0; i < self->n; i++) Py_CLEAR(self->nodes[i].deliver);
+    Py_CLEAR(self->queue);
+    Py_CLEAR(self->eid);
+    Py_CLEAR(self->env);
+    Py_CLEAR(self->priority);
+    Py_CLEAR(self->rows);
+    Py_CLEAR(self->stamp);
+    Py_CLEAR(self->pressure);
+    Py_CLEAR(self->pressure_kind);
+    Py_CLEAR(self->cb);
+    return 0;
+}
+
+static void Core_dealloc(Core *self) {
+    PyObject_GC_UnTrack(self);
+    Core_clear(self);
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        Node *nd = &self->nodes[i];
+        Py_XDECREF(nd->rid);
+        PyMem_Free(nd->tx_start);
+        PyMem_Free(nd->tx_end);
+        PyMem_Free(nd->sig_arr);
+        PyMem_Free(nd->sig_end);
+        PyMem_Free(nd->sig_snr);
+        PyMem_Free(nd->sig_uid);
+    }
+    PyMem_Free(self->nodes);
+    Py_XDECREF(self->nan);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
+    static char *kw[] = {"env", "queue", "eid", "priority", "rows", "collision", "capture_threshold_db",
+                         "jitter", "stamp", "pressure", "pressure_kind", "drain", NULL};
+    PyObject *env, *queue, *eid, *priority, *rows, *stamp, *pressure, *pressure_kind;
+    const char *collision;
+    double capture;
+    int jitter, drain;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OO!OOO!sdpOOOp", kw, &env, &PyList_Type, &queue, &eid, &priority,
+                                     &PyList_Type, &rows, &collision, &capture, &jitter, &stamp, &pressure,
+                                     &pressure_kind, &drain))
+        return -1;
+    if (strcmp(collision, "none") == 0) self->collision = 0;
+    else if (strcmp(collision, "destructive") == 0) self->collision = 1;
+    else if (strcmp(collision, "capture") == 0) self->collision = 2;
+    else {
+        PyErr_Format(PyExc_ValueError, "Core: unknown collision model %s", collision);
+        return -1;
+    }
+    Core_clear(self);
+    Py_INCREF(env); self->env = env;
+    Py_INCREF(queue); self->queue = queue;
+    Py_INCREF(eid); self->eid = eid;
+    Py_INCREF(priority); self->priority = priority;
+    Py_INCREF(rows); self->rows = rows;
+    Py_INCREF(stamp); self->stamp = stamp;
+    Py_INCREF(pressure); self->pressure = pressure;
+    Py_INCREF(pressure_kind); self->pressure_kind = pressure_kind;
+    self->capture_db = capture;
+    self->jitter = jitter;
+    self->drain = drain;
+    if (self->nan == NULL && (self->nan = PyFloat_FromDouble(Py_NAN)) == NULL) return -1;
+    PyObject *run = PyObject_GetAttrString((PyObject *)self, "run");
+    if (run == NULL) return -1;
+    self->cb = PyList_New(1);
+    if (self->cb == NULL) {
+        Py_DECREF(run);
+        return -1;
+    }
+    PyList_SET_ITEM(self->cb, 0, run);
+    return 0;
+}
+
+/* attach(deliver, exact, skew, offset): the next node (ids 0, 1, ... in order) */
+static PyObject *Core_attach(Core *self, PyObject *args) {
+    PyObject *deliver;
+    int exact;
+    double skew, offset;
+    if (!PyArg_ParseTuple(args, "Opdd", &deliver, &exact, &skew, &offset)) return NULL;
+    if (self->n == self->cap) {
+        Py_ssize_t cap = self->cap ? 2 * self->cap : 64;
+        if (grow((void **)&self->nodes, cap, sizeof(Node)) < 0) return NULL;
+        self->cap = cap;
+    }
+    PyObject *rid = PyLong_FromSsize_t(self->n);
+    if (rid == NULL) return NULL;
+    Node *nd = &self->nodes[self->n];
+    memset(nd, 0, sizeof(Node));
+    nd->busy_until = -Py_HUGE_VAL;
+    nd->exact = exact;
+    nd->a = 1.0 + skew; /* _NodeCore.clock_stamp's (1.0 + c.skew): the same double */
+    nd->b = offset;
+    nd->log_cap = 8;
+    Py_INCREF(deliver);
+    nd->deliver = deliver;
+    nd->rid = rid;
+    self->n++;
+    Py_RETURN_NONE;
+}
+
+static Node *node_at(Core *self, Py_ssize_t i) {
+    if (i < 0 || i >= self->n) {
+        PyErr_Format(PyExc_IndexError, "no node %zd on this channel", i);
+        return NULL;
+    }
+    return &self->nodes[i];
+}
+
+/* transmit(node, start, end, now): an own transmission [start, end) (true s), as
+ * AcousticChannel._start appends it, then _prune when the log exceeds its cap */
+static PyObject *Core_transmit(Core *self, PyObject *args) {
+    Py_ssize_t i;
+    double start, end, now;
+    if (!PyArg_ParseTuple(args, "nddd", &i, &start, &end, &now)) return NULL;
+    Node *nd = node_at(self, i);
+    if (nd == NULL) return NULL;
+    if (nd->ntx == nd->captx) {
+        Py_ssize_t cap = nd->captx ? 2 * nd->captx : 16;
+        if (grow((void **)&nd->tx_start, cap, sizeof(double)) < 0 || grow((void **)&nd->tx_end, cap, sizeof(double)) < 0)
+            return NULL;
+        nd->captx = cap;
+    }
+    nd->tx_start[nd->ntx] = start;
+    nd->tx_end[nd->ntx] = end;
+    nd->ntx++;
+    if (end > nd->busy_until) nd->busy_until = end;
+    if (nd->ntx > nd->log_cap) {
+        /* _prune: keep the transmissions that ended at or after now - longest packet */
+        double cutoff = now - self->max_duration;
+        Py_ssize_t k = 0;
+        for (Py_ssize_t j = 0; j < nd->ntx; j++) {
+            if (nd->tx_end[j] >= cutoff) {
+                nd->tx_start[k] = nd->tx_start[j];
+                nd->tx_end[k] = nd->tx_end[j];
+                k++;
+            }
+        }
+        nd->ntx = k;
+        nd->log_cap = 2 * k > 8 ? 2 * k : 8;
+    }
+    Py_RETURN_NONE;
+}
+
+/* _Modem.record: forget the signals that arrived before `forget`, then insert after equal arrivals */
+static int record(Node *nd, double arr, double end, double snr, long long uid, double forget) {
+    if (nd->nsig && nd->sig_arr[0] < forget) {
+        Py_ssize_t j = bisect_left(nd->sig_arr, nd->nsig, forget);
+        Py_ssize_t m = nd->nsig - j;
+        memmove(nd->sig_arr, nd->sig_arr + j, m * sizeof(double));
+        memmove(nd->sig_end, nd->sig_end + j, m * sizeof(double));
+        memmove(nd->sig_snr, nd->sig_snr + j, m * sizeof(double));
+        memmove(nd->sig_uid, nd->sig_uid + j, m * sizeof(long long));
+        nd->nsig = m;
+    }
+    if (nd->nsig == nd->capsig) {
+        Py_ssize_t cap = nd->capsig ? 2 * nd->capsig : 16;
+        if (grow((void **)&nd->sig_arr, cap, sizeof(double)) < 0 || grow((void **)&nd->sig_end, cap, sizeof(double)) < 0 ||
+            grow((void **)&nd->sig_snr, cap, sizeof(double)) < 0 || grow((void **)&nd->sig_uid, cap, sizeof(long long)) < 0)
+            return -1;
+        nd->capsig = cap;
+    }
+    Py_ssize_t j = bisect_right(nd->sig_arr, nd->nsig, arr);
+    Py_ssize_t m = nd->nsig - j;
+    memmove(nd->sig_arr + j + 1, nd->sig_arr + j, m * sizeof(double));
+    memmove(nd->sig_end + j + 1, nd->sig_end + j, m * sizeof(double));
+    memmove(nd->sig_snr + j + 1, nd->sig_snr + j, m * sizeof(double));
+    memmove(nd->sig_uid + j + 1, nd->sig_uid + j, m * sizeof(long long));
+    nd->sig_arr[j] = arr;
+    nd->sig_end[j] = end;
+    nd->sig_snr[j] = snr;
+    nd->sig_uid[j] = uid;
+    nd->nsig++;
+    return 0;
+}
+
+/* pack(heard): heard as _links gives it, [(modem, delay, path name, snr), ...] sorted by delay */
+static PyObject *Core_pack(Core *self, PyObject *heard) {
+    if (!PyList_Check(heard)) {
+        PyErr_SetString(PyExc_TypeError, "pack: heard must be a list");
+        return NULL;
+    }
+    Py_ssize_t n = PyList_GET_SIZE(heard);
+    Links *L = PyObject_New(Links, &LinksType);
+    if (L == NULL) return NULL;
+    L->n = 0;
+    L->rid = PyMem_Malloc((n ? n : 1) * sizeof(Py_ssize_t));
+    L->tof = PyMem_Malloc((n ? n : 1) * sizeof(double));
+    L->snr = PyMem_Malloc((n ? n : 1) * sizeof(double));
+    L->tof_obj = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
+    L->snr_obj = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
+    L->path = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
+    if (!L->rid || !L->tof || !L->snr || !L->tof_obj || !L->snr_obj || !L->path) {
+        Py_DECREF(L);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *h = PyList_GET_ITEM(heard, i);
+        if (!PyTuple_Check(h) || PyTuple_GET_SIZE(h) != 4) {
+            Py_DECREF(L);
+            PyErr_SetString(PyExc_TypeError, "pack: heard entries are (modem, delay, path, snr)");
+            return NULL;
+        }
+        PyObject *idx = PyObject_GetAttr(PyTuple_GET_ITEM(h, 0), s_index);
+        if (idx == NULL) {
+            Py_DECREF(L);
+            return NULL;
+        }
+        Py_ssize_t rid = PyLong_AsSsize_t(idx);
+        Py_DECREF(idx);
+        if (rid == -1 && PyErr_Occurred()) {
+            Py_DECREF(L);
+            return NULL;
+        }
+        if (rid < 0 || rid >= self->n) {
+            Py_DECREF(L);
+            PyErr_Format(PyExc_IndexError, "pack: no node %zd on this channel", rid);
+            return NULL;
+        }
+        PyObject *t = PyTuple_GET_ITEM(h, 1), *s = PyTuple_GET_ITEM(h, 3);
+        double tv = PyFloat_AsDouble(t), sv = PyFloat_AsDouble(s);
+        if (PyErr_Occurred()) {
+            Py_DECREF(L);
+            return NULL;
+        }
+        L->rid[i] = rid;
+        L->tof[i] = tv;
+        L->snr[i] = sv;
+        Py_INCREF(t);
+        Py_INCREF(s);
+        Py_INCREF(PyTuple_GET_ITEM(h, 2));
+        L->tof_obj[i] = t;
+        L->snr_obj[i] = s;
+        L->path[i] = PyTuple_GET_ITEM(h, 2);
+        L->n = i + 1;
+    }
+    return (PyObject *)L;
+}
+
+static int push(Core *self, Deliveries *d, double at) {
+    PyObject *eid = PyIter_Next(self->eid);
+    if (eid == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_RuntimeError, "SimPy's event counter ended");
+        return -1;
+    }
+    PyObject *t = PyFloat_FromDouble(at);
+    if (t == NULL) {
+        Py_DECREF(eid);
+        return -1;
+    }
+    PyObject *entry = PyTuple_New(4);
+    if (entry == NULL) {
+        Py_DECREF(eid);
+        Py_DECREF(t);
+        return -1;
+    }
+    Py_INCREF(self->priority);
+    Py_INCREF(d);
+    PyTuple_SET_ITEM(entry, 0, t);
+    PyTuple_SET_ITEM(entry, 1, self->priority);
+    PyTuple_SET_ITEM(entry, 2, eid);
+    PyTuple_SET_ITEM(entry, 3, (PyObject *)d);
+    PyObject *argv[2] = {self->queue, entry};
+    PyObject *r = PyObject_Vectorcall(heappush_fn, argv, 2, NULL);
+    Py_DECREF(entry);
+    if (r == NULL) return -1;
+    Py_DECREF(r);
+    return 0;
+}
+
+/* start(pkt, dst, t0, duration, links, forget): AcousticChannel._start's loop over the heard
+ * receivers (dst None: a broadcast; else only dst delivers, every receiver records the signal)
+ * and the push of the first delivery. Returns whether anything was queued. */
+static PyObject *Core_start(Core *self, PyObject *args) {
+    PyObject *pkt, *dst, *links;
+    double t0, duration, forget;
+    if (!PyArg_ParseTuple(args, "OOddO!d", &pkt, &dst, &t0, &duration, &LinksType, &links, &forget)) return NULL;
+    Links *L = (Links *)links;
+    Py_ssize_t want = -1;
+    if (dst != Py_None) {
+        want = PyLong_AsSsize_t(dst);
+        if (want == -1 && PyErr_Occurred()) return NULL;
+    }
+    PyObject *uid = PyObject_GetAttr(pkt, s_uid);
+    if (uid == NULL) return NULL;
+    long long uid_v = PyLong_AsLongLong(uid);
+    if (uid_v == -1 && PyErr_Occurred()) {
+        Py_DECREF(uid);
+        return NULL;
+    }
+    int track = self->collision != 0;
+    Py_ssize_t first = -1;
+    for (Py_ssize_t i = 0; i < L->n; i++) {
+        Py_ssize_t rid = L->rid[i];
+        if (rid >= self->n) {
+            Py_DECREF(uid);
+            PyErr_Format(PyExc_IndexError, "start: no node %zd on this channel", rid);
+            return NULL;
+        }
+        if (want >= 0 && rid == want && first < 0) first = i;
+        if (track) {
+            double arr = t0 + L->tof[i];
+            double end = arr + duration;
+            if (record(&self->nodes[rid], arr, end, L->snr[i], uid_v, forget) < 0) {
+                Py_DECREF(uid);
+                return NULL;
+            }
+        }
+    }
+    Py_ssize_t k0 = 0, n = L->n;
+    if (want >= 0) {
+        if (first < 0) {
+            Py_DECREF(uid);
+            Py_RETURN_FALSE;
+        }
+        k0 = first;
+        n = first + 1;
+    }
+    if (n <= k0) {
+        Py_DECREF(uid);
+        Py_RETURN_FALSE;
+    }
+    Deliveries *d = PyObject_GC_New(Deliveries, &DeliveriesType);
+    if (d == NULL) {
+        Py_DECREF(uid);
+        return NULL;
+    }
+    d->uid = uid;
+    d->callbacks = NULL;
+    d->core = NULL;
+    d->links = NULL;
+    d->pkt = d->src = d->kind = d->bits = d->dst_code = NULL;
+    d->src = PyObject_GetAttr(pkt, s_src);
+    d->kind = PyObject_GetAttr(pkt, s_kind);
+    d->bits = PyObject_GetAttr(pkt, s_bits);
+    d->dst_code = dst == Py_None ? PyLong_FromLong(-1) : (Py_INCREF(dst), dst);
+    Py_INCREF(self->cb);
+    d->callbacks = self->cb;
+    Py_INCREF(self);
+    d->core = self;
+    Py_INCREF(L);
+    d->links = L;
+    Py_INCREF(pkt);
+    d->pkt = pkt;
+    d->uid_v = uid_v;
+    d->t0 = t0;
+    d->duration = duration;
+    d->k = k0;
+    d->n = n;
+    d->pressure = 0;
+    PyObject_GC_Track(d);
+    if (d->src == NULL || d->kind == NULL || d->bits == NULL || d->dst_code == NULL) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    if (self->pressure_kind != Py_None) {
+        int eq = PyObject_RichCompareBool(d->kind, self->pressure_kind, Py_EQ);
+        if (eq < 0) {
+            Py_DECREF(d);
+            return NULL;
+        }
+        d->pressure = eq;
+    }
+    /* the first end: t0 + (sigs[0][1] - t0) with sigs[0][1] = (t0 + T) + duration */
+    double arr = t0 + L->tof[k0];
+    double end = arr + duration;
+    int rc = push(self, d, t0 + (end - t0));
+    Py_DECREF(d);
+    if (rc < 0) return NULL;
+    Py_RETURN_TRUE;
+}
+
+/* _scan: 0 (received), 1 half duplex, 2 collision, -1 error */
+static int scan(Core *self, Node *rx, double arr, double end, double snr, long long uid) {
+    if (rx->busy_until > arr) {
+        Py_ssize_t n = rx->ntx;
+        Py_ssize_t i = bisect_left(rx->tx_start, n, arr - 2.0 * self->max_duration);
+        for (; i < n && rx->tx_start[i] < end; i++)
+            if (rx->tx_end[i] > arr) return 1;
+    }
+    if (self->collision == 0) return 0;
+    int destructive = self->collision == 1;
+    Py_ssize_t n = rx->nsig;
+    Py_ssize_t i = bisect_left(rx->sig_arr, n, arr - self->max_duration);
+    double power = 0.0;
+    int hit = 0;
+    for (; i < n; i++) {
+        if (rx->sig_arr[i] >= end) break;
+        if (rx->sig_end[i] > arr && rx->sig_uid[i] != uid) {
+            hit = 1;
+            if (destructive) break;
+            double x = rx->sig_snr[i] / 10.0;
+            double p = pow(10.0, x);
+            if (isinf(p) && isfinite(x)) { /* float.__pow__ raises on overflow */
+                PyErr_SetString(PyExc_OverflowError, "(34, 'Numerical result out of range')");
+                return -1;
+            }
+            power += p;
+        }
+    }
+    if (!hit) return 0;
+    if (destructive) return 2;
+    if (!(power > 0.0) && !isnan(power)) { /* math.log10 of 0 */
+        PyErr_SetString(PyExc_ValueError, "math domain error");
+        return -1;
+    }
+    return !(snr - 10.0 * log10(power) >= self->capture_db) ? 2 : 0;
+}
+
+/* one delivery of d (its k-th): AcousticChannel._next_delivery's body up to the next push */
+static int deliver_one(Core *self, Deliveries *d) {
+    Links *L = d->links;
+    Py_ssize_t k = d->k;
+    Py_ssize_t rid = L->rid[k];
+    Node *rx = &self->nodes[rid];
+    double arr = d->t0 + L->tof[k];
+    double end = arr + d->duration;
+    double snr = L->snr[k];
+    int v = scan(self, rx, arr, end, snr, d->uid_v);
+    if (v < 0) return -1;
+    PyObject *arr_obj = PyFloat_FromDouble(arr);
+    if (arr_obj == NULL) return -1;
+    PyObject *rx_local;
+    if (v == 0) {
+        if (rx->exact && !self->jitter) {
+            rx_local = PyFloat_FromDouble(rx->a * arr + rx->b);
+        } else {
+            PyObject *argv[2] = {rx->rid, arr_obj};
+            rx_local = PyObject_Vectorcall(self->stamp, argv, 2, NULL);
+        }
+        if (rx_local == NULL) {
+            Py_DECREF(arr_obj);
+            return -1;
+        }
+        PyObject *p;
+        if (d->pressure) {
+            PyObject *ts = PyFloat_FromDouble(arr - L->tof[k]);
+            if (ts == NULL) {
+                Py_DECREF(arr_obj);
+                Py_DECREF(rx_local);
+                return -1;
+            }
+            PyObject *argv[4] = {d->pkt, rx->rid, ts, arr_obj};
+            p = PyObject_Vectorcall(self->pressure, argv, 4, NULL);
+            Py_DECREF(ts);
+            if (p == NULL) {
+                Py_DECREF(arr_obj);
+                Py_DECREF(rx_local);
+                return -1;
+            }
+        } else {
+            Py_INCREF(self->nan);
+            p = self->nan;
+        }
+        PyObject *argv[4] = {d->pkt, rx_local, L->snr_obj[k], p};
+        PyObject *r = PyObject_Vectorcall(rx->deliver, argv, 4, NULL);
+        Py_DECREF(p);
+        if (r == NULL) {
+            Py_DECREF(arr_obj);
+            Py_DECREF(rx_local);
+            return -1;
+        }
+        Py_DECREF(r);
+    } else {
+        Py_INCREF(self->nan);
+        rx_local = self->nan;
+    }
+    PyObject *row = PyTuple_New(13);
+    if (row == NULL) {
+        Py_DECREF(arr_obj);
+        Py_DECREF(rx_local);
+        return -1;
+    }
+    PyObject *event = v == 0 ? s_rx : s_drop;
+    PyObject *reason = v == 0 ? Py_None : v == 1 ? s_half_duplex : s_collision;
+    PyObject *fields[12] = {event, reason, rx->rid, d->src, d->dst_code, d->uid, d->kind, d->bits,
+                            L->tof_obj[k], L->snr_obj[k], L->path[k], NULL};
+    PyTuple_SET_ITEM(row, 0, arr_obj);
+    for (int i = 0; i < 11; i++) {
+        Py_INCREF(fields[i]);
+        PyTuple_SET_ITEM(row, i + 1, fields[i]);
+    }
+    PyTuple_SET_ITEM(row, 12, rx_local);
+    int rc = PyList_Append(self->rows, row);
+    Py_DECREF(row);
+    return rc;
+}
+
+/* run(ev): the callback of every channel entry (AcousticChannel._next_delivery) */
+static PyObject *Core_run(Core *self, PyObject *ev) {
+    if (Py_TYPE(ev) != &DeliveriesType || ((Deliveries *)ev)->core != self) {
+        PyErr_SetString(PyExc_TypeError, "run: not a delivery entry of this channel");
+        return NULL;
+    }
+    Deliveries *d = (Deliveries *)ev;
+    Py_INCREF(d);
+    for (;;) {
+        if (deliver_one(self, d) < 0) goto fail;
+        Py_ssize_t k = d->k + 1;
+        if (k < d->n) { /* queued after the delivery's own events (their sequence numbers) */
+            d->k = k;
+            Py_INCREF(self->cb);
+            Py_XSETREF(d->callbacks, self->cb); /* Environment.step set it to None */
+            double end = (d->t0 + d->links->tof[k]) + d->duration;
+            if (push(self, d, d->t0 + (end - d->t0)) < 0) goto fail;
+        }
+        if (!self->drain || PyList_GET_SIZE(self->queue) == 0) break;
+        PyObject *head = PyList_GET_ITEM(self->queue, 0);
+        if (!PyTuple_Check(head) || PyTuple_GET_SIZE(head) != 4) break;
+        PyObject *nxt = PyTuple_GET_ITEM(head, 3);
+        /* an event of SimPy's, of a node or of another channel: step() takes it */
+        if (Py_TYPE(nxt) != &DeliveriesType || ((Deliveries *)nxt)->callbacks != self->cb) break;
+        PyObject *argv[1] = {self->queue};
+        PyObject *popped = PyObject_Vectorcall(heappop_fn, argv, 1, NULL);
+        if (popped == NULL) goto fail;
+        int rc = PyObject_SetAttr(self->env, s_now, PyTuple_GET_ITEM(popped, 0));
+        Deliveries *next_d = (Deliveries *)PyTuple_GET_ITEM(popped, 3);
+        Py_INCREF(next_d);
+        Py_DECREF(popped);
+        Py_DECREF(d);
+        d = next_d;
+        if (rc < 0) goto fail;
+    }
+    Py_DECREF(d);
+    Py_RETURN_NONE;
+fail:
+    Py_DECREF(d);
+    return NULL;
+}
+
+/* signals(node): how many signals the log at node keeps (AcousticChannel.signals_at) */
+static PyObject *Core_signals(Core *self, PyObject *arg) {
+    Py_ssize_t i = PyLong_AsSsize_t(arg);
+    if (i == -1 && PyErr_Occurred()) return NULL;
+    Node *nd = node_at(self, i);
+    return nd == NULL ? NULL : PyLong_FromSsize_t(nd->nsig);
+}
+
+static PyMethodDef Core_methods[] = {
+    {"attach", (PyCFunction)Core_attach, METH_VARARGS, "attach(deliver, exact, skew, offset): the next node"},
+    {"transmit", (PyCFunction)Core_transmit, METH_VARARGS, "transmit(node, start, end, now): an own transmission"},
+    {"pack", (PyCFunction)Core_pack, METH_O, "pack(heard): the heard receivers of a transmission, packed"},
+    {"start", (PyCFunction)Core_start, METH_VARARGS, "start(pkt, dst, t0, duration, links, forget)"},
+    {"run", (PyCFunction)Core_run, METH_O, "run(entry): decide deliveries (the entries' callback)"},
+    {"signals", (PyCFunction)Core_signals, METH_O, "signals(node): signals kept at node"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyMemberDef Core_members[] = {
+    {"max_duration", T_DOUBLE, offsetof(Core, max_duration), 0, "the channel's longest packet so far (s)"},
+    {"drain", T_INT, offsetof(Core, drain), 0, "decide consecutive head entries in one loop"},
+    {NULL, 0, 0, 0, NULL},
+};
+
+static PyTypeObject CoreType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "aquasim_py.channel._delivery.Core",
+    .tp_basicsize = sizeof(Core),
+    .tp_dealloc = (destructor)Core_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC,
+    .tp_doc = "every node's channel-side state and the delivery loop of one AcousticChannel",
+    .tp_traverse = (traverseproc)Core_traverse,
+    .tp_clear = (inquiry)Core_clear,
+    .tp_methods = Core_methods,
+    .tp_members = Core_members,
+    .tp_init = (initproc)Core_init,
+    .tp_new = PyType_GenericNew,
+};
+
+/* ------------------------------------------------------------------------------------------ */
+/* Deliveries: one transmission's deliveries as one entry at a time on SimPy's queue */
+
+static int Deliveries_traverse(Deliveries *self, visitproc visit, void *arg) {
+    Py_VISIT(self->callbacks);
+    Py_VISIT(self->core);
+    Py_VISIT(self->pkt);
+    return 0;
+}
+
+static int Deliveries_clear(Deliveries *self) {
+    Py_CLEAR(self->callbacks);
+    Py_CLEAR(self->core);
+    Py_CLEAR(self->pkt);
+    return 0;
+}
+
+static void Deliveries_dealloc(Deliveries *self) {
+    PyObject_GC_UnTrack(self);
+    Deliveries_clear(self);
+    Py_XDECREF(self->links);
+    Py_XDECREF(self->src);
+    Py_XDECREF(self->uid);
+    Py_XDECREF(self->kind);
+    Py_XDECREF(self->bits);
+    Py_XDECREF(self->dst_code);
+    PyObject_GC_Del(self);
+}
+
+static PyObject *Deliveries_ok(PyObject *self, void *closure) { Py_RETURN_TRUE; }
+
+static PyObject *Deliveries_get_callbacks(Deliveries *self, void *closure) {
+    PyObject *c = self->callbacks ? self->callbacks : Py_None;
+    Py_INCREF(c);
+    return c;
+}
+
+static int Deliveries_set_callbacks(Deliveries *self, PyObject *value, void *closure) {
+    if (value == NULL) {
+        PyErr_SetString(PyExc_AttributeError, "callbacks cannot be deleted");
+        return -1;
+    }
+    Py_INCREF(value);
+    Py_XSETREF(self->callbacks, value);
+    return 0;
+}
+
+static PyGetSetDef Deliveries_getset[] = {
+    {"_ok", (getter)Deliveries_ok, NULL, "always True (what Environment.step checks)", NULL},
+    {"callbacks", (getter)Deliveries_get_callbacks, (setter)Deliveries_set_callbacks, NULL, NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyTypeObject DeliveriesType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "aquasim_py.channel._delivery.Deliveries",
+    .tp_basicsize = sizeof(Deliveries),
+    .tp_dealloc = (destructor)Deliveries_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC,
+    .tp_doc = "one transmission's deliveries, one entry at a time on SimPy's queue",
+    .tp_traverse = (traverseproc)Deliveries_traverse,
+    .tp_clear = (inquiry)Deliveries_clear,
+    .tp_getset = Deliveries_getset,
+};
+
+/* ------------------------------------------------------------------------------------------ */
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_delivery",
+    "The acoustic channel's per-reception work in C (see aquasim_py/channel/acoustic.py).", -1, NULL,
+};
+
+PyMODINIT_FUNC PyInit__delivery(void) {
+    if (PyType_Ready(&LinksType) < 0 || PyType_Ready(&CoreType) < 0 || PyType_Ready(&DeliveriesType) < 0) return NULL;
+#define INTERN(v, s) if ((v = PyUnicode_InternFromString(s)) == NULL) return NULL
+    INTERN(s_rx, "rx");
+    INTERN(s_drop, "drop");
+    INTERN(s_half_duplex, "half_duplex");
+    INTERN(s_collision, "collision");
+    INTERN(s_now, "_now");
+    INTERN(s_index, "index");
+    INTERN(s_uid, "uid");
+    INTERN(s_src, "src");
+    INTERN(s_kind, "kind");
+    INTERN(s_bits, "bits");
+#undef INTERN
+    PyObject *heapq = PyImport_ImportModule("heapq");
+    if (heapq == NULL) return NULL;
+    heappush_fn = PyObject_GetAttrString(heapq, "heappush");
+    heappop_fn = PyObject_GetAttrString(heapq, "heappop");
+    Py_DECREF(heapq);
+    if (heappush_fn == NULL || heappop_fn == NULL) return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (m == NULL) return NULL;
+    if (PyModule_AddObjectRef(m, "Core", (PyObject *)&CoreType) < 0 ||
+        PyModule_AddObjectRef(m, "Links", (PyObject *)&LinksType) < 0 ||
+        PyModule_AddObjectRef(m, "Deliveries", (PyObject *)&DeliveriesType) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
