@@ -115,6 +115,15 @@ static PyTypeObject LinksType = {
 /* ------------------------------------------------------------------------------------------ */
 /* Core */
 
+typedef struct Deliveries Deliveries;
+
+/* an entry of the channel's own heap: SimPy's key (time, NORMAL, eid) less the constant priority */
+typedef struct {
+    double t;
+    long long eid;
+    Deliveries *d;
+} HEnt;
+
 typedef struct {
     PyObject_HEAD
     Node *nodes;
@@ -134,9 +143,13 @@ typedef struct {
     PyObject *pressure_kind;
     PyObject *cb;          /* [self.run]: the callbacks of every channel entry */
     PyObject *nan;
+    int own_heap;          /* the channel's entries on its own heap, its head proxied on SimPy's */
+    long prio;             /* the value of `priority` */
+    HEnt *heap;
+    Py_ssize_t hn, hcap;
 } Core;
 
-typedef struct {
+struct Deliveries {
     PyObject_HEAD
     PyObject *callbacks;   /* what Environment.step reads and clears */
     Core *core;
@@ -146,7 +159,10 @@ typedef struct {
     double t0, duration;
     Py_ssize_t k, n;       /* next delivery, one past the last */
     int pressure;          /* the packet is a sound emission (kind == pressure_kind) */
-} Deliveries;
+    int proxied;           /* own heap: this entry is also on SimPy's queue, with the same key */
+    double at;             /* own heap: the entry's key (time, eid) */
+    PyObject *eid;
+};
 
 static PyTypeObject CoreType;
 static PyTypeObject DeliveriesType;
@@ -160,6 +176,7 @@ static int Core_traverse(Core *self, visitproc visit, void *arg) {
     Py_VISIT(self->stamp);
     Py_VISIT(self->pressure);
     Py_VISIT(self->cb);
+    for (Py_ssize_t i = 0; i < self->hn; i++) Py_VISIT(self->heap[i].d);
     return 0;
 }
 
@@ -174,6 +191,9 @@ static int Core_clear(Core *self) {
     Py_CLEAR(self->pressure);
     Py_CLEAR(self->pressure_kind);
     Py_CLEAR(self->cb);
+    Py_ssize_t hn = self->hn;
+    self->hn = 0;
+    for (Py_ssize_t i = 0; i < hn; i++) Py_CLEAR(self->heap[i].d);
     return 0;
 }
 
@@ -191,21 +211,24 @@ static void Core_dealloc(Core *self) {
         PyMem_Free(nd->sig_uid);
     }
     PyMem_Free(self->nodes);
+    PyMem_Free(self->heap);
     Py_XDECREF(self->nan);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
     static char *kw[] = {"env", "queue", "eid", "priority", "rows", "collision", "capture_threshold_db",
-                         "jitter", "stamp", "pressure", "pressure_kind", "drain", NULL};
+                         "jitter", "stamp", "pressure", "pressure_kind", "drain", "own_heap", NULL};
     PyObject *env, *queue, *eid, *priority, *rows, *stamp, *pressure, *pressure_kind;
     const char *collision;
     double capture;
-    int jitter, drain;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OO!OOO!sdpOOOp", kw, &env, &PyList_Type, &queue, &eid, &priority,
+    int jitter, drain, own_heap;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OO!OOO!sdpOOOpp", kw, &env, &PyList_Type, &queue, &eid, &priority,
                                      &PyList_Type, &rows, &collision, &capture, &jitter, &stamp, &pressure,
-                                     &pressure_kind, &drain))
+                                     &pressure_kind, &drain, &own_heap))
         return -1;
+    long prio = PyLong_AsLong(priority);
+    if (prio == -1 && PyErr_Occurred()) return -1;
     if (strcmp(collision, "none") == 0) self->collision = 0;
     else if (strcmp(collision, "destructive") == 0) self->collision = 1;
     else if (strcmp(collision, "capture") == 0) self->collision = 2;
@@ -225,6 +248,8 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
     self->capture_db = capture;
     self->jitter = jitter;
     self->drain = drain;
+    self->own_heap = own_heap;
+    self->prio = prio;
     if (self->nan == NULL && (self->nan = PyFloat_FromDouble(Py_NAN)) == NULL) return -1;
     PyObject *run = PyObject_GetAttrString((PyObject *)self, "run");
     if (run == NULL) return -1;
@@ -402,24 +427,13 @@ static PyObject *Core_pack(Core *self, PyObject *heard) {
     return (PyObject *)L;
 }
 
-static int push(Core *self, Deliveries *d, double at) {
-    PyObject *eid = PyIter_Next(self->eid);
-    if (eid == NULL) {
-        if (!PyErr_Occurred()) PyErr_SetString(PyExc_RuntimeError, "SimPy's event counter ended");
-        return -1;
-    }
-    PyObject *t = PyFloat_FromDouble(at);
-    if (t == NULL) {
-        Py_DECREF(eid);
-        return -1;
-    }
+/* heappush(SimPy's queue, (at, NORMAL, eid, d)) */
+static int push_simpy(Core *self, Deliveries *d, PyObject *t, PyObject *eid) {
     PyObject *entry = PyTuple_New(4);
-    if (entry == NULL) {
-        Py_DECREF(eid);
-        Py_DECREF(t);
-        return -1;
-    }
+    if (entry == NULL) return -1;
+    Py_INCREF(t);
     Py_INCREF(self->priority);
+    Py_INCREF(eid);
     Py_INCREF(d);
     PyTuple_SET_ITEM(entry, 0, t);
     PyTuple_SET_ITEM(entry, 1, self->priority);
@@ -431,6 +445,95 @@ static int push(Core *self, Deliveries *d, double at) {
     if (r == NULL) return -1;
     Py_DECREF(r);
     return 0;
+}
+
+static int hless(const HEnt *a, const HEnt *b) { return a->t < b->t || (a->t == b->t && a->eid < b->eid); }
+
+/* the own heap's push and pop (the entry's reference moves in and out) */
+static int heap_push(Core *self, HEnt e) {
+    if (self->hn == self->hcap) {
+        Py_ssize_t cap = self->hcap ? 2 * self->hcap : 256;
+        if (grow((void **)&self->heap, cap, sizeof(HEnt)) < 0) return -1;
+        self->hcap = cap;
+    }
+    HEnt *h = self->heap;
+    Py_ssize_t pos = self->hn++;
+    while (pos > 0) {
+        Py_ssize_t parent = (pos - 1) >> 1;
+        if (!hless(&e, &h[parent])) break;
+        h[pos] = h[parent];
+        pos = parent;
+    }
+    h[pos] = e;
+    return 0;
+}
+
+static Deliveries *heap_pop(Core *self) {
+    HEnt *h = self->heap;
+    Deliveries *top = h[0].d;
+    HEnt last = h[--self->hn];
+    Py_ssize_t n = self->hn, pos = 0;
+    if (n > 0) {
+        for (;;) {
+            Py_ssize_t c = 2 * pos + 1;
+            if (c >= n) break;
+            if (c + 1 < n && hless(&h[c + 1], &h[c])) c++;
+            if (!hless(&h[c], &last)) break;
+            h[pos] = h[c];
+            pos = c;
+        }
+        h[pos] = last;
+    }
+    return top;
+}
+
+/* queue d's next delivery at true time `at` with the next sequence number, as
+ * Environment.schedule would (priority NORMAL): on SimPy's heap, or on the own heap */
+static int push(Core *self, Deliveries *d, double at) {
+    PyObject *eid = PyIter_Next(self->eid);
+    if (eid == NULL) {
+        if (!PyErr_Occurred()) PyErr_SetString(PyExc_RuntimeError, "SimPy's event counter ended");
+        return -1;
+    }
+    if (self->own_heap) {
+        long long eid_v = PyLong_AsLongLong(eid);
+        if (eid_v == -1 && PyErr_Occurred()) {
+            Py_DECREF(eid);
+            return -1;
+        }
+        Py_XSETREF(d->eid, eid);
+        d->at = at;
+        HEnt e = {at, eid_v, d};
+        if (heap_push(self, e) < 0) return -1;
+        Py_INCREF(d);
+        return 0;
+    }
+    PyObject *t = PyFloat_FromDouble(at);
+    if (t == NULL) {
+        Py_DECREF(eid);
+        return -1;
+    }
+    int rc = push_simpy(self, d, t, eid);
+    Py_DECREF(t);
+    Py_DECREF(eid);
+    return rc;
+}
+
+/* own heap: the head is on SimPy's queue too, with its own key (time, NORMAL, eid), so SimPy
+ * pops it exactly when it would have popped that entry had every entry been there; the other
+ * entries come after it and need not be there */
+static int ensure_proxy(Core *self) {
+    if (!self->own_heap || self->hn == 0) return 0;
+    Deliveries *d = self->heap[0].d;
+    if (d->proxied) return 0;
+    PyObject *t = PyFloat_FromDouble(d->at);
+    if (t == NULL) return -1;
+    Py_INCREF(self->cb);
+    Py_XSETREF(d->callbacks, self->cb);
+    int rc = push_simpy(self, d, t, d->eid);
+    Py_DECREF(t);
+    if (rc == 0) d->proxied = 1;
+    return rc;
 }
 
 /* start(pkt, dst, t0, duration, links, forget): AcousticChannel._start's loop over the heard
@@ -513,6 +616,9 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->k = k0;
     d->n = n;
     d->pressure = 0;
+    d->proxied = 0;
+    d->at = 0.0;
+    d->eid = NULL;
     PyObject_GC_Track(d);
     if (d->src == NULL || d->kind == NULL || d->bits == NULL || d->dst_code == NULL) {
         Py_DECREF(d);
@@ -531,7 +637,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     double end = arr + duration;
     int rc = push(self, d, t0 + (end - t0));
     Py_DECREF(d);
-    if (rc < 0) return NULL;
+    if (rc < 0 || ensure_proxy(self) < 0) return NULL;
     Py_RETURN_TRUE;
 }
 
@@ -651,42 +757,106 @@ static int deliver_one(Core *self, Deliveries *d) {
     return rc;
 }
 
-/* run(ev): the callback of every channel entry (AcousticChannel._next_delivery) */
+/* whether the own heap's head precedes SimPy's entry `head` (time, priority, eid, event):
+ * the order of the tuples' comparison */
+static int head_first(Core *self, PyObject *head, int *err) {
+    HEnt *h = &self->heap[0];
+    double t = PyFloat_AsDouble(PyTuple_GET_ITEM(head, 0));
+    long prio = PyLong_AsLong(PyTuple_GET_ITEM(head, 1));
+    long long eid = PyLong_AsLongLong(PyTuple_GET_ITEM(head, 2));
+    if (PyErr_Occurred()) {
+        *err = 1;
+        return 0;
+    }
+    if (h->t != t) return h->t < t;
+    if (self->prio != prio) return self->prio < prio;
+    return h->eid < eid;
+}
+
+/* run(ev): the callback of every channel entry (AcousticChannel._next_delivery). After each
+ * delivery, while the next entry in SimPy's order is another of this channel's, take it here
+ * as Environment.step would have next: from SimPy's queue (the same pop of the same heap), or
+ * with the own heap, the own head while it precedes SimPy's head */
 static PyObject *Core_run(Core *self, PyObject *ev) {
     if (Py_TYPE(ev) != &DeliveriesType || ((Deliveries *)ev)->core != self) {
         PyErr_SetString(PyExc_TypeError, "run: not a delivery entry of this channel");
         return NULL;
     }
     Deliveries *d = (Deliveries *)ev;
-    Py_INCREF(d);
+    if (self->own_heap) {
+        if (self->hn == 0 || self->heap[0].d != d) {
+            PyErr_SetString(PyExc_RuntimeError, "run: the entry is not the head of the channel's heap");
+            return NULL;
+        }
+        d->proxied = 0;
+        heap_pop(self); /* its reference is ours now */
+    } else {
+        Py_INCREF(d);
+    }
     for (;;) {
         if (deliver_one(self, d) < 0) goto fail;
         Py_ssize_t k = d->k + 1;
         if (k < d->n) { /* queued after the delivery's own events (their sequence numbers) */
             d->k = k;
-            Py_INCREF(self->cb);
-            Py_XSETREF(d->callbacks, self->cb); /* Environment.step set it to None */
+            if (!self->own_heap) {
+                Py_INCREF(self->cb);
+                Py_XSETREF(d->callbacks, self->cb); /* Environment.step set it to None */
+            }
             double end = (d->t0 + d->links->tof[k]) + d->duration;
             if (push(self, d, d->t0 + (end - d->t0)) < 0) goto fail;
         }
-        if (!self->drain || PyList_GET_SIZE(self->queue) == 0) break;
-        PyObject *head = PyList_GET_ITEM(self->queue, 0);
-        if (!PyTuple_Check(head) || PyTuple_GET_SIZE(head) != 4) break;
-        PyObject *nxt = PyTuple_GET_ITEM(head, 3);
-        /* an event of SimPy's, of a node or of another channel: step() takes it */
-        if (Py_TYPE(nxt) != &DeliveriesType || ((Deliveries *)nxt)->callbacks != self->cb) break;
+        if (!self->drain) break;
+        Py_ssize_t qn = PyList_GET_SIZE(self->queue);
+        PyObject *head = qn ? PyList_GET_ITEM(self->queue, 0) : NULL;
+        if (head != NULL && (!PyTuple_Check(head) || PyTuple_GET_SIZE(head) != 4)) break;
+        PyObject *nxt = head ? PyTuple_GET_ITEM(head, 3) : NULL;
+        Deliveries *next_d;
+        if (self->own_heap) {
+            if (self->hn == 0) break;
+            Deliveries *h = self->heap[0].d;
+            if (h->proxied) {
+                /* its proxy is on SimPy's queue with its key: next iff it is SimPy's head */
+                if (nxt != (PyObject *)h) break;
+            } else {
+                /* not on SimPy's queue: next iff it precedes SimPy's head (which then cannot
+                 * be an entry of this channel: they all come after the own head) */
+                int err = 0;
+                if (head != NULL && !head_first(self, head, &err)) {
+                    if (err) goto fail;
+                    break;
+                }
+                PyObject *t = PyFloat_FromDouble(self->heap[0].t);
+                if (t == NULL) goto fail;
+                int rc = PyObject_SetAttr(self->env, s_now, t);
+                Py_DECREF(t);
+                next_d = heap_pop(self);
+                Py_DECREF(d);
+                d = next_d;
+                if (rc < 0) goto fail;
+                continue;
+            }
+        } else if (nxt == NULL || Py_TYPE(nxt) != &DeliveriesType || ((Deliveries *)nxt)->callbacks != self->cb) {
+            break; /* an event of SimPy's, of a node or of another channel: step() takes it */
+        }
+        /* SimPy's head is this channel's entry (with the own heap: its head's proxy) */
         PyObject *argv[1] = {self->queue};
         PyObject *popped = PyObject_Vectorcall(heappop_fn, argv, 1, NULL);
         if (popped == NULL) goto fail;
         int rc = PyObject_SetAttr(self->env, s_now, PyTuple_GET_ITEM(popped, 0));
-        Deliveries *next_d = (Deliveries *)PyTuple_GET_ITEM(popped, 3);
-        Py_INCREF(next_d);
+        next_d = (Deliveries *)PyTuple_GET_ITEM(popped, 3);
+        if (self->own_heap) {
+            next_d->proxied = 0;
+            heap_pop(self);
+        } else {
+            Py_INCREF(next_d);
+        }
         Py_DECREF(popped);
         Py_DECREF(d);
         d = next_d;
         if (rc < 0) goto fail;
     }
     Py_DECREF(d);
+    if (ensure_proxy(self) < 0) return NULL;
     Py_RETURN_NONE;
 fail:
     Py_DECREF(d);
@@ -757,6 +927,7 @@ static void Deliveries_dealloc(Deliveries *self) {
     Py_XDECREF(self->kind);
     Py_XDECREF(self->bits);
     Py_XDECREF(self->dst_code);
+    Py_XDECREF(self->eid);
     PyObject_GC_Del(self);
 }
 

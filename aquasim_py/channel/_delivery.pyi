@@ -33,6 +33,7 @@ class Core:
         pressure: Callable[[Packet, int, float, float], float],
         pressure_kind: str | None,
         drain: bool,
+        own_heap: bool,
     ) -> None: ...
     def attach(
         self, deliver: Callable[[Packet, float, float, float], None], exact: bool, skew: float, offset: float, /

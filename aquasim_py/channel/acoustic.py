@@ -322,6 +322,11 @@ class AcousticChannel:
     #: when the module is built and SimPy's queue layout is the known one; False runs the
     #: Python reference below (tests compare the two: the same rows, the same receptions)
     compiled_delivery = True
+    #: with the compiled delivery: the channel's entries on its own heap (contiguous keys), only
+    #: its head on SimPy's queue with that entry's own key (time, priority, sequence number), so
+    #: SimPy takes it exactly when it would have taken it among all of them; False puts every
+    #: entry on SimPy's queue, as the Python path does
+    compiled_heap = True
 
     def __init__(
         self,
@@ -396,6 +401,7 @@ class AcousticChannel:
                 self._pressure_of,
                 config.pressure_kind,
                 self.drain_deliveries,
+                self.compiled_heap,
             )
 
         # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream

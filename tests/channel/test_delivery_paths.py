@@ -59,11 +59,11 @@ class Receiver(Script):
 
 
 def _run(
-    xs: list[int], plan: Plan, cfg: ChannelConfig, clocks: str, compiled: bool
+    xs: list[int], plan: Plan, cfg: ChannelConfig, clocks: str, compiled: bool, own_heap: bool = True
 ) -> tuple[dict[str, pd.DataFrame], bool]:
     cls = type("Planned", (Receiver,), {"plan": plan, "name": "planned_receiver"})
-    old = AcousticChannel.compiled_delivery
-    AcousticChannel.compiled_delivery = compiled
+    old = AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap
+    AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap = compiled, own_heap
     try:
         sim = Simulation(3, ssp=Constant(C), channel=cfg)
 
@@ -78,19 +78,25 @@ def _run(
         sim.run(20.0)
         used = sim.channel._core is not None
     finally:
-        AcousticChannel.compiled_delivery = old
+        AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap = old
     return sim.trace.frames(), used
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     net=networks(),
     collision=st.sampled_from(["destructive", "capture", "none"]),
     jitter=st.sampled_from([0.0, 1e-3]),
     clocks=st.sampled_from(["exact", "skewed", "drifting"]),
     capture_db=st.sampled_from([0.0, 3.0, 10.0]),
+    own_heap=st.booleans(),
+    drain=st.booleans(),
 )
-def test_compiled_delivery_equals_the_python_reference(net, collision, jitter, clocks, capture_db) -> None:
+def test_compiled_delivery_equals_the_python_reference(
+    net, collision, jitter, clocks, capture_db, own_heap, drain
+) -> None:
+    """Both paths, the compiled one with the channel's entries on its own heap or on SimPy's,
+    each deciding consecutive deliveries in one loop or one per Environment.step."""
     xs, plan = net
     cfg = ChannelConfig(
         max_range_m=1e6,
@@ -101,7 +107,11 @@ def test_compiled_delivery_equals_the_python_reference(net, collision, jitter, c
         jitter_std_s=jitter,
     )
     ref, used_ref = _run(xs, plan, cfg, clocks, compiled=False)
-    got, used = _run(xs, plan, cfg, clocks, compiled=True)
+    AcousticChannel.drain_deliveries = drain
+    try:
+        got, used = _run(xs, plan, cfg, clocks, compiled=True, own_heap=own_heap)
+    finally:
+        AcousticChannel.drain_deliveries = True
     assert used and not used_ref  # each run took the path it was meant to
     assert ref.keys() == got.keys()
     for name in ref:
