@@ -32,19 +32,24 @@ static PyObject *s_uid, *s_src, *s_kind, *s_bits;
 static PyObject *heappush_fn, *heappop_fn;
 
 /* ------------------------------------------------------------------------------------------ */
-/* growable double arrays */
+/* per-node state, laid out for the delivery: a node is one cache line, a signal half of one */
 
 typedef struct {
-    double busy_until;   /* latest end of own transmissions (true s) */
-    double a, b;         /* exact clock: local = a * t + b, a = 1.0 + skew */
-    int exact;           /* the clock's stamp is the affine map (no drift, no jitter) */
-    Py_ssize_t ntx, captx, log_cap;
-    double *tx_start, *tx_end;       /* own transmissions, in order of start */
-    Py_ssize_t nsig, capsig;
-    double *sig_arr, *sig_end, *sig_snr; /* signal log, sorted by arrival */
-    long long *sig_uid;                  /* the transmission of each signal ("e is not sig") */
-    PyObject *deliver;   /* the port's deliver(pkt, rx_local, snr, pressure) */
-    PyObject *rid;       /* the node id as a Python int (row field) */
+    double arr, end, snr; /* arrival and end (true s), SNR (dB) */
+    long long uid;        /* the transmission ("e is not sig": one signal per transmission here) */
+} Sig;
+
+typedef struct {
+    double start, end;    /* an own transmission (true s) */
+} Tx;
+
+typedef struct {
+    double busy_until;    /* latest end of own transmissions (true s) */
+    Sig *sig;             /* the signal log, sorted by arrival */
+    Tx *tx;               /* own transmissions in order of start; room for log_cap + 1 */
+    PyObject *deliver;    /* the port's deliver(pkt, rx_local, snr, pressure) */
+    double a, b;          /* exact clock: local = a * t + b with a = 1.0 + skew; a = 0: not exact */
+    int32_t nsig, capsig, ntx, log_cap;
 } Node;
 
 static int grow(void **p, Py_ssize_t cap, size_t size) {
@@ -57,23 +62,34 @@ static int grow(void **p, Py_ssize_t cap, size_t size) {
     return 0;
 }
 
-/* bisect.bisect_left / bisect_right on a sorted double array */
-static Py_ssize_t bisect_left(const double *a, Py_ssize_t n, double x) {
+/* bisect.bisect_left / bisect_right on the arrivals of a signal log, bisect_left on the starts
+ * of a transmission log */
+static Py_ssize_t sig_left(const Sig *a, Py_ssize_t n, double x) {
     Py_ssize_t lo = 0, hi = n;
     while (lo < hi) {
         Py_ssize_t mid = (lo + hi) / 2;
-        if (a[mid] < x) lo = mid + 1;
+        if (a[mid].arr < x) lo = mid + 1;
         else hi = mid;
     }
     return lo;
 }
 
-static Py_ssize_t bisect_right(const double *a, Py_ssize_t n, double x) {
+static Py_ssize_t sig_right(const Sig *a, Py_ssize_t n, double x) {
     Py_ssize_t lo = 0, hi = n;
     while (lo < hi) {
         Py_ssize_t mid = (lo + hi) / 2;
-        if (x < a[mid]) hi = mid;
+        if (x < a[mid].arr) hi = mid;
         else lo = mid + 1;
+    }
+    return lo;
+}
+
+static Py_ssize_t tx_left(const Tx *a, Py_ssize_t n, double x) {
+    Py_ssize_t lo = 0, hi = n;
+    while (lo < hi) {
+        Py_ssize_t mid = (lo + hi) / 2;
+        if (a[mid].start < x) lo = mid + 1;
+        else hi = mid;
     }
     return lo;
 }
@@ -82,25 +98,25 @@ static Py_ssize_t bisect_right(const double *a, Py_ssize_t n, double x) {
 /* Links: the heard receivers of one transmission, packed (sorted by delay, as _links gives them) */
 
 typedef struct {
+    double tof, snr;      /* delay (s), SNR (dB) */
+    Py_ssize_t rid;       /* receiver */
+    PyObject *path;       /* path name (one of a few interned strings) */
+    PyObject *tof_o, *snr_o; /* the row's objects (shared, as the Python rows share them) */
+} Heard;
+
+typedef struct {
     PyObject_HEAD
     Py_ssize_t n;
-    Py_ssize_t *rid;
-    double *tof, *snr;
-    PyObject **tof_obj, **snr_obj, **path; /* the row's objects (shared, as the Python rows share them) */
+    Heard *h;
 } Links;
 
 static void Links_dealloc(Links *self) {
     for (Py_ssize_t i = 0; i < self->n; i++) {
-        Py_XDECREF(self->tof_obj[i]);
-        Py_XDECREF(self->snr_obj[i]);
-        Py_XDECREF(self->path[i]);
+        Py_XDECREF(self->h[i].path);
+        Py_XDECREF(self->h[i].tof_o);
+        Py_XDECREF(self->h[i].snr_o);
     }
-    PyMem_Free(self->rid);
-    PyMem_Free(self->tof);
-    PyMem_Free(self->snr);
-    PyMem_Free(self->tof_obj);
-    PyMem_Free(self->snr_obj);
-    PyMem_Free(self->path);
+    PyMem_Free(self->h);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -154,8 +170,8 @@ struct Deliveries {
     PyObject *callbacks;   /* what Environment.step reads and clears */
     Core *core;
     Links *links;
-    PyObject *pkt, *src, *uid, *kind, *bits, *dst_code;
-    long long uid_v;
+    PyObject *pkt, *kind, *bits, *uid_o, *src_o, *dst_o;
+    long long uid, src, dst;
     double t0, duration;
     Py_ssize_t k, n;       /* next delivery, one past the last */
     int pressure;          /* the packet is a sound emission (kind == pressure_kind) */
@@ -201,14 +217,8 @@ static void Core_dealloc(Core *self) {
     PyObject_GC_UnTrack(self);
     Core_clear(self);
     for (Py_ssize_t i = 0; i < self->n; i++) {
-        Node *nd = &self->nodes[i];
-        Py_XDECREF(nd->rid);
-        PyMem_Free(nd->tx_start);
-        PyMem_Free(nd->tx_end);
-        PyMem_Free(nd->sig_arr);
-        PyMem_Free(nd->sig_end);
-        PyMem_Free(nd->sig_snr);
-        PyMem_Free(nd->sig_uid);
+        PyMem_Free(self->nodes[i].sig);
+        PyMem_Free(self->nodes[i].tx);
     }
     PyMem_Free(self->nodes);
     PyMem_Free(self->heap);
@@ -273,18 +283,17 @@ static PyObject *Core_attach(Core *self, PyObject *args) {
         if (grow((void **)&self->nodes, cap, sizeof(Node)) < 0) return NULL;
         self->cap = cap;
     }
-    PyObject *rid = PyLong_FromSsize_t(self->n);
-    if (rid == NULL) return NULL;
+    Tx *tx = PyMem_Malloc(9 * sizeof(Tx));
+    if (tx == NULL) return PyErr_NoMemory();
     Node *nd = &self->nodes[self->n];
     memset(nd, 0, sizeof(Node));
     nd->busy_until = -Py_HUGE_VAL;
-    nd->exact = exact;
-    nd->a = 1.0 + skew; /* _NodeCore.clock_stamp's (1.0 + c.skew): the same double */
+    nd->a = exact ? 1.0 + skew : 0.0; /* _NodeCore.clock_stamp's (1.0 + c.skew): the same double */
     nd->b = offset;
+    nd->tx = tx;
     nd->log_cap = 8;
     Py_INCREF(deliver);
     nd->deliver = deliver;
-    nd->rid = rid;
     self->n++;
     Py_RETURN_NONE;
 }
@@ -305,61 +314,45 @@ static PyObject *Core_transmit(Core *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "nddd", &i, &start, &end, &now)) return NULL;
     Node *nd = node_at(self, i);
     if (nd == NULL) return NULL;
-    if (nd->ntx == nd->captx) {
-        Py_ssize_t cap = nd->captx ? 2 * nd->captx : 16;
-        if (grow((void **)&nd->tx_start, cap, sizeof(double)) < 0 || grow((void **)&nd->tx_end, cap, sizeof(double)) < 0)
-            return NULL;
-        nd->captx = cap;
-    }
-    nd->tx_start[nd->ntx] = start;
-    nd->tx_end[nd->ntx] = end;
+    nd->tx[nd->ntx].start = start; /* room: ntx <= log_cap here */
+    nd->tx[nd->ntx].end = end;
     nd->ntx++;
     if (end > nd->busy_until) nd->busy_until = end;
     if (nd->ntx > nd->log_cap) {
         /* _prune: keep the transmissions that ended at or after now - longest packet */
         double cutoff = now - self->max_duration;
-        Py_ssize_t k = 0;
-        for (Py_ssize_t j = 0; j < nd->ntx; j++) {
-            if (nd->tx_end[j] >= cutoff) {
-                nd->tx_start[k] = nd->tx_start[j];
-                nd->tx_end[k] = nd->tx_end[j];
-                k++;
-            }
-        }
+        int32_t k = 0;
+        for (int32_t j = 0; j < nd->ntx; j++)
+            if (nd->tx[j].end >= cutoff) nd->tx[k++] = nd->tx[j];
         nd->ntx = k;
-        nd->log_cap = 2 * k > 8 ? 2 * k : 8;
+        int32_t cap = 2 * k > 8 ? 2 * k : 8;
+        if (cap != nd->log_cap) {
+            if (grow((void **)&nd->tx, cap + 1, sizeof(Tx)) < 0) return NULL;
+            nd->log_cap = cap;
+        }
     }
     Py_RETURN_NONE;
 }
 
 /* _Modem.record: forget the signals that arrived before `forget`, then insert after equal arrivals */
 static int record(Node *nd, double arr, double end, double snr, long long uid, double forget) {
-    if (nd->nsig && nd->sig_arr[0] < forget) {
-        Py_ssize_t j = bisect_left(nd->sig_arr, nd->nsig, forget);
-        Py_ssize_t m = nd->nsig - j;
-        memmove(nd->sig_arr, nd->sig_arr + j, m * sizeof(double));
-        memmove(nd->sig_end, nd->sig_end + j, m * sizeof(double));
-        memmove(nd->sig_snr, nd->sig_snr + j, m * sizeof(double));
-        memmove(nd->sig_uid, nd->sig_uid + j, m * sizeof(long long));
-        nd->nsig = m;
+    if (nd->nsig && nd->sig[0].arr < forget) {
+        Py_ssize_t j = sig_left(nd->sig, nd->nsig, forget);
+        memmove(nd->sig, nd->sig + j, (nd->nsig - j) * sizeof(Sig));
+        nd->nsig -= (int32_t)j;
     }
     if (nd->nsig == nd->capsig) {
-        Py_ssize_t cap = nd->capsig ? 2 * nd->capsig : 16;
-        if (grow((void **)&nd->sig_arr, cap, sizeof(double)) < 0 || grow((void **)&nd->sig_end, cap, sizeof(double)) < 0 ||
-            grow((void **)&nd->sig_snr, cap, sizeof(double)) < 0 || grow((void **)&nd->sig_uid, cap, sizeof(long long)) < 0)
+        if (nd->capsig > INT32_MAX / 2) {
+            PyErr_NoMemory();
             return -1;
+        }
+        int32_t cap = nd->capsig ? 2 * nd->capsig : 16;
+        if (grow((void **)&nd->sig, cap, sizeof(Sig)) < 0) return -1;
         nd->capsig = cap;
     }
-    Py_ssize_t j = bisect_right(nd->sig_arr, nd->nsig, arr);
-    Py_ssize_t m = nd->nsig - j;
-    memmove(nd->sig_arr + j + 1, nd->sig_arr + j, m * sizeof(double));
-    memmove(nd->sig_end + j + 1, nd->sig_end + j, m * sizeof(double));
-    memmove(nd->sig_snr + j + 1, nd->sig_snr + j, m * sizeof(double));
-    memmove(nd->sig_uid + j + 1, nd->sig_uid + j, m * sizeof(long long));
-    nd->sig_arr[j] = arr;
-    nd->sig_end[j] = end;
-    nd->sig_snr[j] = snr;
-    nd->sig_uid[j] = uid;
+    Py_ssize_t j = sig_right(nd->sig, nd->nsig, arr);
+    memmove(nd->sig + j + 1, nd->sig + j, (nd->nsig - j) * sizeof(Sig));
+    nd->sig[j] = (Sig){arr, end, snr, uid};
     nd->nsig++;
     return 0;
 }
@@ -374,13 +367,8 @@ static PyObject *Core_pack(Core *self, PyObject *heard) {
     Links *L = PyObject_New(Links, &LinksType);
     if (L == NULL) return NULL;
     L->n = 0;
-    L->rid = PyMem_Malloc((n ? n : 1) * sizeof(Py_ssize_t));
-    L->tof = PyMem_Malloc((n ? n : 1) * sizeof(double));
-    L->snr = PyMem_Malloc((n ? n : 1) * sizeof(double));
-    L->tof_obj = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
-    L->snr_obj = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
-    L->path = PyMem_Malloc((n ? n : 1) * sizeof(PyObject *));
-    if (!L->rid || !L->tof || !L->snr || !L->tof_obj || !L->snr_obj || !L->path) {
+    L->h = PyMem_Malloc((n ? n : 1) * sizeof(Heard));
+    if (L->h == NULL) {
         Py_DECREF(L);
         return PyErr_NoMemory();
     }
@@ -413,15 +401,11 @@ static PyObject *Core_pack(Core *self, PyObject *heard) {
             Py_DECREF(L);
             return NULL;
         }
-        L->rid[i] = rid;
-        L->tof[i] = tv;
-        L->snr[i] = sv;
+        PyObject *path = PyTuple_GET_ITEM(h, 2);
+        Py_INCREF(path);
         Py_INCREF(t);
         Py_INCREF(s);
-        Py_INCREF(PyTuple_GET_ITEM(h, 2));
-        L->tof_obj[i] = t;
-        L->snr_obj[i] = s;
-        L->path[i] = PyTuple_GET_ITEM(h, 2);
+        L->h[i] = (Heard){tv, sv, rid, path, t, s};
         L->n = i + 1;
     }
     return (PyObject *)L;
@@ -539,69 +523,49 @@ static int ensure_proxy(Core *self) {
 /* start(pkt, dst, t0, duration, links, forget): AcousticChannel._start's loop over the heard
  * receivers (dst None: a broadcast; else only dst delivers, every receiver records the signal)
  * and the push of the first delivery. Returns whether anything was queued. */
+static int get_ll(PyObject *obj, PyObject *name, long long *out) {
+    PyObject *v = PyObject_GetAttr(obj, name);
+    if (v == NULL) return -1;
+    *out = PyLong_AsLongLong(v);
+    Py_DECREF(v);
+    return *out == -1 && PyErr_Occurred() ? -1 : 0;
+}
+
 static PyObject *Core_start(Core *self, PyObject *args) {
     PyObject *pkt, *dst, *links;
     double t0, duration, forget;
     if (!PyArg_ParseTuple(args, "OOddO!d", &pkt, &dst, &t0, &duration, &LinksType, &links, &forget)) return NULL;
     Links *L = (Links *)links;
-    Py_ssize_t want = -1;
+    long long want = -1, uid, src;
     if (dst != Py_None) {
-        want = PyLong_AsSsize_t(dst);
+        want = PyLong_AsLongLong(dst);
         if (want == -1 && PyErr_Occurred()) return NULL;
     }
-    PyObject *uid = PyObject_GetAttr(pkt, s_uid);
-    if (uid == NULL) return NULL;
-    long long uid_v = PyLong_AsLongLong(uid);
-    if (uid_v == -1 && PyErr_Occurred()) {
-        Py_DECREF(uid);
-        return NULL;
-    }
+    if (get_ll(pkt, s_uid, &uid) < 0 || get_ll(pkt, s_src, &src) < 0) return NULL;
     int track = self->collision != 0;
     Py_ssize_t first = -1;
     for (Py_ssize_t i = 0; i < L->n; i++) {
-        Py_ssize_t rid = L->rid[i];
-        if (rid >= self->n) {
-            Py_DECREF(uid);
-            PyErr_Format(PyExc_IndexError, "start: no node %zd on this channel", rid);
+        Heard *h = &L->h[i];
+        if (h->rid >= self->n) {
+            PyErr_Format(PyExc_IndexError, "start: no node %zd on this channel", h->rid);
             return NULL;
         }
-        if (want >= 0 && rid == want && first < 0) first = i;
+        if (h->rid == want && first < 0) first = i;
         if (track) {
-            double arr = t0 + L->tof[i];
+            double arr = t0 + h->tof;
             double end = arr + duration;
-            if (record(&self->nodes[rid], arr, end, L->snr[i], uid_v, forget) < 0) {
-                Py_DECREF(uid);
-                return NULL;
-            }
+            if (record(&self->nodes[h->rid], arr, end, h->snr, uid, forget) < 0) return NULL;
         }
     }
     Py_ssize_t k0 = 0, n = L->n;
-    if (want >= 0) {
-        if (first < 0) {
-            Py_DECREF(uid);
-            Py_RETURN_FALSE;
-        }
+    if (want >= 0) { /* a unicast: only the addressee delivers */
+        if (first < 0) Py_RETURN_FALSE;
         k0 = first;
         n = first + 1;
     }
-    if (n <= k0) {
-        Py_DECREF(uid);
-        Py_RETURN_FALSE;
-    }
+    if (n <= k0) Py_RETURN_FALSE;
     Deliveries *d = PyObject_GC_New(Deliveries, &DeliveriesType);
-    if (d == NULL) {
-        Py_DECREF(uid);
-        return NULL;
-    }
-    d->uid = uid;
-    d->callbacks = NULL;
-    d->core = NULL;
-    d->links = NULL;
-    d->pkt = d->src = d->kind = d->bits = d->dst_code = NULL;
-    d->src = PyObject_GetAttr(pkt, s_src);
-    d->kind = PyObject_GetAttr(pkt, s_kind);
-    d->bits = PyObject_GetAttr(pkt, s_bits);
-    d->dst_code = dst == Py_None ? PyLong_FromLong(-1) : (Py_INCREF(dst), dst);
+    if (d == NULL) return NULL;
     Py_INCREF(self->cb);
     d->callbacks = self->cb;
     Py_INCREF(self);
@@ -610,7 +574,14 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->links = L;
     Py_INCREF(pkt);
     d->pkt = pkt;
-    d->uid_v = uid_v;
+    d->kind = PyObject_GetAttr(pkt, s_kind);
+    d->bits = PyObject_GetAttr(pkt, s_bits);
+    d->uid_o = PyLong_FromLongLong(uid);
+    d->src_o = PyLong_FromLongLong(src);
+    d->dst_o = PyLong_FromLongLong(want);
+    d->uid = uid;
+    d->src = src;
+    d->dst = want;
     d->t0 = t0;
     d->duration = duration;
     d->k = k0;
@@ -620,7 +591,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->at = 0.0;
     d->eid = NULL;
     PyObject_GC_Track(d);
-    if (d->src == NULL || d->kind == NULL || d->bits == NULL || d->dst_code == NULL) {
+    if (d->kind == NULL || d->bits == NULL || d->uid_o == NULL || d->src_o == NULL || d->dst_o == NULL) {
         Py_DECREF(d);
         return NULL;
     }
@@ -633,7 +604,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
         d->pressure = eq;
     }
     /* the first end: t0 + (sigs[0][1] - t0) with sigs[0][1] = (t0 + T) + duration */
-    double arr = t0 + L->tof[k0];
+    double arr = t0 + L->h[k0].tof;
     double end = arr + duration;
     int rc = push(self, d, t0 + (end - t0));
     Py_DECREF(d);
@@ -645,22 +616,22 @@ static PyObject *Core_start(Core *self, PyObject *args) {
 static int scan(Core *self, Node *rx, double arr, double end, double snr, long long uid) {
     if (rx->busy_until > arr) {
         Py_ssize_t n = rx->ntx;
-        Py_ssize_t i = bisect_left(rx->tx_start, n, arr - 2.0 * self->max_duration);
-        for (; i < n && rx->tx_start[i] < end; i++)
-            if (rx->tx_end[i] > arr) return 1;
+        const Tx *tx = rx->tx;
+        for (Py_ssize_t i = tx_left(tx, n, arr - 2.0 * self->max_duration); i < n && tx[i].start < end; i++)
+            if (tx[i].end > arr) return 1;
     }
     if (self->collision == 0) return 0;
     int destructive = self->collision == 1;
     Py_ssize_t n = rx->nsig;
-    Py_ssize_t i = bisect_left(rx->sig_arr, n, arr - self->max_duration);
+    const Sig *sig = rx->sig;
     double power = 0.0;
     int hit = 0;
-    for (; i < n; i++) {
-        if (rx->sig_arr[i] >= end) break;
-        if (rx->sig_end[i] > arr && rx->sig_uid[i] != uid) {
+    for (Py_ssize_t i = sig_left(sig, n, arr - self->max_duration); i < n; i++) {
+        if (sig[i].arr >= end) break;
+        if (sig[i].end > arr && sig[i].uid != uid) {
             hit = 1;
             if (destructive) break;
-            double x = rx->sig_snr[i] / 10.0;
+            double x = sig[i].snr / 10.0;
             double p = pow(10.0, x);
             if (isinf(p) && isfinite(x)) { /* float.__pow__ raises on overflow */
                 PyErr_SetString(PyExc_OverflowError, "(34, 'Numerical result out of range')");
@@ -680,78 +651,84 @@ static int scan(Core *self, Node *rx, double arr, double end, double snr, long l
 
 /* one delivery of d (its k-th): AcousticChannel._next_delivery's body up to the next push */
 static int deliver_one(Core *self, Deliveries *d) {
-    Links *L = d->links;
-    Py_ssize_t k = d->k;
-    Py_ssize_t rid = L->rid[k];
-    Node *rx = &self->nodes[rid];
-    double arr = d->t0 + L->tof[k];
+    const Heard *h = &d->links->h[d->k];
+    Node *rx = &self->nodes[h->rid];
+    double arr = d->t0 + h->tof;
     double end = arr + d->duration;
-    double snr = L->snr[k];
-    int v = scan(self, rx, arr, end, snr, d->uid_v);
+    int v = scan(self, rx, arr, end, h->snr, d->uid);
     if (v < 0) return -1;
-    PyObject *arr_obj = PyFloat_FromDouble(arr);
-    if (arr_obj == NULL) return -1;
+    PyObject *row = PyTuple_New(13);
+    if (row == NULL) return -1;
+    /* the row's own objects (the tuple owns them from here, so one DECREF of it frees them all) */
+    PyObject *arr_obj = PyFloat_FromDouble(arr), *rid = PyLong_FromSsize_t(h->rid);
+    PyObject *snr = h->snr_o;
+    PyTuple_SET_ITEM(row, 0, arr_obj);
+    PyTuple_SET_ITEM(row, 3, rid);
+    if (!arr_obj || !rid) {
+        Py_DECREF(row);
+        return -1;
+    }
+    PyObject *shared[5] = {d->src_o, d->dst_o, d->uid_o, h->tof_o, snr};
+    static const int at[5] = {4, 5, 6, 9, 10};
+    for (int i = 0; i < 5; i++) {
+        Py_INCREF(shared[i]);
+        PyTuple_SET_ITEM(row, at[i], shared[i]);
+    }
+    Py_INCREF(d->kind);
+    PyTuple_SET_ITEM(row, 7, d->kind);
+    Py_INCREF(d->bits);
+    PyTuple_SET_ITEM(row, 8, d->bits);
+    Py_INCREF(h->path);
+    PyTuple_SET_ITEM(row, 11, h->path);
+    PyObject *event = v == 0 ? s_rx : s_drop;
+    PyObject *reason = v == 0 ? Py_None : v == 1 ? s_half_duplex : s_collision;
+    Py_INCREF(event);
+    PyTuple_SET_ITEM(row, 1, event);
+    Py_INCREF(reason);
+    PyTuple_SET_ITEM(row, 2, reason);
     PyObject *rx_local;
     if (v == 0) {
-        if (rx->exact && !self->jitter) {
+        if (rx->a > 0.0 && !self->jitter) {
             rx_local = PyFloat_FromDouble(rx->a * arr + rx->b);
         } else {
-            PyObject *argv[2] = {rx->rid, arr_obj};
+            PyObject *argv[2] = {rid, arr_obj};
             rx_local = PyObject_Vectorcall(self->stamp, argv, 2, NULL);
         }
         if (rx_local == NULL) {
-            Py_DECREF(arr_obj);
+            Py_DECREF(row);
             return -1;
         }
+        PyTuple_SET_ITEM(row, 12, rx_local);
         PyObject *p;
         if (d->pressure) {
-            PyObject *ts = PyFloat_FromDouble(arr - L->tof[k]);
+            PyObject *ts = PyFloat_FromDouble(arr - h->tof);
             if (ts == NULL) {
-                Py_DECREF(arr_obj);
-                Py_DECREF(rx_local);
+                Py_DECREF(row);
                 return -1;
             }
-            PyObject *argv[4] = {d->pkt, rx->rid, ts, arr_obj};
+            PyObject *argv[4] = {d->pkt, rid, ts, arr_obj};
             p = PyObject_Vectorcall(self->pressure, argv, 4, NULL);
             Py_DECREF(ts);
             if (p == NULL) {
-                Py_DECREF(arr_obj);
-                Py_DECREF(rx_local);
+                Py_DECREF(row);
                 return -1;
             }
         } else {
             Py_INCREF(self->nan);
             p = self->nan;
         }
-        PyObject *argv[4] = {d->pkt, rx_local, L->snr_obj[k], p};
+        PyObject *argv[4] = {d->pkt, rx_local, snr, p};
         PyObject *r = PyObject_Vectorcall(rx->deliver, argv, 4, NULL);
         Py_DECREF(p);
         if (r == NULL) {
-            Py_DECREF(arr_obj);
-            Py_DECREF(rx_local);
+            Py_DECREF(row);
             return -1;
         }
         Py_DECREF(r);
     } else {
         Py_INCREF(self->nan);
-        rx_local = self->nan;
+        PyTuple_SET_ITEM(row, 12, self->nan);
     }
-    PyObject *row = PyTuple_New(13);
-    if (row == NULL) {
-        Py_DECREF(arr_obj);
-        Py_DECREF(rx_local);
-        return -1;
-    }
-    PyObject *event = v == 0 ? s_rx : s_drop;
-    PyObject *reason = v == 0 ? Py_None : v == 1 ? s_half_duplex : s_collision;
-    PyObject *fields[12] = {event, reason, rx->rid, d->src, d->dst_code, d->uid, d->kind, d->bits,
-                            L->tof_obj[k], L->snr_obj[k], L->path[k], NULL};
-    PyTuple_SET_ITEM(row, 0, arr_obj);
-    for (int i = 0; i < 11; i++) {
-        Py_INCREF(fields[i]);
-        PyTuple_SET_ITEM(row, i + 1, fields[i]);
-    }
-    PyTuple_SET_ITEM(row, 12, rx_local);
     int rc = PyList_Append(self->rows, row);
     Py_DECREF(row);
     return rc;
@@ -802,7 +779,7 @@ static PyObject *Core_run(Core *self, PyObject *ev) {
                 Py_INCREF(self->cb);
                 Py_XSETREF(d->callbacks, self->cb); /* Environment.step set it to None */
             }
-            double end = (d->t0 + d->links->tof[k]) + d->duration;
+            double end = (d->t0 + d->links->h[k].tof) + d->duration;
             if (push(self, d, d->t0 + (end - d->t0)) < 0) goto fail;
         }
         if (!self->drain) break;
@@ -922,11 +899,11 @@ static void Deliveries_dealloc(Deliveries *self) {
     PyObject_GC_UnTrack(self);
     Deliveries_clear(self);
     Py_XDECREF(self->links);
-    Py_XDECREF(self->src);
-    Py_XDECREF(self->uid);
     Py_XDECREF(self->kind);
     Py_XDECREF(self->bits);
-    Py_XDECREF(self->dst_code);
+    Py_XDECREF(self->uid_o);
+    Py_XDECREF(self->src_o);
+    Py_XDECREF(self->dst_o);
     Py_XDECREF(self->eid);
     PyObject_GC_Del(self);
 }
