@@ -8,15 +8,21 @@
  *     _Modem.record prunes it;
  *   - the affine clock (1 + skew, offset) of nodes whose stamp is exact (_NodeCore.exact_stamp).
  * Core.start records one transmission's signals at every receiver (AcousticChannel._start's
- * loop) and queues its Deliveries entry on SimPy's heap; Core.run is the entry's callback and
- * mirrors AcousticChannel._next_delivery (with _scan): verdict, stamp, delivery to the node
- * (a Python call: the node side stays Python), packets row, next entry, and the drain of
- * consecutive channel entries at the head of SimPy's queue.
+ * loop) and queues its Deliveries entry; Core.run is the entry's callback and mirrors
+ * AcousticChannel._next_delivery (with _scan): verdict, stamp, delivery to the node (a Python
+ * call: the node side stays Python), packets row, next entry, and the drain of consecutive
+ * channel entries while they come next in SimPy's order.
+ *
+ * The entries wait on the channel's own heap (own_heap; AcousticChannel.compiled_heap), keyed
+ * (time, sequence number) with the sequence number drawn from SimPy's counter exactly where
+ * the Python path draws it. Only the head is also on SimPy's queue, as the tuple SimPy would
+ * hold for it (time, NORMAL, its own sequence number, entry): SimPy pops it exactly when it
+ * would have popped that entry had every entry been on its queue, and every other entry of the
+ * channel comes after it, so the order of events is the Python path's. Without own_heap every
+ * entry goes on SimPy's queue through heapq's own functions, as in Python.
  *
  * Every float expression is the Python one in the same order (built with -ffp-contract=off:
- * no fused multiply-add), so the rows have the same bits; SimPy's heap is driven through
- * heapq's own functions with next(env._eid) drawn where Python draws it, so the order of
- * events is the same.
+ * no fused multiply-add), so the rows have the same bits.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -170,8 +176,8 @@ struct Deliveries {
     PyObject *callbacks;   /* what Environment.step reads and clears */
     Core *core;
     Links *links;
-    PyObject *pkt, *kind, *bits, *uid_o, *src_o, *dst_o;
-    long long uid, src, dst;
+    PyObject *pkt, *kind, *bits, *uid_o, *src_o, *dst_o; /* the rows' fields */
+    long long uid;         /* the transmission, as the signal logs name it */
     double t0, duration;
     Py_ssize_t k, n;       /* next delivery, one past the last */
     int pressure;          /* the packet is a sound emission (kind == pressure_kind) */
@@ -580,8 +586,6 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->src_o = PyLong_FromLongLong(src);
     d->dst_o = PyLong_FromLongLong(want);
     d->uid = uid;
-    d->src = src;
-    d->dst = want;
     d->t0 = t0;
     d->duration = duration;
     d->k = k0;

@@ -31,6 +31,12 @@ entries at the queue's head are decided in one loop, ``_next_delivery``): by the
 that can overlap the reception and every transmission of the receiver that can cut it are
 known (they started before that instant), so the verdict needs no second event.
 
+The per-reception part (the signal logs, the own-transmission logs, the verdicts, the exact
+clocks' stamps, the rows and the queue entries) runs compiled (``channel/_delivery.c``) when
+that module is built: the same operations on the same floats in the same order, the same
+sequence numbers from SimPy's counter, so the same rows in the same order. The Python code here
+is its reference and its fallback (``compiled_delivery = False``; tests compare the two).
+
 MAC stamps: transmit stamped when the first bit leaves (t0), receive when the first bit
 arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_std_s``.
 """
