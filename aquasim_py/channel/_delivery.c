@@ -243,6 +243,10 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
                                      &PyList_Type, &rows, &collision, &capture, &jitter, &stamp, &pressure,
                                      &pressure_kind, &drain, &own_heap))
         return -1;
+    if (self->cb != NULL) {
+        PyErr_SetString(PyExc_TypeError, "Core: already initialized");
+        return -1;
+    }
     long prio = PyLong_AsLong(priority);
     if (prio == -1 && PyErr_Occurred()) return -1;
     if (strcmp(collision, "none") == 0) self->collision = 0;
@@ -541,6 +545,10 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     PyObject *pkt, *dst, *links;
     double t0, duration, forget;
     if (!PyArg_ParseTuple(args, "OOddO!d", &pkt, &dst, &t0, &duration, &LinksType, &links, &forget)) return NULL;
+    if (self->cb == NULL) {
+        PyErr_SetString(PyExc_RuntimeError, "start: the core was cleared");
+        return NULL;
+    }
     Links *L = (Links *)links;
     long long want = -1, uid, src;
     if (dst != Py_None) {
@@ -761,6 +769,10 @@ static int head_first(Core *self, PyObject *head, int *err) {
 static PyObject *Core_run(Core *self, PyObject *ev) {
     if (Py_TYPE(ev) != &DeliveriesType || ((Deliveries *)ev)->core != self) {
         PyErr_SetString(PyExc_TypeError, "run: not a delivery entry of this channel");
+        return NULL;
+    }
+    if (self->cb == NULL) {
+        PyErr_SetString(PyExc_RuntimeError, "run: the core was cleared");
         return NULL;
     }
     Deliveries *d = (Deliveries *)ev;
