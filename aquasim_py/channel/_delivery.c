@@ -530,9 +530,7 @@ static int ensure_proxy(Core *self) {
     return rc;
 }
 
-/* start(pkt, dst, t0, duration, links, forget): AcousticChannel._start's loop over the heard
- * receivers (dst None: a broadcast; else only dst delivers, every receiver records the signal)
- * and the push of the first delivery. Returns whether anything was queued. */
+/* the int attribute `name` of obj */
 static int get_ll(PyObject *obj, PyObject *name, long long *out) {
     PyObject *v = PyObject_GetAttr(obj, name);
     if (v == NULL) return -1;
@@ -541,6 +539,9 @@ static int get_ll(PyObject *obj, PyObject *name, long long *out) {
     return *out == -1 && PyErr_Occurred() ? -1 : 0;
 }
 
+/* start(pkt, dst, t0, duration, links, forget): AcousticChannel._start's loop over the heard
+ * receivers (dst None: a broadcast; else only dst delivers, every receiver records the signal)
+ * and the push of the first delivery. Returns whether anything was queued. */
 static PyObject *Core_start(Core *self, PyObject *args) {
     PyObject *pkt, *dst, *links;
     double t0, duration, forget;
