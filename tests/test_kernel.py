@@ -13,6 +13,9 @@ from aquasim_py.mobility import Box, ConstantVelocity, RandomWalk
 from aquasim_py.node import Node, Sensors
 from aquasim_py.trace import TraceConfig
 
+# every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
+pytestmark = pytest.mark.usefixtures("delivery_path")
+
 C = Constant(1500.0)
 BOX = Box([0.0, 0.0, 0.0], [3000.0, 3000.0, 300.0])
 

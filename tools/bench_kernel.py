@@ -11,6 +11,7 @@ little as possible.
     python tools/bench_kernel.py --quick    # 200 nodes, 50 s
     python tools/bench_kernel.py --quick --nodes 5000 --until 4   # same density, 25x the area
     python tools/bench_kernel.py --quick --speed 1 [--numpy-links]   # moving: compiled (numpy) links
+    python tools/bench_kernel.py --quick [--python-delivery | --simpy-heap]   # the delivery's variants
 
 The reported "CPU per reception" (kernel CPU time / receptions decided) is the figure to
 compare across network sizes at the same neighbour count.
@@ -232,9 +233,23 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="moving nodes: the channel's numpy links instead of the compiled ones (channel/straight.py)",
     )
+    ap.add_argument(
+        "--python-delivery",
+        action="store_true",
+        help="the channel's Python delivery (the reference) instead of the compiled one (channel/_delivery.c)",
+    )
+    ap.add_argument(
+        "--simpy-heap",
+        action="store_true",
+        help="compiled delivery with every channel entry on SimPy's queue instead of the channel's own heap",
+    )
     args = ap.parse_args(argv)
     if args.numpy_links:
         AcousticChannel.compiled_links = False
+    if args.python_delivery:
+        AcousticChannel.compiled_delivery = False
+    if args.simpy_heap:
+        AcousticChannel.compiled_heap = False
     until = min(50.0, args.until) if args.quick else args.until
     pos, rng_m = layout(args.nodes, args.neighbours, args.seed)
     mean_nb = float(np.mean([len(nb) for nb in neighbour_lists(pos, rng_m)]))

@@ -31,6 +31,12 @@ entries at the queue's head are decided in one loop, ``_next_delivery``): by the
 that can overlap the reception and every transmission of the receiver that can cut it are
 known (they started before that instant), so the verdict needs no second event.
 
+The per-reception part (the signal logs, the own-transmission logs, the verdicts, the exact
+clocks' stamps, the rows and the queue entries) runs compiled (``channel/_delivery.c``) when
+that module is built: the same operations on the same floats in the same order, the same
+sequence numbers from SimPy's counter, so the same rows in the same order. The Python code here
+is its reference and its fallback (``compiled_delivery = False``; tests compare the two).
+
 MAC stamps: transmit stamped when the first bit leaves (t0), receive when the first bit
 arrives (t_a), each in the node's local clock (``Clock.stamp``), plus ``jitter_std_s``.
 """
@@ -62,6 +68,11 @@ from .rays import Eigenray, PathKind
 from .raytrace import Reflections, eigenray
 from .ssp import Constant, Isogradient
 from .uncertainty import SoundSpeedUncertainty
+
+try:  # the compiled delivery (channel/_delivery.c); without a compiler the Python path runs
+    from . import _delivery
+except ImportError:  # pragma: no cover - every CI lane builds it
+    _delivery = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ssp import SoundSpeedProfile
@@ -313,6 +324,15 @@ class AcousticChannel:
     #: decide consecutive deliveries at the head of SimPy's queue in one loop (_next_delivery);
     #: False gives each its own Environment.step (tests compare: the same rows in the same order)
     drain_deliveries = True
+    #: keep every node's channel-side state and decide the deliveries in C (channel/_delivery.c)
+    #: when the module is built and SimPy's queue layout is the known one; False runs the
+    #: Python reference below (tests compare the two: the same rows, the same receptions)
+    compiled_delivery = True
+    #: with the compiled delivery: the channel's entries on its own heap (contiguous keys), only
+    #: its head on SimPy's queue with that entry's own key (time, priority, sequence number), so
+    #: SimPy takes it exactly when it would have taken it among all of them; False puts every
+    #: entry on SimPy's queue, as the Python path does
+    compiled_heap = True
 
     def __init__(
         self,
@@ -370,6 +390,25 @@ class AcousticChannel:
         self._push = self._push_queue if known else self._push_schedule
         if not known:
             self._queue = []  # _next_delivery then leaves every pop to Environment.step
+        rows = packets.row_buffer()
+        self._core: _delivery.Core | None = None  # the compiled state and delivery loop (_delivery.Core), or None
+        self._packs: dict[int, tuple[list[Any], _delivery.Links]] = {}  # static links packed for the core, per sender
+        if self.compiled_delivery and _delivery is not None and known and type(rows) is list:
+            self._core = _delivery.Core(
+                env,
+                self._queue,
+                self._eid,
+                NORMAL,
+                rows,
+                config.collision,
+                float(config.capture_threshold_db),
+                self._jitter_std > 0.0,
+                self._stamp_of,
+                self._pressure_of,
+                config.pressure_kind,
+                self.drain_deliveries,
+                self.compiled_heap,
+            )
 
         # obstacle hook (channel/obstacles.py): each link decided from its own keyed stream
         obs = config.obstacles
@@ -401,10 +440,18 @@ class AcousticChannel:
         if port.index != len(self._modems):
             raise ValueError(f"attach: expected the port of node {len(self._modems)}, got node {port.index}")
         self._modems.append(_Modem(port))
+        if self._core is not None:
+            # an exact clock (affine, no jitter of its own) is stamped in C with its constants
+            exact = bool(getattr(port, "exact_stamp", False))
+            clock = getattr(port, "clock", None) if exact else None
+            skew, offset = (float(clock.skew), float(clock.offset)) if clock is not None else (0.0, 0.0)
+            self._core.attach(port.deliver, clock is not None, skew, offset)
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks
         (bounded by the overlap window, not by the run length; for diagnostics and tests)."""
+        if self._core is not None:
+            return int(self._core.signals(node))
         return len(self._modems[node].rx_log)
 
     def packets_watermark(self) -> float:
@@ -428,6 +475,8 @@ class AcousticChannel:
         duration = bits / self.config.bitrate_bps
         if duration > self._max_duration:
             self._max_duration = duration
+            if self._core is not None:
+                self._core.max_duration = duration
         start = modem.tx_free_at if modem.tx_free_at > now else now
         modem.tx_free_at = start + duration
         if start == now:
@@ -469,12 +518,16 @@ class AcousticChannel:
         nan = math.nan
         row = self._row
         self._table.flush_if_large()
-        modem.tx_start.append(t0)
-        modem.tx_end.append(t0 + duration)
-        if modem.tx_end[-1] > modem.busy_until:
-            modem.busy_until = modem.tx_end[-1]
-        if len(modem.tx_start) > modem.log_cap:
-            self._prune(modem)
+        core = self._core
+        if core is not None:  # the same own-transmission log, pruned the same way, in C
+            core.transmit(src, t0, t0 + duration, t0)
+        else:
+            modem.tx_start.append(t0)
+            modem.tx_end.append(t0 + duration)
+            if modem.tx_end[-1] > modem.busy_until:
+                modem.busy_until = modem.tx_end[-1]
+            if len(modem.tx_start) > modem.log_cap:
+                self._prune(modem)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
         in_range, heard, lost = self._links(src, t0)
@@ -490,6 +543,15 @@ class AcousticChannel:
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
         forget = t0 - 2.0 * self._max_duration
+        if core is not None:  # the loop below and the push, in C
+            if heard:
+                packed = self._packs.get(src)
+                if packed is None or packed[0] is not heard:  # a static network's links are cached: so is their pack
+                    packed = (heard, core.pack(heard))
+                    if self._static and self._cacheable:
+                        self._packs[src] = packed
+                core.start(pkt, dst, t0, duration, packed[1], forget)
+            return tx_local
         sigs: list[_Signal] = []
         if dst is None:
             for rx, T, path, s in heard:
@@ -517,6 +579,14 @@ class AcousticChannel:
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
             self._push(_Deliveries(sigs, t0, self._next_cb), t0 + (sigs[0][1] - t0))
         return tx_local
+
+    def _stamp_of(self, rid: int, t: float) -> float:
+        """``_stamp`` of node ``rid`` (the compiled core's call for clocks it cannot stamp itself)."""
+        return self._stamp(self._modems[rid], t)
+
+    def _pressure_of(self, pkt: Packet, rid: int, t_send: float, t_arr: float) -> float:
+        """``_pressure`` at node ``rid`` (the compiled core's call)."""
+        return self._pressure(pkt, self._modems[rid], t_send, t_arr)
 
     def _links(
         self, src: int, t0: float

@@ -22,6 +22,9 @@ from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
 
+# every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
+pytestmark = pytest.mark.usefixtures("delivery_path")
+
 # Use the isogradient profile as soon as the ray tracer supports it; Constant only until then.
 _ISO = Isogradient(1480.0, 0.1)
 try:

@@ -152,6 +152,7 @@ def test_public_schedule_fallback_gives_the_same_packets(monkeypatch: pytest.Mon
         orig(self, *a, **k)
         self._push = self._push_schedule
         self._queue = []  # and no access to SimPy's queue: every pop is Environment.step's
+        self._core = None  # and the Python delivery (the compiled one drives SimPy's queue itself)
 
     monkeypatch.setattr(AcousticChannel, "__init__", no_queue)
     fallback = _packets(4, True, monkeypatch)

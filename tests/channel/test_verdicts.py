@@ -21,6 +21,9 @@ from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.kernel import Simulation
 
+# every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
+pytestmark = pytest.mark.usefixtures("delivery_path")
+
 C = 1024.0  # m/s
 BITRATE = 1024.0  # bit/s
 GRID = 1.0 / 16.0  # s
