@@ -1,7 +1,377 @@
-/* CSV text of trace chunks (see aquasim_py/trace.py); placeholder until implemented. */
+/* The trace's two bulk loops in C (aquasim_py/trace.py keeps the Python reference of each, which
+ * runs when this module is missing and which the tests hold equal to it):
+ *
+ * csv_rows(columns, n)   the CSV text of a streamed chunk's rows, as UTF-8 bytes: what
+ *                        trace._csv_lines writes (and so DataFrame.to_csv), byte for byte.
+ * push_rows(rows, cols)  a batch of row tuples into a table's typed columns: what
+ *                        Table._flush's zip(*rows) + _Column.push_many do, for every column
+ *                        whose values all fit it as they are; the other columns are left
+ *                        untouched and named in the result, for the Python path to take.
+ *
+ * Neither keeps state between calls (all of it lives in the caller's objects), no threads. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_fastcsv", "CSV text of trace chunks (see aquasim_py/trace.py)", 0, NULL};
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------ a growing byte buffer */
+typedef struct {
+    char *p;
+    Py_ssize_t n, cap;
+} Buf;
+
+static int buf_reserve(Buf *b, Py_ssize_t more) {
+    if (b->n + more <= b->cap) return 0;
+    Py_ssize_t cap = b->cap ? b->cap : 4096;
+    while (cap < b->n + more) {
+        if (cap > PY_SSIZE_T_MAX / 2) {
+            PyErr_NoMemory();
+            return -1;
+        }
+        cap *= 2;
+    }
+    char *p = PyMem_Realloc(b->p, (size_t)cap);
+    if (p == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    b->p = p;
+    b->cap = cap;
+    return 0;
+}
+
+static int buf_add(Buf *b, const char *s, Py_ssize_t len) {
+    if (buf_reserve(b, len) < 0) return -1;
+    memcpy(b->p + b->n, s, (size_t)len);
+    b->n += len;
+    return 0;
+}
+
+/* ------------------------------------------------------------------ csv_rows */
+/* A chunk's float fields, each distinct value (by its bits) formatted once, as
+ * trace._float_fields does: a static link's delay and SNR recur with every packet on it.
+ * Open addressing over the bit patterns; the texts live in one arena. */
+typedef struct {
+    uint64_t *keys;
+    Py_ssize_t *off; /* offset of the text in the arena, -1 for an empty slot */
+    unsigned char *len;
+    size_t mask;
+    Buf arena;
+} FloatText;
+
+static int ft_init(FloatText *ft, Py_ssize_t values) {
+    size_t size = 64;
+    while (size < (size_t)values * 2) size *= 2;
+    ft->mask = size - 1;
+    ft->keys = PyMem_Malloc(size * sizeof(uint64_t));
+    ft->off = PyMem_Malloc(size * sizeof(Py_ssize_t));
+    ft->len = PyMem_Malloc(size);
+    ft->arena = (Buf){NULL, 0, 0};
+    if (ft->keys == NULL || ft->off == NULL || ft->len == NULL) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (size_t i = 0; i < size; i++) ft->off[i] = -1;
+    return 0;
+}
+
+static void ft_free(FloatText *ft) {
+    PyMem_Free(ft->keys);
+    PyMem_Free(ft->off);
+    PyMem_Free(ft->len);
+    PyMem_Free(ft->arena.p);
+}
+
+/* The field of v: "" for NaN (pandas' na_rep), else float.__repr__(v) exactly (the same call
+ * with the same flags as CPython's float_repr). Appended to out. */
+static int ft_add(FloatText *ft, double v, Buf *out) {
+    if (isnan(v)) return 0;
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    size_t i = (size_t)((bits * UINT64_C(0x9E3779B97F4A7C15)) >> 32) & ft->mask;
+    while (ft->off[i] >= 0) {
+        if (ft->keys[i] == bits) return buf_add(out, ft->arena.p + ft->off[i], ft->len[i]);
+        i = (i + 1) & ft->mask;
+    }
+    char *s = PyOS_double_to_string(v, 'r', 0, Py_DTSF_ADD_DOT_0, NULL);
+    if (s == NULL) return -1;
+    Py_ssize_t len = (Py_ssize_t)strlen(s); /* at most 24 characters ("-2.2250738585072014e-308") */
+    int err = buf_add(&ft->arena, s, len);
+    PyMem_Free(s);
+    if (err < 0) return -1;
+    ft->keys[i] = bits;
+    ft->off[i] = ft->arena.n - len;
+    ft->len[i] = (unsigned char)len;
+    return buf_add(out, ft->arena.p + ft->off[i], len);
+}
+
+/* str(v) of an int64 */
+static int int_add(int64_t v, Buf *out) {
+    char tmp[24];
+    char *end = tmp + sizeof tmp, *p = end;
+    /* work on the magnitude as unsigned: -(2**63) has no positive int64 */
+    uint64_t m = v < 0 ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+    do {
+        *--p = (char)('0' + m % 10);
+        m /= 10;
+    } while (m);
+    if (v < 0) *--p = '-';
+    return buf_add(out, p, end - p);
+}
+
+/* one column of the chunk, as the Python side hands it over */
+typedef struct {
+    char kind;            /* 'f' float64, 'i' int64, 'c' int32 codes into texts, 's' texts */
+    Py_buffer view;       /* 'f', 'i', 'c': the values */
+    int has_view;
+    PyObject *texts;      /* 'c': a list of each category's field; 's': a list of the fields */
+    Py_ssize_t ntexts;
+} Col;
+
+/* UTF-8 of a field (a str), cached on the str itself by CPython */
+static const char *field_utf8(PyObject *texts, Py_ssize_t i, Py_ssize_t *len) {
+    PyObject *s = PyList_GET_ITEM(texts, i);
+    if (!PyUnicode_Check(s)) {
+        PyErr_SetString(PyExc_TypeError, "csv_rows: fields must be str");
+        return NULL;
+    }
+    return PyUnicode_AsUTF8AndSize(s, len);
+}
+
+static PyObject *csv_rows(PyObject *self, PyObject *args) {
+    PyObject *columns;
+    Py_ssize_t n;
+    if (!PyArg_ParseTuple(args, "O!n:csv_rows", &PyList_Type, &columns, &n)) return NULL;
+    Py_ssize_t ncol = PyList_GET_SIZE(columns);
+    if (n < 0 || ncol < 1) {
+        PyErr_SetString(PyExc_ValueError, "csv_rows: no columns or a negative row count");
+        return NULL;
+    }
+    Col *cols = PyMem_Calloc((size_t)ncol, sizeof(Col));
+    if (cols == NULL) return PyErr_NoMemory();
+    FloatText ft = {NULL, NULL, NULL, 0, {NULL, 0, 0}};
+    Buf out = {NULL, 0, 0};
+    PyObject *result = NULL;
+    Py_ssize_t nfloat = 0;
+
+    /* take each column: (kind, values, texts) */
+    for (Py_ssize_t j = 0; j < ncol; j++) {
+        PyObject *t = PyList_GET_ITEM(columns, j);
+        const char *kind;
+        PyObject *values, *texts;
+        if (!PyArg_ParseTuple(t, "sOO:csv_rows column", &kind, &values, &texts)) goto done;
+        Col *c = &cols[j];
+        c->kind = kind[0];
+        if (c->kind == 's') {
+            if (!PyList_Check(values) || PyList_GET_SIZE(values) != n) {
+                PyErr_SetString(PyExc_ValueError, "csv_rows: a text column must be a list of n fields");
+                goto done;
+            }
+            c->texts = values;
+            continue;
+        }
+        Py_ssize_t item = c->kind == 'c' ? 4 : 8;
+        const char *fmt = c->kind == 'f' ? "d" : c->kind == 'i' ? "q" : c->kind == 'c' ? "i" : NULL;
+        if (fmt == NULL) {
+            PyErr_Format(PyExc_ValueError, "csv_rows: unknown column kind %R", PyTuple_GET_ITEM(t, 0));
+            goto done;
+        }
+        if (PyObject_GetBuffer(values, &c->view, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) goto done;
+        c->has_view = 1;
+        /* numpy says "<d" / "<q" / "<i" or "l" where long is 64 bits: check the item size and
+         * the type letter, not the whole string */
+        const char *f = c->view.format ? c->view.format : "B";
+        if (*f == '<' || *f == '=' || *f == '@') f++;
+        int letter_ok = c->kind == 'f' ? *f == 'd' : (*f == 'q' || *f == 'l' || *f == 'i');
+        if (c->view.itemsize != item || !letter_ok || c->view.len != n * item) {
+            PyErr_Format(PyExc_ValueError, "csv_rows: column %zd is not %zd values of type %s", j, n, fmt);
+            goto done;
+        }
+        if (c->kind == 'c') {
+            if (!PyList_Check(texts)) {
+                PyErr_SetString(PyExc_TypeError, "csv_rows: a category column needs a list of fields");
+                goto done;
+            }
+            c->texts = texts;
+            c->ntexts = PyList_GET_SIZE(texts);
+        }
+        if (c->kind == 'f') nfloat += n;
+    }
+    if (ft_init(&ft, nfloat) < 0) goto done;
+
+    for (Py_ssize_t r = 0; r < n; r++) {
+        for (Py_ssize_t j = 0; j < ncol; j++) {
+            Col *c = &cols[j];
+            if (j && buf_add(&out, ",", 1) < 0) goto done;
+            int err = 0;
+            if (c->kind == 'f') {
+                err = ft_add(&ft, ((const double *)c->view.buf)[r], &out);
+            } else if (c->kind == 'i') {
+                err = int_add(((const int64_t *)c->view.buf)[r], &out);
+            } else {
+                Py_ssize_t i = r, len;
+                if (c->kind == 'c') {
+                    i = ((const int32_t *)c->view.buf)[r];
+                    if (i < 0 || i >= c->ntexts) {
+                        PyErr_Format(PyExc_IndexError, "csv_rows: code %zd beyond %zd categories", i, c->ntexts);
+                        goto done;
+                    }
+                }
+                const char *s = field_utf8(c->texts, i, &len);
+                err = s == NULL ? -1 : buf_add(&out, s, len);
+            }
+            if (err < 0) goto done;
+        }
+        if (buf_add(&out, "\n", 1) < 0) goto done;
+    }
+    result = PyBytes_FromStringAndSize(out.p ? out.p : "", out.n);
+
+done:
+    for (Py_ssize_t j = 0; j < ncol; j++)
+        if (cols[j].has_view) PyBuffer_Release(&cols[j].view);
+    PyMem_Free(cols);
+    ft_free(&ft);
+    PyMem_Free(out.p);
+    return result;
+}
+
+/* ------------------------------------------------------------------ push_rows */
+/* Column j's values of every row as doubles (kind 'f': what array('d', values) stores for an
+ * exact float or int) or int64s (kind 'i': array('q', values) for an exact int) into dst.
+ * 0: done; 1: a value the fast path does not take (the column is left to Python); -1: error. */
+static int take_numbers(PyObject *rows, Py_ssize_t j, char kind, char *dst) {
+    Py_ssize_t n = PyList_GET_SIZE(rows);
+    for (Py_ssize_t r = 0; r < n; r++) {
+        PyObject *v = PyTuple_GET_ITEM(PyList_GET_ITEM(rows, r), j);
+        if (kind == 'f') {
+            double x;
+            if (PyFloat_CheckExact(v)) {
+                x = PyFloat_AS_DOUBLE(v);
+            } else if (PyLong_CheckExact(v)) {
+                x = PyLong_AsDouble(v);
+                if (x == -1.0 && PyErr_Occurred()) { /* too large: Python's path decides */
+                    PyErr_Clear();
+                    return 1;
+                }
+            } else {
+                return 1;
+            }
+            memcpy(dst + 8 * r, &x, 8);
+        } else {
+            if (!PyLong_CheckExact(v)) return 1; /* bools, floats, None, numpy scalars */
+            int overflow;
+            long long x = PyLong_AsLongLongAndOverflow(v, &overflow);
+            if (overflow) return 1;
+            if (x == -1 && PyErr_Occurred()) return -1;
+            int64_t y = (int64_t)x;
+            memcpy(dst + 8 * r, &y, 8);
+        }
+    }
+    return 0;
+}
+
+/* Column j's values as category codes (new categories coded in order of first appearance,
+ * as _Column.push_many); only strings and None (exact types), else 1 and cats untouched. */
+static int take_codes(PyObject *rows, Py_ssize_t j, PyObject *cats, char *dst) {
+    Py_ssize_t n = PyList_GET_SIZE(rows);
+    for (Py_ssize_t r = 0; r < n; r++) {
+        PyObject *v = PyTuple_GET_ITEM(PyList_GET_ITEM(rows, r), j);
+        if (v != Py_None && !PyUnicode_CheckExact(v)) return 1;
+    }
+    for (Py_ssize_t r = 0; r < n; r++) {
+        PyObject *v = PyTuple_GET_ITEM(PyList_GET_ITEM(rows, r), j);
+        PyObject *code = PyDict_GetItemWithError(cats, v); /* borrowed */
+        long c;
+        if (code == NULL) {
+            if (PyErr_Occurred()) return -1;
+            Py_ssize_t k = PyDict_GET_SIZE(cats);
+            if (k >= INT32_MAX) {
+                PyErr_SetString(PyExc_OverflowError, "push_rows: too many categories");
+                return -1;
+            }
+            PyObject *nc = PyLong_FromSsize_t(k);
+            if (nc == NULL) return -1;
+            int err = PyDict_SetItem(cats, v, nc);
+            Py_DECREF(nc);
+            if (err < 0) return -1;
+            c = (long)k;
+        } else {
+            c = PyLong_AsLong(code);
+            if (c == -1 && PyErr_Occurred()) return -1;
+        }
+        int32_t c32 = (int32_t)c;
+        memcpy(dst + 4 * r, &c32, 4);
+    }
+    return 0;
+}
+
+static PyObject *push_rows(PyObject *self, PyObject *args) {
+    PyObject *rows, *columns;
+    if (!PyArg_ParseTuple(args, "O!O!:push_rows", &PyList_Type, &rows, &PyList_Type, &columns)) return NULL;
+    Py_ssize_t n = PyList_GET_SIZE(rows), ncol = PyList_GET_SIZE(columns);
+    PyObject *left = PyList_New(0); /* the columns left to the Python path */
+    if (left == NULL) return NULL;
+    /* every row a tuple of exactly one value per column, or Python takes them all (zip's rules) */
+    int shaped = 1;
+    for (Py_ssize_t r = 0; r < n && shaped; r++) {
+        PyObject *t = PyList_GET_ITEM(rows, r);
+        shaped = PyTuple_CheckExact(t) && PyTuple_GET_SIZE(t) == ncol;
+    }
+    PyObject *tmp = NULL;
+    for (Py_ssize_t j = 0; j < ncol; j++) {
+        PyObject *spec = PyList_GET_ITEM(columns, j);
+        const char *kind;
+        PyObject *data, *cats;
+        if (!PyArg_ParseTuple(spec, "sOO:push_rows column", &kind, &data, &cats)) goto fail;
+        int res = 1;
+        if (shaped && kind[0] == 'o' && PyList_CheckExact(data)) {
+            for (Py_ssize_t r = 0; r < n; r++)
+                if (PyList_Append(data, PyTuple_GET_ITEM(PyList_GET_ITEM(rows, r), j)) < 0) goto fail;
+            res = 0;
+        } else if (shaped && (kind[0] == 'f' || kind[0] == 'i' || (kind[0] == 'c' && PyDict_CheckExact(cats)))) {
+            Py_ssize_t item = kind[0] == 'c' ? 4 : 8;
+            tmp = PyBytes_FromStringAndSize(NULL, n * item);
+            if (tmp == NULL) goto fail;
+            char *dst = PyBytes_AS_STRING(tmp);
+            res = kind[0] == 'c' ? take_codes(rows, j, cats, dst) : take_numbers(rows, j, kind[0], dst);
+            if (res < 0) goto fail;
+            if (res == 0) { /* the column's own array grows by the new values (C-level memcpy) */
+                PyObject *ok = PyObject_CallMethod(data, "frombytes", "O", tmp);
+                if (ok == NULL) goto fail;
+                Py_DECREF(ok);
+            }
+            Py_CLEAR(tmp);
+        }
+        if (res) {
+            PyObject *jj = PyLong_FromSsize_t(j);
+            if (jj == NULL) goto fail;
+            int err = PyList_Append(left, jj);
+            Py_DECREF(jj);
+            if (err < 0) goto fail;
+        }
+    }
+    return left;
+fail:
+    Py_XDECREF(tmp);
+    Py_DECREF(left);
+    return NULL;
+}
+
+static PyMethodDef methods[] = {
+    {"csv_rows", csv_rows, METH_VARARGS,
+     "csv_rows(columns, n) -> bytes: the CSV lines (UTF-8) of n rows; columns: a list of (kind, "
+     "values, texts): ('f', float64 buffer, None), ('i', int64 buffer, None), ('c', int32 codes, "
+     "list of each category's field), ('s', list of the n fields, None)."},
+    {"push_rows", push_rows, METH_VARARGS,
+     "push_rows(rows, columns) -> list[int]: append row tuples to typed columns, given as a list of "
+     "(kind, data, cats); returns the indices of the columns left untouched for the Python path."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_fastcsv", "The trace's bulk loops in C (see aquasim_py/trace.py).", 0, methods,
+};
 
 PyMODINIT_FUNC PyInit__fastcsv(void) { return PyModule_Create(&module); }

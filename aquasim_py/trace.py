@@ -28,6 +28,11 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
+try:  # the trace's bulk loops in C (setup.py); without a compiler, their Python references run
+    from aquasim_py import _fastcsv
+except ImportError:  # pragma: no cover - depends on the build
+    _fastcsv = None  # type: ignore[assignment]
+
 __all__ = [
     "SCHEMAS",
     "Table",
@@ -391,13 +396,27 @@ class Table:
             return
         buf = self._buf[:]
         self._buf.clear()  # the same list object: hot-path writers may hold it (see row_buffer)
-        for key, values in zip(self._buf_keys, zip(*buf)):
-            self.columns[key].push_many(values)
+        self._push_batch([self.columns[k] for k in self._buf_keys], buf)
         if len(self.columns) != len(self._buf_keys):
             for key in list(self.columns)[len(self._buf_keys) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
         self._maybe_spill()
+
+    @staticmethod
+    def _push_batch(cols: list[_Column], buf: list[tuple[Any, ...]]) -> None:
+        """Row tuples (one value per column of ``cols``) into ``cols``: ``zip(*buf)`` and
+        :meth:`_Column.push_many` per column, the reference; in C (``_fastcsv.push_rows``) for
+        every column whose values all fit it as they are (exact floats and ints for "f", ints
+        for "i", strings and None for "c", anything for "o"), the reference for the others."""
+        left: Iterable[int] = range(len(cols))
+        if _fastcsv is not None:
+            left = _fastcsv.push_rows(buf, [(c.kind, c.data, c.cats) for c in cols])
+        if left:
+            values = list(zip(*buf))  # (rows shorter than cols: zip's truncation, as before)
+            for j in left:
+                if j < len(values):
+                    cols[j].push_many(values[j])
 
     def _maybe_spill(self) -> None:
         if self._sink is not None:
@@ -783,7 +802,7 @@ def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | Non
 
 def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
     """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
-    column at a time (:func:`_csv_lines`). None when ``df`` has a column other than float64,
+    column at a time (:func:`_csv_bytes`). None when ``df`` has a column other than float64,
     int64 or object, or a label that is not a string; or as :func:`_csv_lines`.
 
     tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
@@ -797,7 +816,8 @@ def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | N
         if kind is None:
             return None
         columns.append((kind, a.tolist() if kind == "o" else a, []))
-    return _csv_lines(labels, columns, len(df), header, quoted)
+    data = _csv_bytes(labels, columns, len(df), header, quoted)
+    return None if data is None else data.decode("utf-8")
 
 
 def _csv_lines(
@@ -831,9 +851,36 @@ def _csv_lines(
         for i, f in zip(floats, _float_fields(list(floats.values()))):
             cols[i] = f
     rows = "\n".join(map(",".join, zip(*cols))) + "\n"
-    if not header:
-        return rows
-    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n" + rows
+    return _header_line(labels, quoted) + rows if header else rows
+
+
+def _header_line(labels: list[str], quoted: dict[Any, str]) -> str:
+    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n"
+
+
+def _csv_bytes(
+    labels: list[str], columns: list[tuple[str, Any, list[Any]]], n: int, header: bool, quoted: dict[Any, str]
+) -> bytes | None:
+    """:func:`_csv_lines`' text as UTF-8 bytes (None where it declines), the rows formatted in
+    C when the module is built (``_fastcsv.csv_rows``: each distinct float's ``repr`` once,
+    ints, fields of strings prepared here as :func:`_object_fields` makes them, one buffer).
+    tests/test_trace_csv.py holds both paths equal to ``DataFrame.to_csv``."""
+    if _fastcsv is None or n == 0 or len(labels) < 2:
+        text = _csv_lines(labels, columns, n, header, quoted)
+        return None if text is None else text.encode("utf-8")
+    cols: list[tuple[str, Any, Any]] = []
+    for kind, a, cats in columns:
+        if kind in "fi":
+            cols.append((kind, a, None))
+        elif kind == "c":
+            cols.append(("c", a, _object_fields(cats, quoted)))
+        else:
+            fields = _object_fields(a, quoted)
+            if fields is None:
+                return None
+            cols.append(("s", fields, None))
+    rows = _fastcsv.csv_rows(cols, n)
+    return _header_line(labels, quoted).encode("utf-8") + rows if header else rows
 
 
 class _CsvSink:
@@ -854,12 +901,13 @@ class _CsvSink:
         if self._kinds is not None and _reformats(self._kinds, kinds, floated):
             self._rewrite(kinds, floated)
         first = self._kinds is None
-        text = _csv_lines(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
-        with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
-            if text is None:  # a column the bulk formatter does not take: pandas writes the chunk
+        data = _csv_bytes(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
+        if data is None:  # a column the bulk formatter does not take: pandas writes the chunk
+            with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
                 chunk.frame().to_csv(f, index=False, header=first, lineterminator="\n")
-            else:
-                f.write(text)
+        else:
+            with open(self.path, "wb" if first else "ab") as f:
+                f.write(data)
         self._kinds = dict(kinds)
         if len(self._quoted) > _QUOTED_MAX:  # a column of ever new strings: do not keep them all
             self._quoted.clear()

@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 
 from aquasim_py import metrics, run_scenario, trace
 from aquasim_py.trace import TableNotKept, Trace, TraceFiles, write_frames
+from trace_paths import PATHS, using
 
 # --------------------------------------------------------------------------- the sinks
 # one operation on a trace: (table, row) appended through Trace.append; values of every kind
@@ -61,15 +62,19 @@ def _streamed(tmp: Path, ops: list[tuple[str, dict[str, Any]]], chunk: int, fmt:
 )
 def test_streamed_csv_is_byte_identical_to_writing_the_whole_table(tmp_path_factory, ops, chunk):
     """Chunks of 1..7 rows, columns that appear after rows were written and ints that turn
-    float mid-table: the file is the bytes write_frames gives for the whole in-memory table."""
-    ref_dir, out_dir = tmp_path_factory.mktemp("ref"), tmp_path_factory.mktemp("out")
+    float mid-table: the file is the bytes write_frames gives for the whole in-memory table
+    (the Python path's), on every path."""
+    ref_dir = tmp_path_factory.mktemp("ref")
     ref = Trace()
-    _replay(ref, ops)
-    write_frames(ref.frames(), ref_dir)
-    files = _streamed(out_dir, ops, chunk)
-    assert sorted(files) == sorted(ref.tables)
-    for name, path in files.items():
-        assert path.read_bytes() == (ref_dir / f"{name}.csv").read_bytes(), name
+    with using("python"):
+        _replay(ref, ops)
+        write_frames(ref.frames(), ref_dir)
+    for p in PATHS:
+        with using(p):
+            files = _streamed(tmp_path_factory.mktemp(p), ops, chunk)
+        assert sorted(files) == sorted(ref.tables)
+        for name, path in files.items():
+            assert path.read_bytes() == (ref_dir / f"{name}.csv").read_bytes(), (p, name)
 
 
 def test_streamed_parquet_reads_back_as_the_whole_table_does(tmp_path):
@@ -245,17 +250,20 @@ def _scenario(tmp: Path, extra: str = "") -> Path:
 
 def test_run_streams_in_small_chunks_to_the_bytes_of_the_in_memory_run(tmp_path, monkeypatch):
     """A whole run streamed in 50-row chunks writes exactly the files of the same run kept in
-    memory and written at the end (the path of every earlier version)."""
+    memory and written at the end (the path of every earlier version), on every path."""
     from aquasim_py import scenario
 
     path = _scenario(tmp_path)
-    sim = scenario.build(scenario.load(path))
-    sim.run(60.0)
-    write_frames(sim.trace.frames(), tmp_path / "memory")
+    with using("python"):
+        sim = scenario.build(scenario.load(path))
+        sim.run(60.0)
+        write_frames(sim.trace.frames(), tmp_path / "memory")
     monkeypatch.setattr(trace, "CHUNK_ROWS", 50)
-    run_scenario(path, out=tmp_path / "streamed", progress=False)
-    for f in sorted((tmp_path / "memory").iterdir()):
-        assert (tmp_path / "streamed" / f.name).read_bytes() == f.read_bytes(), f.name
+    for p in PATHS:
+        with using(p):
+            run_scenario(path, out=tmp_path / p, progress=False)
+        for f in sorted((tmp_path / "memory").iterdir()):
+            assert (tmp_path / p / f.name).read_bytes() == f.read_bytes(), (p, f.name)
 
 
 def test_tables_not_requested_are_kept_only_when_a_metric_reads_them(tmp_path):
