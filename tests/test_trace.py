@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import trace
 from aquasim_py.trace import SCHEMAS, Table, Trace
-from trace_paths import PATHS, using
 
 
 def test_design_tables_exist_with_design_columns_first():

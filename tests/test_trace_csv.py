@@ -14,10 +14,10 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import trace
 from aquasim_py.trace import _csv_text
-from trace_paths import PATHS, using
 
 # values that trip formatters: signed zero, subnormals, the repr switch to exponents at 1e16
 # and 1e-4, integers beyond 2**53, NaN with another payload, the extremes
@@ -157,7 +157,7 @@ def test_c_float_text_is_python_repr() -> None:
     fast = PATHS["c"]
     assert fast is not None
     rng = np.random.default_rng(11)
-    x = np.concatenate([rng.integers(-(2**63), 2**63 - 1, 100_000, dtype=np.int64, endpoint=True).view(np.float64)])
+    x = rng.integers(-(2**63), 2**63 - 1, 100_000, dtype=np.int64, endpoint=True).view(np.float64)
     x = np.concatenate([x, np.array(_EDGE_FLOATS), np.array([1e-5, -1e-5, 1e-4, 1e22, 123456789012345680.0])])
     i = rng.integers(-(2**63), 2**63 - 1, len(x), dtype=np.int64, endpoint=True)
     i[:4] = [0, -1, 2**63 - 1, -(2**63)]
@@ -165,7 +165,38 @@ def test_c_float_text_is_python_repr() -> None:
     assert fast.csv_rows([("f", x, None), ("i", i, None)], len(x)).decode() == want
 
 
-@given(x=st.lists(_floats, min_size=1, max_size=40))
+@pytest.mark.skipif("c" not in PATHS, reason="aquasim_py._fastcsv not built")
+def test_c_short_float_text_is_python_repr() -> None:
+    """The C formatter's own shortest round trip (fast_repr, without CPython's dtoa) for
+    2^-10 <= |v| < 2^51, the magnitudes of times, delays and SNRs: repr's text for 3000 random
+    mantissas of every binary exponent from 2^-12 to 2^52 (both edges of that range crossed),
+    the mantissas at the edges (a power of two has a closer neighbour below), and values whose
+    two shortest candidates are exactly as close (repr takes the even digit)."""
+    fast = PATHS["c"]
+    assert fast is not None
+    rng = np.random.default_rng(5)
+    exps = np.repeat(np.arange(-12, 53), 3000)
+    mant = rng.integers(0, 2**52, len(exps), dtype=np.int64)
+    mant[::1000] = 0
+    mant[1::1000] = 2**52 - 1
+    x = (((exps + 1023).astype(np.int64) << 52) | mant).view(np.float64)
+    x[::2] *= -1
+    ties = [258428801846949.88, 32734755089552.188, 2.0**51 - 0.5, 9007199254740.992]
+    taken = 0
+    for v in x.tolist() + ties:
+        text = fast.fast_repr(v)
+        assert text is None or text == repr(v), v
+        if 2.0**-10 <= abs(v) < 2.0**51:
+            assert text is not None, v
+            taken += 1
+    assert taken == 3000 * 61 + len(ties)
+
+
+@given(
+    x=st.lists(
+        st.one_of(_floats, st.floats(2.0**-12, 2.0**52), st.floats(-(2.0**52), -(2.0**-12))), min_size=1, max_size=40
+    )
+)
 def test_c_float_text_is_python_repr_hypothesis(x: list[float]) -> None:
     """As above, on hypothesis' floats (its own edge cases: -0.0, inf, subnormals, 1e16, ...),
     each value repeated so the formatter's cache of distinct values is read as well as filled."""
@@ -173,7 +204,7 @@ def test_c_float_text_is_python_repr_hypothesis(x: list[float]) -> None:
     if fast is None:
         pytest.skip("aquasim_py._fastcsv not built")
     a = np.array(x + x[::-1], dtype=np.float64)
-    want = "".join(f"{'' if math.isnan(v) else repr(v)},{repr(v)}\n" for v in a.tolist())
+    want = "".join(f"{'' if math.isnan(v) else repr(v)},{v!r}\n" for v in a.tolist())
     fields = [repr(v) for v in a.tolist()]
     assert fast.csv_rows([("f", a, None), ("s", fields, None)], len(a)).decode() == want
 

@@ -18,10 +18,10 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import metrics, run_scenario, trace
 from aquasim_py.trace import TableNotKept, Trace, TraceFiles, write_frames
-from trace_paths import PATHS, using
 
 # --------------------------------------------------------------------------- the sinks
 # one operation on a trace: (table, row) appended through Trace.append; values of every kind
