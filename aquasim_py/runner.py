@@ -298,11 +298,15 @@ def _streamed_trace(sim: Any, sc: Scenario, dest: Path | None) -> Iterator[Calla
         files = {k: p for k, (p, _) in done.items() if p is not None}
         dropped = [k for k, (p, _) in done.items() if p is None]
         tallies = {k: t.tallies for k, t in sim.trace.tables.items() if t.tallies}
-        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch, tallies)
+        kept = {k: (df, tuple(t.columns)) for k, t in sim.trace.tables.items() if (df := t.kept()) is not None}
+        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch, tallies, kept)
 
     try:
         for name, columns in metrics.TALLIED.items():  # counted as written, not read back
             sim.trace.table(name).tally(columns)
+        if fmt == "csv":  # (parquet's read-back has its own dtypes)
+            for name, columns in metrics.columns_kept(sc.protocols()).items():  # kept as written
+                sim.trace.table(name).keep(columns)
         sim.trace.stream(route, fmt)
         yield finish
     except BaseException:

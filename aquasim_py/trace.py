@@ -337,6 +337,8 @@ class Table:
         # columns -> how many rows handed to the sink had each combination of their values
         # (None: not countable, see tally)
         self._tallies: dict[tuple[str, ...], dict[tuple[Any, ...], int] | None] = {}
+        # column -> the parts of it handed to the sink, chunk by chunk (see keep); None: not kept
+        self._kept: dict[str, list[tuple[str, Any, list[Any]]]] | None = None
 
     @property
     def n(self) -> int:
@@ -361,6 +363,45 @@ class Table:
     def tallies(self) -> dict[tuple[str, ...], dict[tuple[Any, ...], int] | None]:
         """columns -> {values: rows} of every :meth:`tally` (None where it was given up)."""
         return self._tallies
+
+    def keep(self, columns: tuple[str, ...]) -> None:
+        """Keep a copy of ``columns`` as rows are handed to a CSV sink, for a reader that needs
+        them whole (a protocol's metrics): :meth:`kept` then gives what reading them back from
+        the file gives, without parsing it. Given up (None) if rows were handed over before
+        this call, or a chunk lacks one of them, changes its type or holds a value whose text
+        might not read back as it was (objects; a category that is not a plain word)."""
+        self._kept = {c: [] for c in columns} if not self._streamed else None
+
+    def _keep(self, chunk: _Chunk) -> None:
+        """Add a chunk's kept columns (its own arrays: the chunk is not changed after this)."""
+        assert self._kept is not None
+        for c, parts in self._kept.items():
+            part = chunk.columns.get(c)
+            if (
+                part is None
+                or part[0] == "o"
+                or (parts and parts[0][0] != part[0])
+                or (part[0] == "c" and not all(v is None or _PLAIN.fullmatch(v) for v in part[2]))
+            ):
+                self._kept = None
+                return
+            parts.append(part)
+
+    def kept(self) -> pd.DataFrame | None:
+        """The kept columns (:meth:`keep`) in the table's column order, as reading them back
+        from the CSV file gives them (``read_table``'s dtypes and values); None if given up or
+        no row was handed over."""
+        if not self._kept or not all(self._kept.values()):
+            return None
+        out = {}
+        for c in (c for c in self.columns if c in self._kept):
+            parts = self._kept[c]
+            if parts[0][0] == "c":
+                values = [_series(c, "c", codes, cats, None).to_numpy() for _, codes, cats in parts]
+            else:
+                values = [a for _, a, _ in parts]
+            out[c] = pd.Series(np.concatenate(values), name=c, dtype=values[0].dtype)
+        return pd.DataFrame(out)
 
     def _count(self, chunk: _Chunk) -> None:
         """Add a chunk's rows to the tallies."""
@@ -462,6 +503,8 @@ class Table:
             self._streamed += chunk.n
             if self._tallies:
                 self._count(chunk)
+            if self._kept is not None:
+                self._keep(chunk)
 
     def _held_frame(self) -> pd.DataFrame:
         return _Chunk.take(self.columns, self._n).frame()
@@ -578,6 +621,10 @@ class Table:
             df = df.sort_values(key, kind="mergesort", ignore_index=True)
         return df
 
+
+#: category values a table keeps (Table.keep) as they are: their CSV text reads back unchanged
+#: (no quotes, spaces or empty strings, which read back as missing)
+_PLAIN = re.compile(r"[A-Za-z0-9_.:+-]+")
 
 #: rows a streamed table holds before handing them to its file (~0.5 MB of columns for
 #: ``packets``; formatting a chunk as CSV briefly takes several times that, and the heap keeps
@@ -1106,7 +1153,9 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
     ``files``: table name -> file, in the run's table order; ``rows``: their row counts;
     ``dropped``: the tables whose rows were not kept (asking for one raises
     :class:`TableNotKept`, not a silent ``None``); ``scratch``: a directory of files nobody
-    asked to keep, removed with this object (or at exit).
+    asked to keep, removed with this object (or at exit); ``kept``: table name -> (columns
+    kept as its file was written, :meth:`Table.kept`; every column of the table), which
+    :meth:`columns` gives instead of parsing the file.
     """
 
     def __init__(
@@ -1116,11 +1165,13 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         dropped: Iterable[str] = (),
         scratch: Path | None = None,
         tallies: Mapping[str, Mapping[tuple[str, ...], dict[tuple[Any, ...], int] | None]] | None = None,
+        kept: Mapping[str, tuple[pd.DataFrame, Sequence[str]]] | None = None,
     ) -> None:
         self._files = dict(files)
         self._rows = dict(rows or {})
         self._dropped = set(dropped) - set(self._files)
         self._tallies = {(name, cols): t for name, ts in (tallies or {}).items() for cols, t in ts.items()}
+        self._kept = dict(kept or {})
         self._cache: dict[str, pd.DataFrame] = {}
         self._column_cache: dict[tuple[str, tuple[str, ...]], pd.DataFrame] = {}
         self._memo: dict[Any, Any] = {}
@@ -1163,6 +1214,11 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
             return df[[c for c in df.columns if c in columns]]
         key = (name, tuple(columns))
         df = self._column_cache.get(key)
+        kept, header = self._kept.get(name, (None, ()))
+        if df is None and kept is not None:
+            want = [c for c in header if c in columns]
+            if all(c in kept.columns for c in want):
+                df = self._column_cache[key] = kept[want]
         if df is None:
             path = self._files[name]
             if path.suffix == ".parquet":
@@ -1229,6 +1285,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         self._cache.clear()
         self._column_cache.clear()
         self._memo.clear()
+        self._kept.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:
