@@ -107,6 +107,11 @@ static const uint64_t POW10[20] = {
     1000000000000000000ULL, 10000000000000000000ULL,
 };
 
+static const char DIGITS2[201] =
+    "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
+    "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
+    "8081828384858687888990919293949596979899";
+
 static int short_repr(double v, char *out) {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
@@ -131,35 +136,61 @@ static int short_repr(double v, char *out) {
     /* the integers in the interval scaled by 10^q */
     uint64_t hi = (uint64_t)(hn >> k) - (!even && (hn & mask) == 0);
     uint64_t lo = (uint64_t)(ln >> k) + ((ln & mask) != 0 || !even);
-    /* the largest j such that a multiple of 10^j lies in [lo, hi]: those are the shortest */
-    int j = 0;
+    /* the largest j such that a multiple of 10^j lies in [lo, hi]: those are the shortest;
+     * meanwhile vr loses the same digits, the last one removed and whether all before it were
+     * zero kept for the rounding below (one multiply-shift per division by 10) */
+    int j = 0, last = 0, zeros = 1;
     for (;;) {
         uint64_t nlo = lo / 10 + (lo % 10 != 0), nhi = hi / 10;
         if (nlo > nhi) break;
         lo = nlo;
         hi = nhi;
+        zeros &= last == 0;
+        last = (int)(vr % 10);
+        vr /= 10;
         j++;
     }
-    /* v scaled by 10^(q-j), rounded to the nearest integer, kept inside the interval */
-    uint64_t c = vr / POW10[j], r = vr - c * POW10[j];
+    /* v scaled by 10^(q-j) rounded to the nearest integer, kept inside the interval; an exact
+     * tie (only for |v| >= 2^35 or so) to the even digit, as dtoa */
     int above, tie;
     if (j == 0) {
         u128 half = (u128)1 << (k - 1);
         above = vf > half;
         tie = vf == half;
     } else {
-        uint64_t half = POW10[j] / 2;
-        above = r > half || (r == half && vf != 0);
-        tie = r == half && vf == 0;
+        int exact = zeros && vf == 0; /* the removed digits after the last one, and vr's fraction */
+        above = last > 5 || (last == 5 && !exact);
+        tie = last == 5 && exact;
     }
-    c += above || (tie && (c & 1)); /* an exact tie (|v| >= 2^35 or so) to the even digit, as dtoa */
+    uint64_t c = vr + (above || (tie && (vr & 1)));
     if (c < lo) c = lo;
     if (c > hi) c = hi;
-    /* the digits of c (no trailing zero: else a multiple of 10^(j+1) were inside) */
-    char dig[20];
-    int nd = 0;
-    for (uint64_t t = c; t; t /= 10) dig[19 - nd++] = (char)('0' + t % 10);
-    const char *ds = dig + 20 - nd;
+    /* the digits of c (no trailing zero: else a multiple of 10^(j+1) were inside): blocks of
+     * eight in 32-bit arithmetic, two digits at a time */
+    char dig[24];
+    char *dp = dig + 24;
+    while (c >= 100000000) {
+        uint32_t b = (uint32_t)(c % 100000000);
+        c /= 100000000;
+        for (int t = 0; t < 4; t++, b /= 100) {
+            *--dp = DIGITS2[2 * (b % 100) + 1];
+            *--dp = DIGITS2[2 * (b % 100)];
+        }
+    }
+    uint32_t b = (uint32_t)c;
+    while (b >= 100) {
+        *--dp = DIGITS2[2 * (b % 100) + 1];
+        *--dp = DIGITS2[2 * (b % 100)];
+        b /= 100;
+    }
+    if (b >= 10) {
+        *--dp = DIGITS2[2 * b + 1];
+        *--dp = DIGITS2[2 * b];
+    } else {
+        *--dp = (char)('0' + b);
+    }
+    const char *ds = dp;
+    int nd = (int)(dig + 24 - dp);
     int decpt = nd + j - q; /* |v| ~ 0.d1d2... 10^decpt */
     char *o = out;
     if (bits >> 63) *o++ = '-';
@@ -202,49 +233,57 @@ static int short_repr(double v, char *out) {
 }
 #endif
 
-/* The field of v: "" for NaN (pandas' na_rep), else float.__repr__(v) exactly (short_repr, or
- * the same call with the same flags as CPython's float_repr). Appended to out. */
-static int ft_add(FloatText *ft, double v, Buf *out) {
-    if (isnan(v)) return 0;
+/* The slot of v's field: float.__repr__(v) exactly (short_repr, or the same call with the same
+ * flags as CPython's float_repr); -1 for NaN (pandas' na_rep ""), -2 on an error. */
+static int32_t ft_slot(FloatText *ft, double v) {
+    if (isnan(v)) return -1;
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
     size_t i = (size_t)((bits * UINT64_C(0x9E3779B97F4A7C15)) >> ft->shift);
     while (ft->off[i] >= 0) {
-        if (ft->keys[i] == bits) return buf_add(out, ft->arena.p + ft->off[i], ft->len[i]);
+        if (ft->keys[i] == bits) return (int32_t)i;
         i = (i + 1) & ft->mask;
     }
     Py_ssize_t len = 0; /* at most 24 characters ("-2.2250738585072014e-308") */
 #ifdef __SIZEOF_INT128__
     char tmp[32];
     len = short_repr(v, tmp);
-    if (len && buf_add(&ft->arena, tmp, len) < 0) return -1;
+    if (len && buf_add(&ft->arena, tmp, len) < 0) return -2;
 #endif
     if (!len) {
         char *s = PyOS_double_to_string(v, 'r', 0, Py_DTSF_ADD_DOT_0, NULL);
-        if (s == NULL) return -1;
+        if (s == NULL) return -2;
         len = (Py_ssize_t)strlen(s);
         int err = buf_add(&ft->arena, s, len);
         PyMem_Free(s);
-        if (err < 0) return -1;
+        if (err < 0) return -2;
     }
     ft->keys[i] = bits;
     ft->off[i] = ft->arena.n - len;
     ft->len[i] = (unsigned char)len;
-    return buf_add(out, ft->arena.p + ft->off[i], len);
+    return (int32_t)i;
 }
 
-/* str(v) of an int64 */
-static int int_add(int64_t v, Buf *out) {
-    char tmp[24];
-    char *end = tmp + sizeof tmp, *p = end;
-    /* work on the magnitude as unsigned: -(2**63) has no positive int64 */
+/* the length of str(v) of an int64, and its text written at o */
+static int int_len(int64_t v) {
+    /* the magnitude as unsigned: -(2**63) has no positive int64 */
     uint64_t m = v < 0 ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+    int len = 1 + (v < 0);
+    while (m >= 10) {
+        m /= 10;
+        len++;
+    }
+    return len;
+}
+
+static void int_put(char *o, int64_t v, int len) {
+    uint64_t m = v < 0 ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+    char *p = o + len;
     do {
         *--p = (char)('0' + m % 10);
         m /= 10;
     } while (m);
     if (v < 0) *--p = '-';
-    return buf_add(out, p, end - p);
 }
 
 /* one column of the chunk, as the Python side hands it over */
@@ -254,6 +293,9 @@ typedef struct {
     int has_view;
     PyObject *texts;      /* 'c': a list of each category's field; 's': a list of the fields */
     Py_ssize_t ntexts;
+    int32_t *slots;       /* 'f': each row's slot in the FloatText, -1 for NaN */
+    const char **ptr;     /* 'c': each category's field (UTF-8); 's': each row's */
+    Py_ssize_t *len;      /* their lengths */
 } Col;
 
 /* UTF-8 of a field (a str), cached on the str itself by CPython */
@@ -278,7 +320,6 @@ static PyObject *csv_rows(PyObject *self, PyObject *args) {
     Col *cols = PyMem_Calloc((size_t)ncol, sizeof(Col));
     if (cols == NULL) return PyErr_NoMemory();
     FloatText ft = {NULL, NULL, NULL, 0, 0, {NULL, 0, 0}};
-    Buf out = {NULL, 0, 0};
     PyObject *result = NULL;
     Py_ssize_t nfloat = 0;
 
@@ -326,40 +367,94 @@ static PyObject *csv_rows(PyObject *self, PyObject *args) {
         if (c->kind == 'f') nfloat += n;
     }
     if (ft_init(&ft, nfloat) < 0) goto done;
+    /* the float fields a column at a time: the formatter's branches then follow one column's
+     * magnitudes (rows alternating between a time and a delay took twice as long) */
+    for (Py_ssize_t j = 0; j < ncol; j++) {
+        Col *c = &cols[j];
+        if (c->kind != 'f') continue;
+        c->slots = PyMem_Malloc((size_t)(n ? n : 1) * sizeof(int32_t));
+        if (c->slots == NULL) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        const double *v = c->view.buf;
+        for (Py_ssize_t r = 0; r < n; r++)
+            if ((c->slots[r] = ft_slot(&ft, v[r])) == -2) goto done;
+    }
 
+    /* the text fields' UTF-8 (cached on each str by CPython), and the exact size of the text:
+     * it is then written in place into one bytes object (a growing buffer, copied at the end,
+     * cost page faults on every chunk) */
+    Py_ssize_t total = n * ncol; /* the commas and the line ends */
+    for (Py_ssize_t j = 0; j < ncol; j++) {
+        Col *c = &cols[j];
+        if (c->kind == 'c' || c->kind == 's') {
+            Py_ssize_t m = c->kind == 'c' ? c->ntexts : n;
+            c->ptr = PyMem_Malloc((size_t)(m ? m : 1) * sizeof(char *));
+            c->len = PyMem_Malloc((size_t)(m ? m : 1) * sizeof(Py_ssize_t));
+            if (c->ptr == NULL || c->len == NULL) {
+                PyErr_NoMemory();
+                goto done;
+            }
+            for (Py_ssize_t i = 0; i < m; i++)
+                if ((c->ptr[i] = field_utf8(c->texts, i, &c->len[i])) == NULL) goto done;
+        }
+        for (Py_ssize_t r = 0; r < n; r++) {
+            if (c->kind == 'f') {
+                int32_t i = c->slots[r];
+                total += i >= 0 ? ft.len[i] : 0;
+            } else if (c->kind == 'i') {
+                total += int_len(((const int64_t *)c->view.buf)[r]);
+            } else if (c->kind == 's') {
+                total += c->len[r];
+            } else {
+                int32_t i = ((const int32_t *)c->view.buf)[r];
+                if (i < 0 || i >= c->ntexts) {
+                    PyErr_Format(PyExc_IndexError, "csv_rows: code %d beyond %zd categories", (int)i, c->ntexts);
+                    goto done;
+                }
+                total += c->len[i];
+            }
+        }
+    }
+    result = PyBytes_FromStringAndSize(NULL, total);
+    if (result == NULL) goto done;
+    char *o = PyBytes_AS_STRING(result);
     for (Py_ssize_t r = 0; r < n; r++) {
         for (Py_ssize_t j = 0; j < ncol; j++) {
             Col *c = &cols[j];
-            if (j && buf_add(&out, ",", 1) < 0) goto done;
-            int err = 0;
+            if (j) *o++ = ',';
             if (c->kind == 'f') {
-                err = ft_add(&ft, ((const double *)c->view.buf)[r], &out);
-            } else if (c->kind == 'i') {
-                err = int_add(((const int64_t *)c->view.buf)[r], &out);
-            } else {
-                Py_ssize_t i = r, len;
-                if (c->kind == 'c') {
-                    i = ((const int32_t *)c->view.buf)[r];
-                    if (i < 0 || i >= c->ntexts) {
-                        PyErr_Format(PyExc_IndexError, "csv_rows: code %zd beyond %zd categories", i, c->ntexts);
-                        goto done;
-                    }
+                int32_t i = c->slots[r];
+                if (i >= 0) {
+                    memcpy(o, ft.arena.p + ft.off[i], ft.len[i]);
+                    o += ft.len[i];
                 }
-                const char *s = field_utf8(c->texts, i, &len);
-                err = s == NULL ? -1 : buf_add(&out, s, len);
+            } else if (c->kind == 'i') {
+                int64_t v = ((const int64_t *)c->view.buf)[r];
+                int len = int_len(v);
+                int_put(o, v, len);
+                o += len;
+            } else {
+                Py_ssize_t i = c->kind == 'c' ? ((const int32_t *)c->view.buf)[r] : r;
+                memcpy(o, c->ptr[i], (size_t)c->len[i]);
+                o += c->len[i];
             }
-            if (err < 0) goto done;
         }
-        if (buf_add(&out, "\n", 1) < 0) goto done;
+        *o++ = '\n';
     }
-    result = PyBytes_FromStringAndSize(out.p ? out.p : "", out.n);
+    assert(o == PyBytes_AS_STRING(result) + total);
 
 done:
-    for (Py_ssize_t j = 0; j < ncol; j++)
+    for (Py_ssize_t j = 0; j < ncol; j++) {
         if (cols[j].has_view) PyBuffer_Release(&cols[j].view);
+        PyMem_Free(cols[j].slots);
+        PyMem_Free((void *)cols[j].ptr);
+        PyMem_Free(cols[j].len);
+    }
     PyMem_Free(cols);
     ft_free(&ft);
-    PyMem_Free(out.p);
+    if (PyErr_Occurred()) Py_CLEAR(result);
     return result;
 }
 
