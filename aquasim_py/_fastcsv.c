@@ -22,7 +22,7 @@ typedef struct {
     Py_ssize_t n, cap;
 } Buf;
 
-static int buf_reserve(Buf *b, Py_ssize_t more) {
+static inline int buf_reserve(Buf *b, Py_ssize_t more) {
     if (b->n + more <= b->cap) return 0;
     Py_ssize_t cap = b->cap ? b->cap : 4096;
     while (cap < b->n + more) {
@@ -42,7 +42,7 @@ static int buf_reserve(Buf *b, Py_ssize_t more) {
     return 0;
 }
 
-static int buf_add(Buf *b, const char *s, Py_ssize_t len) {
+static inline int buf_add(Buf *b, const char *s, Py_ssize_t len) {
     if (buf_reserve(b, len) < 0) return -1;
     memcpy(b->p + b->n, s, (size_t)len);
     b->n += len;
