@@ -607,7 +607,7 @@ static PyMethodDef methods[] = {
 };
 
 static struct PyModuleDef module = {
-    PyModuleDef_HEAD_INIT, "_fastcsv", "The trace's bulk loops in C (see aquasim_py/trace.py).", 0, methods,
+    PyModuleDef_HEAD_INIT, "_fastcsv", "The trace's bulk loops in C (see aquasim_py/trace.py).", 0, methods, NULL, NULL, NULL, NULL,
 };
 
 PyMODINIT_FUNC PyInit__fastcsv(void) { return PyModule_Create(&module); }

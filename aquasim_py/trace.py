@@ -390,18 +390,22 @@ class Table:
     def kept(self) -> pd.DataFrame | None:
         """The kept columns (:meth:`keep`) in the table's column order, as reading them back
         from the CSV file gives them (``read_table``'s dtypes and values); None if given up or
-        no row was handed over."""
-        if not self._kept or not all(self._kept.values()):
+        no row was handed over. Once: each column's chunks are let go as it is joined, so the
+        memory held is about the frame's (a column read back would hold as much)."""
+        kept, self._kept = self._kept, None
+        if not kept or not all(kept.values()):
             return None
         out = {}
-        for c in (c for c in self.columns if c in self._kept):
-            parts = self._kept[c]
+        for c in [c for c in self.columns if c in kept]:
+            parts = kept.pop(c)
             if parts[0][0] == "c":
                 values = [_series(c, "c", codes, cats, None).to_numpy() for _, codes, cats in parts]
             else:
                 values = [a for _, a, _ in parts]
+            del parts
             out[c] = pd.Series(np.concatenate(values), name=c, dtype=values[0].dtype)
-        return pd.DataFrame(out)
+            del values
+        return pd.DataFrame(out, copy=False)
 
     def _count(self, chunk: _Chunk) -> None:
         """Add a chunk's rows to the tallies."""
