@@ -528,6 +528,18 @@ static int take_codes(PyObject *rows, Py_ssize_t j, PyObject *cats, char *dst) {
     return 0;
 }
 
+/* an array's item size in bytes (0 if it has none): the bytes appended must be its items */
+static Py_ssize_t item_size(PyObject *data) {
+    PyObject *size = PyObject_GetAttrString(data, "itemsize");
+    Py_ssize_t n = size ? PyLong_AsSsize_t(size) : 0;
+    Py_XDECREF(size);
+    if (n < 0 || PyErr_Occurred()) {
+        PyErr_Clear();
+        n = 0;
+    }
+    return n;
+}
+
 static PyObject *push_rows(PyObject *self, PyObject *args) {
     PyObject *rows, *columns;
     if (!PyArg_ParseTuple(args, "O!O!:push_rows", &PyList_Type, &rows, &PyList_Type, &columns)) return NULL;
@@ -551,7 +563,8 @@ static PyObject *push_rows(PyObject *self, PyObject *args) {
             for (Py_ssize_t r = 0; r < n; r++)
                 if (PyList_Append(data, PyTuple_GET_ITEM(PyList_GET_ITEM(rows, r), j)) < 0) goto fail;
             res = 0;
-        } else if (shaped && (kind[0] == 'f' || kind[0] == 'i' || (kind[0] == 'c' && PyDict_CheckExact(cats)))) {
+        } else if (shaped && (kind[0] == 'f' || kind[0] == 'i' || (kind[0] == 'c' && PyDict_CheckExact(cats))) &&
+                   item_size(data) == (kind[0] == 'c' ? 4 : 8)) {
             Py_ssize_t item = kind[0] == 'c' ? 4 : 8;
             tmp = PyBytes_FromStringAndSize(NULL, n * item);
             if (tmp == NULL) goto fail;

@@ -10,3 +10,6 @@ def csv_rows(columns: list[tuple[str, Any, Any]], n: int) -> bytes:
 def push_rows(rows: list[tuple[Any, ...]], columns: list[tuple[str, Any, dict[Any, int]]]) -> list[int]:
     """Append row tuples to typed columns ``(kind, data, cats)`` as ``_Column.push_many`` would;
     returns the indices of the columns left untouched (values the fast path does not take)."""
+
+def fast_repr(v: float) -> str | None:
+    """``float.__repr__(v)`` by csv_rows' own formatter (2^-10 <= |v| < 2^51); None elsewhere."""

@@ -452,8 +452,8 @@ class Table:
     def _push_batch(cols: list[_Column], buf: list[tuple[Any, ...]]) -> None:
         """Row tuples (one value per column of ``cols``) into ``cols``: ``zip(*buf)`` and
         :meth:`_Column.push_many` per column, the reference; in C (``_fastcsv.push_rows``) for
-        every column whose values all fit it as they are (exact floats and ints for "f", ints
-        for "i", strings and None for "c", anything for "o"), the reference for the others."""
+        every column whose values all fit it as they are (exact floats and ints for "f", exact
+        ints for "i", strings and None for "c", anything for "o"), the reference for the others."""
         left: Iterable[int] = range(len(cols))
         if _fastcsv is not None:
             left = _fastcsv.push_rows(buf, [(c.kind, c.data, c.cats) for c in cols])
