@@ -65,7 +65,7 @@ typedef struct {
 static int ft_init(FloatText *ft, Py_ssize_t values) {
     size_t size = 64;
     ft->shift = 64 - 6;
-    while (size < (size_t)values * 2) {
+    while (size < (size_t)values + (size_t)values / 2) { /* load <= 2/3 */
         size *= 2;
         ft->shift--;
     }
