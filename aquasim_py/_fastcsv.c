@@ -95,9 +95,10 @@ static void ft_free(FloatText *ft) {
  * reads back as v (David Gay's mode 0), and among several of that length the one closest to v.
  * With v = m 2^e and 2^-10 <= |v| < 2^51, v's round-trip interval scaled by 10^q to 18-19
  * digits is held exactly in 128-bit integers; the shortest candidates are the multiples of the
- * largest power of ten inside it, and the closest of them is v rounded to it. Everything else
- * (zero, subnormals, tiny or huge values, inf, an exact tie between two candidates, which
- * cannot occur in this range but is checked) returns 0 and goes to PyOS_double_to_string. */
+ * largest power of ten inside it, and the closest of them is v rounded to it (an exact tie,
+ * which occurs for |v| >= 2^35 or so, to the even digit, as dtoa). Everything else (zero,
+ * subnormals, tiny or huge values, inf) returns 0 and goes to PyOS_double_to_string.
+ * tests/test_trace_csv.py holds it equal to repr on every binary exponent of the range. */
 typedef unsigned __int128 u128;
 
 static const uint64_t POW10[20] = {
@@ -365,6 +366,10 @@ static PyObject *csv_rows(PyObject *self, PyObject *args) {
             c->ntexts = PyList_GET_SIZE(texts);
         }
         if (c->kind == 'f') nfloat += n;
+    }
+    if (nfloat > INT32_MAX / 2) { /* slots are int32 (a chunk holds a few thousand rows) */
+        PyErr_SetString(PyExc_ValueError, "csv_rows: too many float values for one call");
+        goto done;
     }
     if (ft_init(&ft, nfloat) < 0) goto done;
     /* the float fields a column at a time: the formatter's branches then follow one column's
