@@ -284,6 +284,17 @@ def tables_read(protocols: Iterable[type]) -> set[str] | None:
     return out
 
 
+def columns_kept(protocols: Iterable[type]) -> dict[str, tuple[str, ...]]:
+    """The columns of trace tables the protocols' metrics read whole (each protocol's
+    ``trace_columns``: table -> columns), which a streamed run keeps as it writes the files
+    (:meth:`aquasim_py.trace.Table.keep`) instead of parsing them back."""
+    out: dict[str, tuple[str, ...]] = {}
+    for cls in protocols:
+        for name, columns in getattr(cls, "trace_columns", {}).items():
+            out[name] = tuple(dict.fromkeys(out.get(name, ()) + tuple(columns)))
+    return out
+
+
 class _AfterWarmup(Mapping[str, Any]):
     """``tables`` with the ``estimates`` and ``clocks`` rows before ``t0`` (s) left out, each
     table filtered when asked for (a lazily read trace stays lazy)."""

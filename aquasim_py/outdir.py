@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import secrets
 import shutil
 import signal
 import socket
@@ -199,13 +200,17 @@ def clean_stale(where: Path) -> list[Path]:
 SCRATCH_PREFIX = ".aquasim-trace.tmp-"
 
 
-def scratch_dir() -> Path:
+def scratch_dir(made: list[Path] | None = None) -> Path:
     """A new private directory for a run's trace tables that nobody asked to keep (the ones
     only metrics read), in the system's temporary directory (``TMPDIR``). It carries a staging
     marker, so that one left by a killed run is removed by the next run (:func:`clean_stale`).
     A kill between making it and marking it (or while removing it, after the marker) leaves
     it empty and unmarked: such a one, older than a minute, is removed too (``rmdir`` only
-    removes an empty directory, and a live run marks its own within microseconds)."""
+    removes an empty directory, and a live run marks its own within microseconds).
+
+    ``made``: its path is appended there before it is made (a name of this process's own), so
+    that a caller removing what ``made`` holds on an exception (SIGINT / SIGTERM raised at any
+    point in here) leaves nothing behind."""
     where = Path(tempfile.gettempdir())
     clean_stale(where)
     now = time.time()
@@ -213,7 +218,16 @@ def scratch_dir() -> Path:
         with suppress(OSError):
             if now - p.lstat().st_mtime > 60.0 and not p.is_symlink():
                 p.rmdir()
-    d = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=where))
+    while True:
+        d = where / f"{SCRATCH_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
+        if made is not None:
+            made.append(d)
+        try:
+            d.mkdir(mode=0o700)  # private, as mkdtemp's
+            break
+        except FileExistsError:  # (a dead process of the same pid left it: the next name)
+            if made is not None:
+                made.remove(d)
     (d / STAGING_MARKER).write_text(json.dumps(_marker()))
     return d
 

@@ -284,29 +284,35 @@ def _streamed_trace(sim: Any, sc: Scenario, dest: Path | None) -> Iterator[Calla
     fmt = sc.trace.format
     if fmt == "parquet" and dest is None and not _has_pyarrow():
         fmt = "csv"  # no file asked for: parquet only when it can be written (write() converts)
-    scratch = scratch_dir()
-
-    def route(name: str) -> Path | None:
-        if wanted is None or name in wanted:
-            return (dest if dest is not None else scratch) / f"{name}.{fmt}"
-        if needed is None or name in needed:
-            return scratch / f"{name}.{fmt}"
-        return None
-
-    def finish() -> TraceFiles:
-        done = sim.trace.close()
-        files = {k: p for k, (p, _) in done.items() if p is not None}
-        dropped = [k for k, (p, _) in done.items() if p is None]
-        tallies = {k: t.tallies for k, t in sim.trace.tables.items() if t.tallies}
-        return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch, tallies)
-
+    made: list[Path] = []  # the scratch directory, recorded before it is made: what an error removes
     try:
+        scratch = scratch_dir(made)
+
+        def route(name: str) -> Path | None:
+            if wanted is None or name in wanted:
+                return (dest if dest is not None else scratch) / f"{name}.{fmt}"
+            if needed is None or name in needed:
+                return scratch / f"{name}.{fmt}"
+            return None
+
+        def finish() -> TraceFiles:
+            done = sim.trace.close()
+            files = {k: p for k, (p, _) in done.items() if p is not None}
+            dropped = [k for k, (p, _) in done.items() if p is None]
+            tallies = {k: t.tallies for k, t in sim.trace.tables.items() if t.tallies}
+            kept = {k: (df, tuple(t.columns)) for k, t in sim.trace.tables.items() if (df := t.kept()) is not None}
+            return TraceFiles(files, {k: n for k, (_, n) in done.items()}, dropped, scratch, tallies, kept)
+
         for name, columns in metrics.TALLIED.items():  # counted as written, not read back
             sim.trace.table(name).tally(columns)
+        if fmt == "csv":  # (parquet's read-back has its own dtypes)
+            for name, columns in metrics.columns_kept(sc.protocols()).items():  # kept as written
+                sim.trace.table(name).keep(columns)
         sim.trace.stream(route, fmt)
         yield finish
     except BaseException:
-        shutil.rmtree(scratch, ignore_errors=True)
+        for p in made:
+            shutil.rmtree(p, ignore_errors=True)
         raise
 
 

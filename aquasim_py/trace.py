@@ -28,6 +28,11 @@ from typing import Any, Protocol
 import numpy as np
 import pandas as pd
 
+try:  # the trace's bulk loops in C (setup.py); without a compiler, their Python references run
+    from aquasim_py import _fastcsv
+except ImportError:  # pragma: no cover - depends on the build
+    _fastcsv = None  # type: ignore[assignment]
+
 __all__ = [
     "SCHEMAS",
     "Table",
@@ -332,6 +337,8 @@ class Table:
         # columns -> how many rows handed to the sink had each combination of their values
         # (None: not countable, see tally)
         self._tallies: dict[tuple[str, ...], dict[tuple[Any, ...], int] | None] = {}
+        # column -> the parts of it handed to the sink, chunk by chunk (see keep); None: not kept
+        self._kept: dict[str, list[tuple[str, Any, list[Any]]]] | None = None
 
     @property
     def n(self) -> int:
@@ -356,6 +363,49 @@ class Table:
     def tallies(self) -> dict[tuple[str, ...], dict[tuple[Any, ...], int] | None]:
         """columns -> {values: rows} of every :meth:`tally` (None where it was given up)."""
         return self._tallies
+
+    def keep(self, columns: tuple[str, ...]) -> None:
+        """Keep a copy of ``columns`` as rows are handed to a CSV sink, for a reader that needs
+        them whole (a protocol's metrics): :meth:`kept` then gives what reading them back from
+        the file gives, without parsing it. Given up (None) if rows were handed over before
+        this call, or a chunk lacks one of them, changes its type or holds a value whose text
+        might not read back as it was (objects; a category that is not a plain word)."""
+        self._kept = {c: [] for c in columns} if not self._streamed else None
+
+    def _keep(self, chunk: _Chunk) -> None:
+        """Add a chunk's kept columns (its own arrays: the chunk is not changed after this)."""
+        assert self._kept is not None
+        for c, parts in self._kept.items():
+            part = chunk.columns.get(c)
+            if (
+                part is None
+                or part[0] == "o"
+                or (parts and parts[0][0] != part[0])
+                or (part[0] == "c" and not all(v is None or _PLAIN.fullmatch(v) for v in part[2]))
+            ):
+                self._kept = None
+                return
+            parts.append(part)
+
+    def kept(self) -> pd.DataFrame | None:
+        """The kept columns (:meth:`keep`) in the table's column order, as reading them back
+        from the CSV file gives them (``read_table``'s dtypes and values); None if given up or
+        no row was handed over. Once: each column's chunks are let go as it is joined, so the
+        memory held is about the frame's (a column read back would hold as much)."""
+        kept, self._kept = self._kept, None
+        if not kept or not all(kept.values()):
+            return None
+        out = {}
+        for c in [c for c in self.columns if c in kept]:
+            parts = kept.pop(c)
+            if parts[0][0] == "c":
+                values = [_series(c, "c", codes, cats, None).to_numpy() for _, codes, cats in parts]
+            else:
+                values = [a for _, a, _ in parts]
+            del parts
+            out[c] = pd.Series(np.concatenate(values), name=c, dtype=values[0].dtype)
+            del values
+        return pd.DataFrame(out, copy=False)
 
     def _count(self, chunk: _Chunk) -> None:
         """Add a chunk's rows to the tallies."""
@@ -391,13 +441,27 @@ class Table:
             return
         buf = self._buf[:]
         self._buf.clear()  # the same list object: hot-path writers may hold it (see row_buffer)
-        for key, values in zip(self._buf_keys, zip(*buf)):
-            self.columns[key].push_many(values)
+        self._push_batch([self.columns[k] for k in self._buf_keys], buf)
         if len(self.columns) != len(self._buf_keys):
             for key in list(self.columns)[len(self._buf_keys) :]:
                 self.columns[key].fill_missing(len(buf))
         self._n += len(buf)
         self._maybe_spill()
+
+    @staticmethod
+    def _push_batch(cols: list[_Column], buf: list[tuple[Any, ...]]) -> None:
+        """Row tuples (one value per column of ``cols``) into ``cols``: ``zip(*buf)`` and
+        :meth:`_Column.push_many` per column, the reference; in C (``_fastcsv.push_rows``) for
+        every column whose values all fit it as they are (exact floats and ints for "f", exact
+        ints for "i", strings and None for "c", anything for "o"), the reference for the others."""
+        left: Iterable[int] = range(len(cols))
+        if _fastcsv is not None:
+            left = _fastcsv.push_rows(buf, [(c.kind, c.data, c.cats) for c in cols])
+        if left:
+            values = list(zip(*buf))  # (rows shorter than cols: zip's truncation, as before)
+            for j in left:
+                if j < len(values):
+                    cols[j].push_many(values[j])
 
     def _maybe_spill(self) -> None:
         if self._sink is not None:
@@ -443,6 +507,8 @@ class Table:
             self._streamed += chunk.n
             if self._tallies:
                 self._count(chunk)
+            if self._kept is not None:
+                self._keep(chunk)
 
     def _held_frame(self) -> pd.DataFrame:
         return _Chunk.take(self.columns, self._n).frame()
@@ -559,6 +625,10 @@ class Table:
             df = df.sort_values(key, kind="mergesort", ignore_index=True)
         return df
 
+
+#: category values a table keeps (Table.keep) as they are: their CSV text reads back unchanged
+#: (no quotes, spaces or empty strings, which read back as missing)
+_PLAIN = re.compile(r"[A-Za-z0-9_.:+-]+")
 
 #: rows a streamed table holds before handing them to its file (~0.5 MB of columns for
 #: ``packets``; formatting a chunk as CSV briefly takes several times that, and the heap keeps
@@ -783,7 +853,7 @@ def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | Non
 
 def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
     """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
-    column at a time (:func:`_csv_lines`). None when ``df`` has a column other than float64,
+    column at a time (:func:`_csv_bytes`). None when ``df`` has a column other than float64,
     int64 or object, or a label that is not a string; or as :func:`_csv_lines`.
 
     tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
@@ -797,7 +867,8 @@ def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | N
         if kind is None:
             return None
         columns.append((kind, a.tolist() if kind == "o" else a, []))
-    return _csv_lines(labels, columns, len(df), header, quoted)
+    data = _csv_bytes(labels, columns, len(df), header, quoted)
+    return None if data is None else data.decode("utf-8")
 
 
 def _csv_lines(
@@ -831,9 +902,36 @@ def _csv_lines(
         for i, f in zip(floats, _float_fields(list(floats.values()))):
             cols[i] = f
     rows = "\n".join(map(",".join, zip(*cols))) + "\n"
-    if not header:
-        return rows
-    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n" + rows
+    return _header_line(labels, quoted) + rows if header else rows
+
+
+def _header_line(labels: list[str], quoted: dict[Any, str]) -> str:
+    return ",".join([quoted.get(c) or _csv_field(c) for c in labels]) + "\n"
+
+
+def _csv_bytes(
+    labels: list[str], columns: list[tuple[str, Any, list[Any]]], n: int, header: bool, quoted: dict[Any, str]
+) -> bytes | None:
+    """:func:`_csv_lines`' text as UTF-8 bytes (None where it declines), the rows formatted in
+    C when the module is built (``_fastcsv.csv_rows``: each distinct float's ``repr`` once,
+    ints, fields of strings prepared here as :func:`_object_fields` makes them, one buffer).
+    tests/test_trace_csv.py holds both paths equal to ``DataFrame.to_csv``."""
+    if _fastcsv is None or n == 0 or len(labels) < 2:
+        text = _csv_lines(labels, columns, n, header, quoted)
+        return None if text is None else text.encode("utf-8")
+    cols: list[tuple[str, Any, Any]] = []
+    for kind, a, cats in columns:
+        if kind in "fi":
+            cols.append((kind, a, None))
+        elif kind == "c":
+            cols.append(("c", a, _object_fields(cats, quoted)))
+        else:
+            fields = _object_fields(a, quoted)
+            if fields is None:
+                return None
+            cols.append(("s", fields, None))
+    rows = _fastcsv.csv_rows(cols, n)
+    return _header_line(labels, quoted).encode("utf-8") + rows if header else rows
 
 
 class _CsvSink:
@@ -854,12 +952,13 @@ class _CsvSink:
         if self._kinds is not None and _reformats(self._kinds, kinds, floated):
             self._rewrite(kinds, floated)
         first = self._kinds is None
-        text = _csv_lines(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
-        with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
-            if text is None:  # a column the bulk formatter does not take: pandas writes the chunk
+        data = _csv_bytes(list(chunk.columns), list(chunk.columns.values()), chunk.n, first, self._quoted)
+        if data is None:  # a column the bulk formatter does not take: pandas writes the chunk
+            with open(self.path, "w" if first else "a", encoding="utf-8", newline="") as f:
                 chunk.frame().to_csv(f, index=False, header=first, lineterminator="\n")
-            else:
-                f.write(text)
+        else:
+            with open(self.path, "wb" if first else "ab") as f:
+                f.write(data)
         self._kinds = dict(kinds)
         if len(self._quoted) > _QUOTED_MAX:  # a column of ever new strings: do not keep them all
             self._quoted.clear()
@@ -1058,7 +1157,9 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
     ``files``: table name -> file, in the run's table order; ``rows``: their row counts;
     ``dropped``: the tables whose rows were not kept (asking for one raises
     :class:`TableNotKept`, not a silent ``None``); ``scratch``: a directory of files nobody
-    asked to keep, removed with this object (or at exit).
+    asked to keep, removed with this object (or at exit); ``kept``: table name -> (columns
+    kept as its file was written, :meth:`Table.kept`; every column of the table), which
+    :meth:`columns` gives instead of parsing the file.
     """
 
     def __init__(
@@ -1068,11 +1169,13 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         dropped: Iterable[str] = (),
         scratch: Path | None = None,
         tallies: Mapping[str, Mapping[tuple[str, ...], dict[tuple[Any, ...], int] | None]] | None = None,
+        kept: Mapping[str, tuple[pd.DataFrame, Sequence[str]]] | None = None,
     ) -> None:
         self._files = dict(files)
         self._rows = dict(rows or {})
         self._dropped = set(dropped) - set(self._files)
         self._tallies = {(name, cols): t for name, ts in (tallies or {}).items() for cols, t in ts.items()}
+        self._kept = dict(kept or {})
         self._cache: dict[str, pd.DataFrame] = {}
         self._column_cache: dict[tuple[str, tuple[str, ...]], pd.DataFrame] = {}
         self._memo: dict[Any, Any] = {}
@@ -1115,6 +1218,11 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
             return df[[c for c in df.columns if c in columns]]
         key = (name, tuple(columns))
         df = self._column_cache.get(key)
+        kept, header = self._kept.get(name, (None, ()))
+        if df is None and kept is not None:
+            want = [c for c in header if c in columns]
+            if all(c in kept.columns for c in want):
+                df = self._column_cache[key] = kept[want]
         if df is None:
             path = self._files[name]
             if path.suffix == ".parquet":
@@ -1181,6 +1289,7 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         self._cache.clear()
         self._column_cache.clear()
         self._memo.clear()
+        self._kept.clear()
 
 
 def read_summary(directory: str | os.PathLike[str]) -> dict[str, Any]:

@@ -12,6 +12,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -283,6 +284,32 @@ def test_sigterm_to_a_run(tmp_path):
     assert err.splitlines() == ["error: interrupted by SIGTERM (no output written)"]
     assert listing(tmp_path) == ["scen.toml", "tmpdir"]
     assert listing(tmpdir) == []
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals as on Linux")
+def test_sigterm_just_after_the_scratch_folder_is_made_leaves_none(tmp_path, monkeypatch, capsys):
+    """A SIGTERM arriving the instant the run's trace scratch folder exists (here: sent from
+    inside its mkdir) finds the folder already recorded by what removes it: none is left
+    (before, one arriving between its making and that record left it, as a loaded machine
+    showed in test_sigterm_to_a_run)."""
+    from aquasim_py.outdir import SCRATCH_PREFIX
+
+    sc = scenario(tmp_path)
+    tmpdir = tmp_path / "tmpdir"
+    tmpdir.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmpdir))
+    mkdir = Path.mkdir
+
+    def made_then_signalled(self: Path, *args: Any, **kwargs: Any) -> None:
+        mkdir(self, *args, **kwargs)
+        if self.name.startswith(SCRATCH_PREFIX):
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(Path, "mkdir", made_then_signalled)
+    assert cli.main([str(sc), "--out", str(tmp_path / "res"), "--quiet"]) == 143
+    assert capsys.readouterr().err.splitlines() == ["error: interrupted by SIGTERM (no output written)"]
+    assert listing(tmpdir) == []
+    assert listing(tmp_path) == ["scen.toml", "tmpdir"]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc as on Linux")

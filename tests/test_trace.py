@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import math
+from array import array
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import trace
 from aquasim_py.trace import SCHEMAS, Table, Trace
@@ -221,3 +226,52 @@ def test_batched_fast_rows_widen_without_duplicates():
     df = t.frame()
     assert df["a"].tolist() == [0, 1, 2, 3, 4, 2.5, 0, 1, 2, 7]
     assert df["b"].tolist()[-1] == 7.0 and df["c"].isna().sum() == 9 and t.n == 10
+
+
+# values a row may hold: exact floats and ints (the C path's), and what it hands back to the
+# Python reference: ints beyond int64 and beyond float's range, bools, None, numpy scalars,
+# a str subclass, strings
+class _Text(str):
+    pass
+
+
+_cell = st.one_of(
+    st.floats(width=64),
+    st.integers(-(2**63), 2**63 - 1),
+    st.integers(-3, 3),
+    st.sampled_from([2**63, -(2**63) - 1, 2**1100, True, False, None, np.float64(0.5), np.int64(7), _Text("t")]),
+    st.sampled_from(["", "a", "b,c", 'q"', "é"]),
+)
+
+
+def _state(col: trace._Column) -> tuple[Any, ...]:
+    """Everything a column holds: kind, values (by type and repr: NaN, -0.0 and 1 vs 1.0 vs
+    True told apart; arrays by their bytes), categories in code order, floated."""
+    data = col.data
+    held = (data.typecode, data.tobytes()) if isinstance(data, array) else [(type(v), repr(v)) for v in data]
+    return col.kind, held, [(type(k), repr(k), c) for k, c in col.cats.items()], col.floated
+
+
+@pytest.mark.skipif("c" not in PATHS, reason="aquasim_py._fastcsv not built")
+@settings(max_examples=150)
+@given(
+    kinds=st.lists(st.sampled_from("fico"), min_size=1, max_size=4),
+    before=st.lists(_cell, max_size=3),
+    rows=st.lists(st.lists(_cell, min_size=4, max_size=4), min_size=1, max_size=12),
+)
+def test_batches_of_rows_fill_columns_as_the_python_path_does(kinds, before, rows):
+    """Table._push_batch in C against zip(*rows) + push_many: the same kinds, values,
+    categories (coded in order of first appearance) and floated flags, whatever the batch
+    holds and whatever the columns held before (pushed one by one, as a widened column)."""
+    batch = [tuple(r[: len(kinds)]) for r in rows]
+    states = {}
+    for path in PATHS:
+        cols = [trace._Column(k) for k in kinds]
+        for col in cols:
+            for v in before:
+                col.push(v)
+        with using(path):
+            Table._push_batch(cols, batch)
+            Table._push_batch(cols, batch[::-1])  # a second batch meets the categories known
+        states[path] = [_state(c) for c in cols]
+    assert states["c"] == states["python"]

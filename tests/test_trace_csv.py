@@ -1,6 +1,7 @@
 """The bulk CSV formatter of streamed traces (trace._csv_text): the bytes pandas' own
 ``DataFrame.to_csv(index=False, lineterminator="\\n")`` writes, on adversarial values, and
-pandas' path whenever a column is of a kind the formatter does not take."""
+pandas' path whenever a column is of a kind the formatter does not take; both the C formatter
+(aquasim_py._fastcsv, when built) and the Python reference (trace_paths.PATHS)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import trace
 from aquasim_py.trace import _csv_text
@@ -91,20 +93,23 @@ def _pandas(df: pd.DataFrame, header: bool) -> str:
 )
 def test_bulk_csv_is_what_pandas_writes(df: pd.DataFrame, header: bool) -> None:
     """Float64, int64 and object columns of strings / None / bools: formatted in bulk (not
-    handed back to pandas), and the text is pandas' to the byte."""
-    text = _csv_text(df, header, {})
-    assert text is not None
-    assert text == _pandas(df, header)
+    handed back to pandas), and the text is pandas' to the byte, on every path."""
+    want = _pandas(df, header)
+    for path in PATHS:
+        with using(path):
+            assert _csv_text(df, header, {}) == want, path
 
 
 def test_string_cache_across_chunks_keeps_the_bytes() -> None:
     """The sink's cache of quoted strings, reused by a later chunk, gives the same fields."""
-    quoted: dict[str, str] = {}
     a = pd.DataFrame({"k": pd.Series(["x,y", None, 'z"'], dtype=object), "v": [1.5, -0.0, np.nan]})
     b = pd.DataFrame({"k": pd.Series(['z"', "x,y", ""], dtype=object), "v": [0.1, 1e16, 2.0]})
-    assert _csv_text(a, True, quoted) == _pandas(a, True)
-    assert quoted  # the strings were cached
-    assert _csv_text(b, False, quoted) == _pandas(b, False)
+    for path in PATHS:
+        quoted: dict[str, str] = {}
+        with using(path):
+            assert _csv_text(a, True, quoted) == _pandas(a, True)
+            assert quoted  # the strings were cached
+            assert _csv_text(b, False, quoted) == _pandas(b, False)
 
 
 def test_columns_it_does_not_take_go_to_pandas(tmp_path) -> None:
@@ -118,18 +123,21 @@ def test_columns_it_does_not_take_go_to_pandas(tmp_path) -> None:
         pd.DataFrame({"a": pd.Series(["", None], dtype=object)}),
         pd.DataFrame({"a": [1.0], "b": [2]}).iloc[:0],
     ]
-    for i, df in enumerate(frames):
-        assert _csv_text(df, True, {}) is None
-        if df.dtypes.eq(np.float32).any():
-            continue  # a table holds no float32 column: no sink sees one
-        # the chunk a table of these columns hands its sink (float64 "f", int64 "i", others "o")
-        kinds = {c: {"float64": "f", "int64": "i"}.get(str(df[c].dtype), "o") for c in df.columns}
-        chunk = trace._Chunk(
-            {c: (k, df[c].tolist() if k == "o" else df[c].to_numpy(), []) for c, k in kinds.items()}, len(df)
-        )
-        sink = trace._CsvSink(tmp_path / f"t{i}.csv")
-        sink.write(chunk, kinds)
-        assert (tmp_path / f"t{i}.csv").read_text(encoding="utf-8") == _pandas(df, True)
+    for path in PATHS:
+        for i, df in enumerate(frames):
+            with using(path):
+                assert _csv_text(df, True, {}) is None
+            if df.dtypes.eq(np.float32).any():
+                continue  # a table holds no float32 column: no sink sees one
+            # the chunk a table of these columns hands its sink (float64 "f", int64 "i", others "o")
+            kinds = {c: {"float64": "f", "int64": "i"}.get(str(df[c].dtype), "o") for c in df.columns}
+            chunk = trace._Chunk(
+                {c: (k, df[c].tolist() if k == "o" else df[c].to_numpy(), []) for c, k in kinds.items()}, len(df)
+            )
+            sink = trace._CsvSink(tmp_path / f"{path}{i}.csv")
+            with using(path):
+                sink.write(chunk, kinds)
+            assert (tmp_path / f"{path}{i}.csv").read_text(encoding="utf-8") == _pandas(df, True)
 
 
 def test_float_text_is_python_repr() -> None:
@@ -139,6 +147,66 @@ def test_float_text_is_python_repr() -> None:
     x = np.concatenate([bits.view(np.float64), np.array(_EDGE_FLOATS)])
     x = x[~np.isnan(x)]
     assert x.astype(str).tolist() == list(map(float.__repr__, x.tolist())), sys.version
+
+
+@pytest.mark.skipif("c" not in PATHS, reason="aquasim_py._fastcsv not built")
+def test_c_float_text_is_python_repr() -> None:
+    """The C formatter's float fields are float.__repr__'s text ("" for NaN, any payload), on
+    10^5 random bit patterns (every exponent, subnormals, NaNs) and the edge values; its int
+    fields are str's on the extremes and random int64s."""
+    fast = PATHS["c"]
+    assert fast is not None
+    rng = np.random.default_rng(11)
+    x = rng.integers(-(2**63), 2**63 - 1, 100_000, dtype=np.int64, endpoint=True).view(np.float64)
+    x = np.concatenate([x, np.array(_EDGE_FLOATS), np.array([1e-5, -1e-5, 1e-4, 1e22, 123456789012345680.0])])
+    i = rng.integers(-(2**63), 2**63 - 1, len(x), dtype=np.int64, endpoint=True)
+    i[:4] = [0, -1, 2**63 - 1, -(2**63)]
+    want = "".join(f"{'' if math.isnan(v) else repr(v)},{k}\n" for v, k in zip(x.tolist(), i.tolist()))
+    assert fast.csv_rows([("f", x, None), ("i", i, None)], len(x)).decode() == want
+
+
+@pytest.mark.skipif("c" not in PATHS, reason="aquasim_py._fastcsv not built")
+def test_c_short_float_text_is_python_repr() -> None:
+    """The C formatter's own shortest round trip (fast_repr, without CPython's dtoa) for
+    2^-10 <= |v| < 2^51, the magnitudes of times, delays and SNRs: repr's text for 3000 random
+    mantissas of every binary exponent from 2^-12 to 2^52 (both edges of that range crossed),
+    the mantissas at the edges (a power of two has a closer neighbour below), and values whose
+    two shortest candidates are exactly as close (repr takes the even digit)."""
+    fast = PATHS["c"]
+    assert fast is not None
+    rng = np.random.default_rng(5)
+    exps = np.repeat(np.arange(-12, 53), 3000)
+    mant = rng.integers(0, 2**52, len(exps), dtype=np.int64)
+    mant[::1000] = 0
+    mant[1::1000] = 2**52 - 1
+    x = (((exps + 1023).astype(np.int64) << 52) | mant).view(np.float64)
+    x[::2] *= -1
+    ties = [258428801846949.88, 32734755089552.188, 2.0**51 - 0.5, 9007199254740.992]
+    taken = 0
+    for v in x.tolist() + ties:
+        text = fast.fast_repr(v)
+        assert text is None or text == repr(v), v
+        if 2.0**-10 <= abs(v) < 2.0**51:
+            assert text is not None, v
+            taken += 1
+    assert taken == 3000 * 61 + len(ties)
+
+
+@given(
+    x=st.lists(
+        st.one_of(_floats, st.floats(2.0**-12, 2.0**52), st.floats(-(2.0**52), -(2.0**-12))), min_size=1, max_size=40
+    )
+)
+def test_c_float_text_is_python_repr_hypothesis(x: list[float]) -> None:
+    """As above, on hypothesis' floats (its own edge cases: -0.0, inf, subnormals, 1e16, ...),
+    each value repeated so the formatter's cache of distinct values is read as well as filled."""
+    fast = PATHS.get("c")
+    if fast is None:
+        pytest.skip("aquasim_py._fastcsv not built")
+    a = np.array(x + x[::-1], dtype=np.float64)
+    want = "".join(f"{'' if math.isnan(v) else repr(v)},{v!r}\n" for v in a.tolist())
+    fields = [repr(v) for v in a.tolist()]
+    assert fast.csv_rows([("f", a, None), ("s", fields, None)], len(a)).decode() == want
 
 
 def test_columns_read_alone_are_the_whole_tables_columns(tmp_path) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gc
 import json
+import math
 import subprocess
 import sys
 import textwrap
@@ -18,6 +19,7 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from trace_paths import PATHS, using
 
 from aquasim_py import metrics, run_scenario, trace
 from aquasim_py.trace import TableNotKept, Trace, TraceFiles, write_frames
@@ -61,15 +63,19 @@ def _streamed(tmp: Path, ops: list[tuple[str, dict[str, Any]]], chunk: int, fmt:
 )
 def test_streamed_csv_is_byte_identical_to_writing_the_whole_table(tmp_path_factory, ops, chunk):
     """Chunks of 1..7 rows, columns that appear after rows were written and ints that turn
-    float mid-table: the file is the bytes write_frames gives for the whole in-memory table."""
-    ref_dir, out_dir = tmp_path_factory.mktemp("ref"), tmp_path_factory.mktemp("out")
+    float mid-table: the file is the bytes write_frames gives for the whole in-memory table
+    (the Python path's), on every path."""
+    ref_dir = tmp_path_factory.mktemp("ref")
     ref = Trace()
-    _replay(ref, ops)
-    write_frames(ref.frames(), ref_dir)
-    files = _streamed(out_dir, ops, chunk)
-    assert sorted(files) == sorted(ref.tables)
-    for name, path in files.items():
-        assert path.read_bytes() == (ref_dir / f"{name}.csv").read_bytes(), name
+    with using("python"):
+        _replay(ref, ops)
+        write_frames(ref.frames(), ref_dir)
+    for p in PATHS:
+        with using(p):
+            files = _streamed(tmp_path_factory.mktemp(p), ops, chunk)
+        assert sorted(files) == sorted(ref.tables)
+        for name, path in files.items():
+            assert path.read_bytes() == (ref_dir / f"{name}.csv").read_bytes(), (p, name)
 
 
 def test_streamed_parquet_reads_back_as_the_whole_table_does(tmp_path):
@@ -183,6 +189,55 @@ def test_a_tally_gives_up_on_a_column_that_is_not_categorical_and_the_counts_rea
     assert metrics.summarize(files, [])["packets.received"] == 2  # counted from the file
 
 
+# a packets row as a writer might append it: event texts that read back as written and some
+# that do not (empty, spaces, quotes, "NA"), ints that turn float or missing, any float
+_event = st.one_of(st.sampled_from(["tx", "rx", "drop", "NA", "007", "1.50", "", " a", 'q"', "a,b"]), st.none())
+_kept_row = st.tuples(
+    _event,
+    st.one_of(st.integers(-(2**40), 2**40), st.sampled_from([None, 2.5])),
+    st.integers(0, 5),
+    st.one_of(st.floats(width=64), st.floats(0.0, 100.0)),
+)
+
+
+@settings(max_examples=40)
+@given(rows=st.lists(_kept_row, max_size=40), chunk=st.integers(1, 9))
+@example(rows=[("tx", 1, 0, 0.5), ("rx", 1, 2, -0.0), ("drop", 2, 3, math.nan), (None, 3, 1, math.inf)], chunk=2)
+def test_columns_kept_as_written_are_what_the_file_reads_back(tmp_path_factory, rows, chunk):
+    """Table.keep: the columns kept as chunks go to the file are exactly (dtypes, values, NaN
+    and -0.0, order) what reading those columns back from the file gives; TraceFiles.columns
+    hands them out instead of parsing, and a keep given up leaves the file's path."""
+    tmp = tmp_path_factory.mktemp("kept")
+    tr = Trace()
+    tr.table("packets").keep(("event", "uid", "node", "time"))
+    tr.stream(lambda n: tmp / f"{n}.csv", chunk_rows=chunk)
+    for event, uid, node, t in rows:
+        tr.append("packets", time=t, event=event, uid=uid, node=node)
+    table = tr.tables["packets"]
+    done = tr.close()
+    kept = table.kept()
+    plain = {"tx", "rx", "drop", "NA", "007", "1.50", None}
+    if rows and all(r[0] in plain and isinstance(r[1], int) for r in rows):
+        assert kept is not None  # nothing here that would not read back: kept, not given up
+    files = TraceFiles(
+        {k: p for k, (p, _) in done.items() if p},
+        kept={} if kept is None else {"packets": (kept, tuple(table.columns))},
+    )
+    for cols in (["event", "uid", "node", "time"], ["time", "node"], ["uid", "reason"], ["event"]):
+        back = trace._read_csv(tmp / "packets.csv", "packets", cols)
+        got = files.columns("packets", cols)
+        pd.testing.assert_frame_equal(got, back, check_exact=True)
+        assert got.dtypes.tolist() == back.dtypes.tolist()
+        for c in got.columns:  # floats bit for bit (-0.0 is not 0.0), every NaN alike
+            if got[c].dtype == np.float64:
+                assert np.array_equal(_bits(got[c]), _bits(back[c])), c
+
+
+def _bits(x: pd.Series) -> np.ndarray:
+    a = x.to_numpy(dtype=np.float64)
+    return np.where(np.isnan(a), np.nan, a).view(np.int64)
+
+
 def _peak_streaming(rows: int, tmp: Path) -> int:
     tmp.mkdir()
     tr = Trace()
@@ -245,17 +300,20 @@ def _scenario(tmp: Path, extra: str = "") -> Path:
 
 def test_run_streams_in_small_chunks_to_the_bytes_of_the_in_memory_run(tmp_path, monkeypatch):
     """A whole run streamed in 50-row chunks writes exactly the files of the same run kept in
-    memory and written at the end (the path of every earlier version)."""
+    memory and written at the end (the path of every earlier version), on every path."""
     from aquasim_py import scenario
 
     path = _scenario(tmp_path)
-    sim = scenario.build(scenario.load(path))
-    sim.run(60.0)
-    write_frames(sim.trace.frames(), tmp_path / "memory")
+    with using("python"):
+        sim = scenario.build(scenario.load(path))
+        sim.run(60.0)
+        write_frames(sim.trace.frames(), tmp_path / "memory")
     monkeypatch.setattr(trace, "CHUNK_ROWS", 50)
-    run_scenario(path, out=tmp_path / "streamed", progress=False)
-    for f in sorted((tmp_path / "memory").iterdir()):
-        assert (tmp_path / "streamed" / f.name).read_bytes() == f.read_bytes(), f.name
+    for p in PATHS:
+        with using(p):
+            run_scenario(path, out=tmp_path / p, progress=False)
+        for f in sorted((tmp_path / "memory").iterdir()):
+            assert (tmp_path / p / f.name).read_bytes() == f.read_bytes(), (p, f.name)
 
 
 def test_tables_not_requested_are_kept_only_when_a_metric_reads_them(tmp_path):

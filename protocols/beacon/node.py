@@ -19,7 +19,7 @@ interpolated), so the same numbers come out of a CSV trace read back later.
 from __future__ import annotations
 
 from collections.abc import Generator, Mapping
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -35,6 +35,8 @@ __all__ = ["BeaconNode", "range_errors", "true_ranges"]
 _BROADCASTERS = (Role.ANCHOR, Role.BUOY)
 #: the columns of ``ranges`` the metrics read (only these are parsed from a streamed run's file)
 _RANGE_COLUMNS = ("uid", "node", "anchor", "range_m")
+#: the columns of ``packets`` they read (kept as a streamed run writes them: trace_columns)
+_PACKET_COLUMNS = ("event", "uid", "node", "time")
 
 
 @register
@@ -43,6 +45,8 @@ class BeaconNode(Node):
 
     name = "beacon"
     trace_tables = ("ranges", "packets", "positions")  # what metrics / derived_tables / report read
+    # read whole: kept as a streamed run writes them, not parsed back (metrics.columns_kept)
+    trace_columns: ClassVar[dict[str, tuple[str, ...]]] = {"packets": _PACKET_COLUMNS}
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -146,7 +150,7 @@ def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None 
     the first bit left to the receiver's position when it arrived (the times from the
     ``packets`` table by uid, the positions interpolated from the ``positions`` table)."""
     r = table_columns(tables, "ranges", _RANGE_COLUMNS) if ranges is None else ranges
-    packets = table_columns(tables, "packets", ["event", "uid", "node", "time"])
+    packets = table_columns(tables, "packets", _PACKET_COLUMNS)
     positions = tables.get("positions")
     if r is None or len(r) == 0 or packets is None or positions is None:
         return pd.DataFrame(columns=["uid", "node", "anchor", "t_tx", "t_rx", "true_range_m"])
