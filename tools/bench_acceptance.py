@@ -17,8 +17,10 @@ Figures (docs/performance.md has the table and what each one means):
   nodes (100 anchors beaconing once a second, 100 listeners logging ranges; ~16 neighbours),
   two durations, so the start-up (imports, scenario, building) cancels: (receptions of the long
   run - of the short) / (CPU of the long - of the short), over bare-SimPy deliveries per CPU
-  second of the same anchors and delays in this process (the median of three timings: before,
-  between and after the two CLI runs);
+  second of the same anchors and delays in this process (the median of timings before, between
+  and after the CLI runs); ``--e2e-rounds`` pairs of runs (default 3), the median of their us
+  per reception reported with their range (one pair's difference varies by about +-1.5 us per
+  reception once the rest is fast: the two runs' start-up CPU differs by up to ~0.1 s);
 * layered: the layered eigenray solver's pairs per CPU second (tools/bench_raytrace.py's
   10-layer direct-only case) and its time per pair over ``norm(dst - src) / c``.
 """
@@ -210,9 +212,10 @@ def _cli_run(scenario: str, out: Path) -> tuple[float, int]:
     return cpu, int(ev.isin(["rx", "drop"]).sum())
 
 
-def e2e(short: float, long: float, seed: int, fmt: str = "csv") -> list[dict[str, float | str]]:
+def e2e(short: float, long: float, seed: int, fmt: str = "csv", rounds: int = 3) -> list[dict[str, float | str]]:
     """End-to-end CLI runs against bare SimPy (see the module docstring), traces written as
-    ``fmt`` ("csv", the default of the scenarios, or "parquet", which needs pyarrow)."""
+    ``fmt`` ("csv", the default of the scenarios, or "parquet", which needs pyarrow); ``rounds``
+    pairs of (short, long) runs, the median of their us per reception."""
     n = 200
     pos, rng_m = bk.layout(n, 16.0, seed)
     rows: list[dict[str, float | str]] = []
@@ -231,17 +234,21 @@ def e2e(short: float, long: float, seed: int, fmt: str = "csv") -> list[dict[str
             # the baseline timed before, between and after the CLI runs, its median reported:
             # timed once, it ranged from 1.14 to 2.99 us per delivery in one session (load)
             bares = [bare()]
-            runs = []
-            for dur in (short, long):
-                runs.append(_cli_run(_scenario(pos, rng_m, speed, dur, seed, fmt), Path(tmp) / f"run_{speed}_{dur}"))
-                bares.append(bare())
-            (c1, r1), (c2, r2) = runs
+            pairs = []
+            for r in range(rounds):
+                runs = []
+                for dur in (short, long):
+                    out = Path(tmp) / f"run_{speed}_{dur}_{r}"
+                    runs.append(_cli_run(_scenario(pos, rng_m, speed, dur, seed, fmt), out))
+                    bares.append(bare())
+                (c1, r1), (c2, r2) = runs
+                pairs.append((1e6 * (c2 - c1) / (r2 - r1), r2 - r1))
             bare_us = statistics.median(bares)
-            us = 1e6 * (c2 - c1) / (r2 - r1)
+            us = statistics.median(u for u, _ in pairs)
             label = "moving 1 m/s" if speed else "static"
             print(
-                f"  e2e {fmt} {label}: {us:.2f} us per reception ({r2 - r1} receptions), bare {bare_us:.2f} us"
-                f" (median of {', '.join(f'{b:.2f}' for b in bares)})",
+                f"  e2e {fmt} {label}: {us:.2f} us per reception (median of {', '.join(f'{u:.2f}' for u, _ in pairs)};"
+                f" {pairs[0][1]} receptions), bare {bare_us:.2f} us (median of {', '.join(f'{b:.2f}' for b in bares)})",
                 flush=True,
             )
             rows.append(
@@ -251,6 +258,7 @@ def e2e(short: float, long: float, seed: int, fmt: str = "csv") -> list[dict[str
                     "unit": "of bare SimPy",
                     "target": ">= 0.15" if speed else ">= 0.2",
                     "us_per_reception": us,
+                    "us_per_reception_rounds": [u for u, _ in pairs],
                 }
             )
     return rows
@@ -282,6 +290,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--receptions", type=float, default=3e5, help="receptions per scaling point (steady state)")
     ap.add_argument("--kernel-until", type=float, default=50.0, help="simulated s of the 200-node kernel runs")
     ap.add_argument("--e2e", default="10,60", help="short,long durations (s) of the CLI runs")
+    ap.add_argument("--e2e-rounds", type=int, default=3, help="pairs of CLI runs (the median is reported)")
     ap.add_argument("--e2e-formats", default="csv", help="trace formats of the CLI runs (csv, parquet)")
     ap.add_argument("--layered-pairs", type=int, default=20_000)
     ap.add_argument("--seed", type=int, default=1)
@@ -309,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         print("end to end ...", flush=True)
         short, long = (float(v) for v in args.e2e.split(","))
         for fmt in args.e2e_formats.split(","):
-            rows += e2e(short, long, args.seed, fmt)
+            rows += e2e(short, long, args.seed, fmt, args.e2e_rounds)
     if "layered" in parts:
         print("layered ...", flush=True)
         rows += layered(args.layered_pairs, 3)
