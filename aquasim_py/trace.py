@@ -369,8 +369,11 @@ class Table:
         them whole (a protocol's metrics): :meth:`kept` then gives what reading them back from
         the file gives, without parsing it. Given up (None) if rows were handed over before
         this call, or a chunk lacks one of them, changes its type or holds a value whose text
-        might not read back as it was (objects; a category that is not a plain word)."""
-        self._kept = {c: [] for c in columns} if not self._streamed else None
+        might not read back as it was (objects; a category that is not a plain word). Only the
+        table's schema columns are kept: the read-back types those by the schema ("007" stays a
+        string), while a column outside it is typed by what its text looks like."""
+        ok = not self._streamed and all(c in self._schema for c in columns)
+        self._kept = {c: [] for c in columns} if ok else None
 
     def _keep(self, chunk: _Chunk) -> None:
         """Add a chunk's kept columns (its own arrays: the chunk is not changed after this)."""

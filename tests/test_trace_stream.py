@@ -233,6 +233,21 @@ def test_columns_kept_as_written_are_what_the_file_reads_back(tmp_path_factory, 
                 assert np.array_equal(_bits(got[c]), _bits(back[c])), c
 
 
+def test_columns_outside_the_schema_are_not_kept(tmp_path):
+    """A column the table's schema does not type reads back typed by its text ("007" as 7), so
+    Table.keep gives it up and TraceFiles parses the file."""
+    tr = Trace()
+    tr.table("samples").keep(("label",))
+    tr.stream(lambda n: tmp_path / f"{n}.csv", chunk_rows=2)
+    for i in range(5):
+        tr.append("samples", time=float(i), label="007")
+    table = tr.tables["samples"]
+    done = tr.close()
+    assert table.kept() is None
+    files = TraceFiles({k: p for k, (p, _) in done.items() if p})
+    assert files.columns("samples", ["label"])["label"].tolist() == [7] * 5
+
+
 def _bits(x: pd.Series) -> np.ndarray:
     a = x.to_numpy(dtype=np.float64)
     return np.where(np.isnan(a), np.nan, a).view(np.int64)
