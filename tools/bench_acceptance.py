@@ -37,6 +37,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -49,10 +50,10 @@ from aquasim_py.kernel import quiet_gc
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def kernel(until: float, seed: int) -> list[dict[str, float | str]]:
+def kernel(until: float, seed: int) -> list[dict[str, Any]]:
     """Kernel / bare SimPy at 200 nodes, static and moving (steady state)."""
     pos, rng_m = bk.layout(200, 16.0, seed)
-    rows: list[dict[str, float | str]] = []
+    rows: list[dict[str, Any]] = []
     for speed in (0.0, 1.0):
         k = bk.run_both(pos, rng_m, until, True, seed, speed)
         rows.append(
@@ -95,8 +96,8 @@ def scaling(sizes: list[int], receptions: float, seed: int) -> list[dict[str, fl
     return out
 
 
-def scaling_rows(points: list[dict[str, float]]) -> list[dict[str, float | str]]:
-    rows: list[dict[str, float | str]] = []
+def scaling_rows(points: list[dict[str, float]]) -> list[dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
     n0, n1 = min(p["nodes"] for p in points), max(p["nodes"] for p in points)
     for speed in (0.0, 1.0):
         a = next(p for p in points if p["nodes"] == n0 and p["speed"] == speed)
@@ -212,13 +213,13 @@ def _cli_run(scenario: str, out: Path) -> tuple[float, int]:
     return cpu, int(ev.isin(["rx", "drop"]).sum())
 
 
-def e2e(short: float, long: float, seed: int, fmt: str = "csv", rounds: int = 3) -> list[dict[str, float | str]]:
+def e2e(short: float, long: float, seed: int, fmt: str = "csv", rounds: int = 3) -> list[dict[str, Any]]:
     """End-to-end CLI runs against bare SimPy (see the module docstring), traces written as
     ``fmt`` ("csv", the default of the scenarios, or "parquet", which needs pyarrow); ``rounds``
     pairs of (short, long) runs, the median of their us per reception."""
     n = 200
     pos, rng_m = bk.layout(n, 16.0, seed)
-    rows: list[dict[str, float | str]] = []
+    rows: list[dict[str, Any]] = []
 
     def bare() -> float:
         """bare SimPy: the anchors' deliveries, for the same simulated span (us per delivery)"""
@@ -264,7 +265,7 @@ def e2e(short: float, long: float, seed: int, fmt: str = "csv", rounds: int = 3)
     return rows
 
 
-def layered(pairs: int, repeats: int) -> list[dict[str, float | str]]:
+def layered(pairs: int, repeats: int) -> list[dict[str, Any]]:
     """Layered eigenrays (10 layers, direct only): pairs per CPU second and time over the baseline."""
     import bench_raytrace as br
 
@@ -303,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     parts = set(args.only.split(","))
-    rows: list[dict[str, float | str]] = []
+    rows: list[dict[str, Any]] = []
     points: list[dict[str, float]] = []
     if "kernel" in parts:
         print("kernel, 200 nodes ...", flush=True)
