@@ -218,18 +218,24 @@ def scratch_dir(made: list[Path] | None = None) -> Path:
         with suppress(OSError):
             if now - p.lstat().st_mtime > 60.0 and not p.is_symlink():
                 p.rmdir()
-    while True:
-        d = where / f"{SCRATCH_PREFIX}{os.getpid()}-{secrets.token_hex(4)}"
-        if made is not None:
-            made.append(d)
-        try:
-            d.mkdir(mode=0o700)  # private, as mkdtemp's
-            break
-        except FileExistsError:  # (a dead process of the same pid left it: the next name)
-            if made is not None:
-                made.remove(d)
+    d = _private_dir(where, SCRATCH_PREFIX, [] if made is None else made)
     (d / STAGING_MARKER).write_text(json.dumps(_marker()))
     return d
+
+
+def _private_dir(where: Path, prefix: str, made: list[Path]) -> Path:
+    """A new directory ``where/prefix<pid>-<random>``, private (0700, as ``mkdtemp``'s), its
+    path appended to ``made`` before it is made: a caller removing what ``made`` holds when an
+    exception (SIGINT / SIGTERM raised by the CLI's handlers) arrives at any point leaves
+    nothing behind, where ``mkdtemp`` names it only once made."""
+    while True:
+        d = where / f"{prefix}{os.getpid()}-{secrets.token_hex(4)}"
+        made.append(d)
+        try:
+            d.mkdir(mode=0o700)
+            return d
+        except FileExistsError:  # (a dead process of the same pid left it: the next name)
+            made.remove(d)
 
 
 # --------------------------------------------------------------------------- staging
@@ -293,6 +299,7 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
             with suppress(OSError):
                 d.rmdir()
 
+    staged: list[Path] = []  # the staging directory, recorded before it is made
     try:
         missing = []
         d = where
@@ -305,15 +312,19 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
             d.mkdir()
             created.append(d)
         clean_stale(where)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{label}.tmp-", dir=where))
+        tmp = _private_dir(where, f".{label}.tmp-", staged)
         (tmp / STAGING_MARKER).write_text(json.dumps(_marker()) + "\n")
-        # mkdtemp makes it private (0700); the final directory gets the usual permissions
+        # made private (0700); the final directory gets the usual permissions
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o777 & ~umask)
-    except OSError as e:
+    except BaseException as e:  # an OSError, or SIGINT / SIGTERM before the yield: leave nothing
+        for t in staged:
+            shutil.rmtree(t, ignore_errors=True)
         _unmake()
-        raise ScenarioError(file, key, f"cannot write to {target}: {e.strerror or e}") from None
+        if isinstance(e, OSError):
+            raise ScenarioError(file, key, f"cannot write to {target}: {e.strerror or e}") from None
+        raise
     ok = False
     try:
         yield tmp

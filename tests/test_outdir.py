@@ -287,25 +287,27 @@ def test_sigterm_to_a_run(tmp_path):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals as on Linux")
-def test_sigterm_just_after_the_scratch_folder_is_made_leaves_none(tmp_path, monkeypatch, capsys):
-    """A SIGTERM arriving the instant the run's trace scratch folder exists (here: sent from
-    inside its mkdir) finds the folder already recorded by what removes it: none is left
-    (before, one arriving between its making and that record left it, as a loaded machine
-    showed in test_sigterm_to_a_run)."""
+@pytest.mark.parametrize("prefix", [".aquasim-trace.tmp-", ".res.tmp-"], ids=["trace scratch", "output staging"])
+def test_sigterm_just_after_a_folder_is_made_leaves_none(tmp_path, monkeypatch, capsys, prefix):
+    """A SIGTERM arriving the instant the run's trace scratch folder or its output's staging
+    folder exists (here: sent from inside its mkdir) finds the folder already recorded by what
+    removes it: none is left (before, one arriving between its making and that record left
+    it, as loaded machines showed in test_sigterm_to_a_run, once for each folder)."""
     from aquasim_py.outdir import SCRATCH_PREFIX
 
+    assert prefix == SCRATCH_PREFIX or prefix.startswith(".res")
     sc = scenario(tmp_path)
     tmpdir = tmp_path / "tmpdir"
     tmpdir.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmpdir))
-    mkdir = Path.mkdir
+    mkdir = os.mkdir  # what Path.mkdir and tempfile.mkdtemp both call
 
-    def made_then_signalled(self: Path, *args: Any, **kwargs: Any) -> None:
-        mkdir(self, *args, **kwargs)
-        if self.name.startswith(SCRATCH_PREFIX):
+    def made_then_signalled(path: Any, *args: Any, **kwargs: Any) -> None:
+        mkdir(path, *args, **kwargs)
+        if os.path.basename(path).startswith(prefix):
             os.kill(os.getpid(), signal.SIGTERM)
 
-    monkeypatch.setattr(Path, "mkdir", made_then_signalled)
+    monkeypatch.setattr(os, "mkdir", made_then_signalled)
     assert cli.main([str(sc), "--out", str(tmp_path / "res"), "--quiet"]) == 143
     assert capsys.readouterr().err.splitlines() == ["error: interrupted by SIGTERM (no output written)"]
     assert listing(tmpdir) == []
