@@ -169,7 +169,7 @@ class Node:
     Public attributes: ``id`` (int), ``role`` (:class:`Role`), ``params`` (an instance of the
     class's ``Params`` model), ``rng`` (this node's own numpy Generator), ``env`` (a
     :class:`NodeEnv`). Class attributes for the registry: ``name``, ``Params``, ``metrics``
-    (and ``trace_tables``, the tables it reads).
+    (and ``trace_tables`` / ``trace_columns``, the tables and columns it reads).
     """
 
     name: ClassVar[str] = "node"
@@ -187,6 +187,11 @@ class Node:
     #: it (streamed to a scratch file; otherwise its rows are dropped as they come). None =
     #: every table (safe, the default); reading a table not kept raises ``TableNotKept``.
     trace_tables: ClassVar[tuple[str, ...] | None] = None
+
+    #: columns of those tables the metrics read whole (table -> columns, schema columns only):
+    #: a streamed CSV run keeps copies of them as it writes the file instead of parsing it back
+    #: (:meth:`aquasim_py.trace.Table.keep`); empty: every read parses the file
+    trace_columns: ClassVar[dict[str, tuple[str, ...]]] = {}
 
     def __init__(self, core: Any) -> None:
         # Everything with ground truth in it sits behind this one name-mangled attribute.
