@@ -854,26 +854,6 @@ def _object_fields(values: list[Any], quoted: dict[Any, str]) -> list[str] | Non
         return list(map(quoted.__getitem__, values))
 
 
-def _csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
-    """What ``df.to_csv(index=False, header=header, lineterminator="\\n")`` writes, formatted a
-    column at a time (:func:`_csv_bytes`). None when ``df`` has a column other than float64,
-    int64 or object, or a label that is not a string; or as :func:`_csv_lines`.
-
-    tests/test_trace_csv.py holds this equal to ``to_csv`` on adversarial frames (hypothesis)."""
-    labels = list(df.columns)
-    if not all(type(c) is str for c in labels):
-        return None
-    columns: list[tuple[str, Any, list[Any]]] = []
-    for c in labels:
-        a = df[c].to_numpy()
-        kind = {np.dtype(np.float64): "f", np.dtype(np.int64): "i", np.dtype(object): "o"}.get(a.dtype)
-        if kind is None:
-            return None
-        columns.append((kind, a.tolist() if kind == "o" else a, []))
-    data = _csv_bytes(labels, columns, len(df), header, quoted)
-    return None if data is None else data.decode("utf-8")
-
-
 def _csv_lines(
     labels: list[str], columns: list[tuple[str, Any, list[Any]]], n: int, header: bool, quoted: dict[Any, str]
 ) -> str | None:
@@ -949,7 +929,7 @@ class _CsvSink:
     def __init__(self, path: Path) -> None:
         self.path = path
         self._kinds: dict[str, str] | None = None
-        self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_csv_text), kept across chunks
+        self._quoted: dict[Any, str] = {}  # a string (None, bool) -> its CSV field (_object_fields), kept across chunks
 
     def write(self, chunk: _Chunk, kinds: Mapping[str, str], floated: frozenset[str] = frozenset()) -> None:
         if self._kinds is not None and _reformats(self._kinds, kinds, floated):

@@ -1,4 +1,4 @@
-"""The bulk CSV formatter of streamed traces (trace._csv_text): the bytes pandas' own
+"""The bulk CSV formatter of streamed traces (trace._csv_bytes, through trace_paths.csv_text): the bytes pandas' own
 ``DataFrame.to_csv(index=False, lineterminator="\\n")`` writes, on adversarial values, and
 pandas' path whenever a column is of a kind the formatter does not take; both the C formatter
 (aquasim_py._fastcsv, when built) and the Python reference (trace_paths.PATHS)."""
@@ -14,10 +14,9 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from trace_paths import PATHS, using
+from trace_paths import PATHS, csv_text, using
 
 from aquasim_py import trace
-from aquasim_py.trace import _csv_text
 
 # values that trip formatters: signed zero, subnormals, the repr switch to exponents at 1e16
 # and 1e-4, integers beyond 2**53, NaN with another payload, the extremes
@@ -97,7 +96,7 @@ def test_bulk_csv_is_what_pandas_writes(df: pd.DataFrame, header: bool) -> None:
     want = _pandas(df, header)
     for path in PATHS:
         with using(path):
-            assert _csv_text(df, header, {}) == want, path
+            assert csv_text(df, header, {}) == want, path
 
 
 def test_string_cache_across_chunks_keeps_the_bytes() -> None:
@@ -107,9 +106,9 @@ def test_string_cache_across_chunks_keeps_the_bytes() -> None:
     for path in PATHS:
         quoted: dict[str, str] = {}
         with using(path):
-            assert _csv_text(a, True, quoted) == _pandas(a, True)
+            assert csv_text(a, True, quoted) == _pandas(a, True)
             assert quoted  # the strings were cached
-            assert _csv_text(b, False, quoted) == _pandas(b, False)
+            assert csv_text(b, False, quoted) == _pandas(b, False)
 
 
 def test_columns_it_does_not_take_go_to_pandas(tmp_path) -> None:
@@ -126,7 +125,7 @@ def test_columns_it_does_not_take_go_to_pandas(tmp_path) -> None:
     for path in PATHS:
         for i, df in enumerate(frames):
             with using(path):
-                assert _csv_text(df, True, {}) is None
+                assert csv_text(df, True, {}) is None
             if df.dtypes.eq(np.float32).any():
                 continue  # a table holds no float32 column: no sink sees one
             # the chunk a table of these columns hands its sink (float64 "f", int64 "i", others "o")

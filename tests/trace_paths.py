@@ -6,6 +6,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pandas as pd
 
 from aquasim_py import trace
 
@@ -22,3 +26,23 @@ def using(name: str) -> Iterator[None]:
         yield
     finally:
         trace._fastcsv = old
+
+
+def csv_text(df: pd.DataFrame, header: bool, quoted: dict[Any, str]) -> str | None:
+    """What the streamed CSV sink writes for ``df``'s rows (``trace._csv_bytes``, on the path
+    in use), for tests that hold it equal to ``df.to_csv(index=False, header=header,
+    lineterminator="\\n")``. None when ``df`` has a column other than float64, int64 or
+    object, or a label that is not a string (the sink never hands over such a chunk), or where
+    ``_csv_bytes`` declines."""
+    labels = list(df.columns)
+    if not all(type(c) is str for c in labels):
+        return None
+    columns: list[tuple[str, Any, list[Any]]] = []
+    for c in labels:
+        a = df[c].to_numpy()
+        kind = {np.dtype(np.float64): "f", np.dtype(np.int64): "i", np.dtype(object): "o"}.get(a.dtype)
+        if kind is None:
+            return None
+        columns.append((kind, a.tolist() if kind == "o" else a, []))
+    data = trace._csv_bytes(labels, columns, len(df), header, quoted)
+    return None if data is None else data.decode("utf-8")
