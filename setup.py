@@ -2,7 +2,7 @@
 
 Each extension is optional: without a C compiler the install still succeeds and the package
 runs its pure-Python reference path (the same results, slower; tests hold the two equal).
-CI checks that both were built (``.ci/run``, wheel lane).
+CI checks that all three were built (``.ci/run``, wheel lane).
 """
 
 from setuptools import Extension, setup
@@ -15,7 +15,19 @@ setup(
     ext_modules=[
         Extension("aquasim_py._fastcsv", ["aquasim_py/_fastcsv.c"], optional=True, extra_compile_args=_FLAGS),
         Extension(
-            "aquasim_py.channel._delivery", ["aquasim_py/channel/_delivery.c"], optional=True, extra_compile_args=_FLAGS
+            "aquasim_py._events",
+            ["aquasim_py/_events.c"],
+            depends=["aquasim_py/_events.h"],
+            optional=True,
+            extra_compile_args=_FLAGS,
+        ),
+        # queues its entries on _events' queue through that module's C interface (_events.h)
+        Extension(
+            "aquasim_py.channel._delivery",
+            ["aquasim_py/channel/_delivery.c"],
+            depends=["aquasim_py/_events.h"],
+            optional=True,
+            extra_compile_args=_FLAGS,
         ),
     ]
 )

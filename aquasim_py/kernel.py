@@ -29,6 +29,7 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
+from .events import environment
 from .mobility import ConstantVelocity, Mobility
 from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
@@ -422,7 +423,7 @@ class Simulation:
         ss = np.random.SeedSequence(seed)
         self.seed: int = int(ss.entropy)  # type: ignore[arg-type]
         self._seedseq = ss
-        self.env = simpy.Environment()
+        self.env = environment()
         self.ssp: SoundSpeedProfile = ssp if ssp is not None else Constant(1500.0)
         self.volume = volume
         self.out_of_band: dict[str, Any] = {}  # Node.out_of_band: shared by the run's nodes

@@ -12,14 +12,18 @@ settings.load_profile("ci" if os.environ.get("CI") else "default")
 
 @pytest.fixture(scope="module", params=["compiled", "python"])
 def delivery_path(request: pytest.FixtureRequest) -> Iterator[str]:
-    """Run a module's tests on both delivery paths of the channel: the compiled one
-    (channel/_delivery.c) and the Python reference (``AcousticChannel.compiled_delivery``).
-    Module-scoped, so hypothesis tests may use it."""
+    """Run a module's tests on both paths of the kernel: compiled (the channel's delivery,
+    channel/_delivery.c, on the compiled event queue, aquasim_py/_events.c) and pure Python
+    (the channel's reference, ``AcousticChannel.compiled_delivery = False``, on SimPy's own
+    Environment: what an install without a C compiler runs). Module-scoped, so hypothesis
+    tests may use it."""
+    from aquasim_py import events
     from aquasim_py.channel import acoustic
 
-    if request.param == "compiled" and acoustic._delivery is None:
-        pytest.skip("aquasim_py.channel._delivery is not built")
-    old = acoustic.AcousticChannel.compiled_delivery
-    acoustic.AcousticChannel.compiled_delivery = request.param == "compiled"
+    compiled = request.param == "compiled"
+    if compiled and (acoustic._delivery is None or events._events is None):
+        pytest.skip("the compiled extensions are not built")
+    old = acoustic.AcousticChannel.compiled_delivery, events.compiled
+    acoustic.AcousticChannel.compiled_delivery = events.compiled = compiled
     yield request.param
-    acoustic.AcousticChannel.compiled_delivery = old
+    acoustic.AcousticChannel.compiled_delivery, events.compiled = old

@@ -30,6 +30,11 @@
 #include <math.h>
 #include <string.h>
 
+#include "../_events.h"
+
+/* the kernel's compiled event queue (aquasim_py/_events.c), when built: NULL otherwise */
+static AquasimEventsAPI *events_api;
+
 /* ------------------------------------------------------------------------------------------ */
 /* interned strings and heapq */
 
@@ -166,6 +171,7 @@ typedef struct {
     PyObject *cb;          /* [self.run]: the callbacks of every channel entry */
     PyObject *nan;
     int own_heap;          /* the channel's entries on its own heap, its head proxied on SimPy's */
+    int cq;                /* queue is the kernel's compiled queue (events_api): entries go on it */
     long prio;             /* the value of `priority` */
     HEnt *heap;
     Py_ssize_t hn, hcap;
@@ -239,7 +245,7 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
     const char *collision;
     double capture;
     int jitter, drain, own_heap;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OO!OOO!sdpOOOpp", kw, &env, &PyList_Type, &queue, &eid, &priority,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OOOOO!sdpOOOpp", kw, &env, &queue, &eid, &priority,
                                      &PyList_Type, &rows, &collision, &capture, &jitter, &stamp, &pressure,
                                      &pressure_kind, &drain, &own_heap))
         return -1;
@@ -249,6 +255,11 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
     }
     long prio = PyLong_AsLong(priority);
     if (prio == -1 && PyErr_Occurred()) return -1;
+    int cq = events_api != NULL && Py_IS_TYPE(queue, events_api->QueueType);
+    if (!cq && !PyList_Check(queue)) {
+        PyErr_SetString(PyExc_TypeError, "Core: queue must be SimPy's list heap or the kernel's compiled queue");
+        return -1;
+    }
     if (strcmp(collision, "none") == 0) self->collision = 0;
     else if (strcmp(collision, "destructive") == 0) self->collision = 1;
     else if (strcmp(collision, "capture") == 0) self->collision = 2;
@@ -268,7 +279,8 @@ static int Core_init(Core *self, PyObject *args, PyObject *kwds) {
     self->capture_db = capture;
     self->jitter = jitter;
     self->drain = drain;
-    self->own_heap = own_heap;
+    self->cq = cq;
+    self->own_heap = own_heap && !cq; /* the compiled queue keeps its keys contiguous itself */
     self->prio = prio;
     if (self->nan == NULL && (self->nan = PyFloat_FromDouble(Py_NAN)) == NULL) return -1;
     PyObject *run = PyObject_GetAttrString((PyObject *)self, "run");
@@ -484,6 +496,7 @@ static Deliveries *heap_pop(Core *self) {
 /* queue d's next delivery at true time `at` with the next sequence number, as
  * Environment.schedule would (priority NORMAL): on SimPy's heap, or on the own heap */
 static int push(Core *self, Deliveries *d, double at) {
+    if (self->cq) return events_api->push(self->queue, at, self->prio, (PyObject *)d);
     PyObject *eid = PyIter_Next(self->eid);
     if (eid == NULL) {
         if (!PyErr_Occurred()) PyErr_SetString(PyExc_RuntimeError, "SimPy's event counter ended");
@@ -559,6 +572,20 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     if (get_ll(pkt, s_uid, &uid) < 0 || get_ll(pkt, s_src, &src) < 0) return NULL;
     int track = self->collision != 0;
     Py_ssize_t first = -1;
+    if (track) {
+        /* the receivers' state is scattered over memory in a large network: ask for every
+         * receiver's node, then its log's tail, before touching any, so the misses overlap */
+        for (Py_ssize_t i = 0; i < L->n; i++)
+            if (L->h[i].rid < self->n) __builtin_prefetch(&self->nodes[L->h[i].rid], 1);
+        for (Py_ssize_t i = 0; i < L->n; i++)
+            if (L->h[i].rid < self->n) {
+                const Node *nd = &self->nodes[L->h[i].rid];
+                if (nd->nsig) {
+                    __builtin_prefetch(nd->sig, 1);
+                    __builtin_prefetch(nd->sig + nd->nsig - 1, 1);
+                }
+            }
+    }
     for (Py_ssize_t i = 0; i < L->n; i++) {
         Heard *h = &L->h[i];
         if (h->rid >= self->n) {
@@ -800,6 +827,16 @@ static PyObject *Core_run(Core *self, PyObject *ev) {
             if (push(self, d, d->t0 + (end - d->t0)) < 0) goto fail;
         }
         if (!self->drain) break;
+        if (self->cq) {
+            /* the compiled queue's head: next iff it is an entry of this channel */
+            PyObject *nxt = events_api->head(self->queue, NULL);
+            if (nxt == NULL || Py_TYPE(nxt) != &DeliveriesType || ((Deliveries *)nxt)->callbacks != self->cb) break;
+            Deliveries *popped = (Deliveries *)events_api->pop_now(self->queue); /* env._now: its time */
+            Py_DECREF(d);
+            d = popped;
+            if (d == NULL) return NULL;
+            continue;
+        }
         Py_ssize_t qn = PyList_GET_SIZE(self->queue);
         PyObject *head = qn ? PyList_GET_ITEM(self->queue, 0) : NULL;
         if (head != NULL && (!PyTuple_Check(head) || PyTuple_GET_SIZE(head) != 4)) break;
@@ -987,8 +1024,17 @@ PyMODINIT_FUNC PyInit__delivery(void) {
     heappop_fn = PyObject_GetAttrString(heapq, "heappop");
     Py_DECREF(heapq);
     if (heappush_fn == NULL || heappop_fn == NULL) return NULL;
+    /* PyCapsule_Import reads attributes from the package down, so the submodule first */
+    PyObject *events_mod = PyImport_ImportModule("aquasim_py._events");
+    events_api = events_mod ? PyCapsule_Import(AQUASIM_EVENTS_CAPSULE, 0) : NULL;
+    Py_XDECREF(events_mod);
+    if (events_api == NULL) PyErr_Clear(); /* not built: the channel uses SimPy's list heap */
     PyObject *m = PyModule_Create(&module);
     if (m == NULL) return NULL;
+    if (PyModule_AddIntConstant(m, "EVENTS", events_api != NULL) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
     if (PyModule_AddObjectRef(m, "Core", (PyObject *)&CoreType) < 0 ||
         PyModule_AddObjectRef(m, "Links", (PyObject *)&LinksType) < 0 ||
         PyModule_AddObjectRef(m, "Deliveries", (PyObject *)&DeliveriesType) < 0) {

@@ -5,6 +5,10 @@ from typing import Any
 
 from ..packet import Packet
 
+#: 1 when the kernel's compiled event queue (aquasim_py._events) was found at import: the core
+#: then also accepts that queue and pushes its entries on it directly
+EVENTS: int
+
 class Links:
     """The heard receivers of one transmission, packed (:meth:`Core.pack`)."""
 
@@ -22,7 +26,7 @@ class Core:
     def __init__(
         self,
         env: Any,
-        queue: list[Any],
+        queue: Any,
         eid: Any,
         priority: Any,
         rows: list[tuple[Any, ...]],

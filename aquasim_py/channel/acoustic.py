@@ -73,6 +73,10 @@ try:  # the compiled delivery (channel/_delivery.c); without a compiler the Pyth
     from . import _delivery
 except ImportError:  # pragma: no cover - every CI lane builds it
     _delivery = None  # type: ignore[assignment]
+try:  # the kernel's compiled event queue (aquasim_py/_events.c), whose entries it may push
+    from .._events import Queue
+except ImportError:  # pragma: no cover - every CI lane builds it
+    Queue = None  # type: ignore[assignment,misc]
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ssp import SoundSpeedProfile
@@ -384,19 +388,24 @@ class AcousticChannel:
         # deliveries go straight onto SimPy's queue (see _Deliveries) when its layout is the
         # known one: a list heap of (time, priority, sequence number, event) and a counter
         self._next_cb: list[Callable[[_Deliveries], None]] = [self._next_delivery]
-        self._queue: list[Any] = getattr(env, "_queue", None)  # type: ignore[assignment]
+        # or the kernel's compiled queue (aquasim_py.events.Environment), whose own push and pop
+        # the entries use
+        queue: Any = getattr(env, "_queue", None)
         self._eid: Any = getattr(env, "_eid", None)
-        known = isinstance(self._queue, list) and hasattr(self._eid, "__next__")
-        self._push = self._push_queue if known else self._push_schedule
-        if not known:
-            self._queue = []  # _next_delivery then leaves every pop to Environment.step
+        known = isinstance(queue, list) and hasattr(self._eid, "__next__")
+        self._events: Queue | None = queue if Queue is not None and isinstance(queue, Queue) else None
+        self._queue: list[Any] = queue if known else []  # [] : _next_delivery leaves every pop to step
+        self._push = (
+            self._push_queue if known else self._push_events if self._events is not None else self._push_schedule
+        )
         rows = packets.row_buffer()
         self._core: _delivery.Core | None = None  # the compiled state and delivery loop (_delivery.Core), or None
         self._packs: dict[int, tuple[list[Any], _delivery.Links]] = {}  # static links packed for the core, per sender
-        if self.compiled_delivery and _delivery is not None and known and type(rows) is list:
+        usable = known or (self._events is not None and _delivery is not None and _delivery.EVENTS)
+        if self.compiled_delivery and _delivery is not None and usable and type(rows) is list:
             self._core = _delivery.Core(
                 env,
-                self._queue,
+                queue,
                 self._eid,
                 NORMAL,
                 rows,
@@ -857,6 +866,7 @@ class AcousticChannel:
         and times), without a step and its callback loop each."""
         heap = self._queue
         drain = heap if self.drain_deliveries else []  # whose head the loop may take
+        events = self._events if self.drain_deliveries else None  # or the compiled queue's
         cb = self._next_cb
         # _push_queue's push written out (one call less per delivery), unless the fallback
         # _push_schedule is in use
@@ -891,6 +901,12 @@ class AcousticChannel:
                     heappush(heap, (t0 + (sigs[k][1] - t0), NORMAL, next(eid), ev))
                 else:
                     push(ev, t0 + (sigs[k][1] - t0))
+            if events is not None:
+                nxt = events.first()
+                if nxt is None or nxt.callbacks is not cb:
+                    return
+                ev = events.pop()  # and env._now is its time
+                continue
             if not drain:  # empty, or no access to SimPy's queue (_push_schedule)
                 return
             head = drain[0]
@@ -904,6 +920,11 @@ class AcousticChannel:
         """Queue ``ev`` at true time ``at`` exactly, as ``Environment.schedule`` would with
         priority NORMAL (same entry layout, next sequence number)."""
         heappush(self._queue, (at, NORMAL, next(self._eid), ev))
+
+    def _push_events(self, ev: _Deliveries, at: float) -> None:
+        """Queue ``ev`` at true time ``at`` exactly on the kernel's compiled queue (priority
+        NORMAL, its next sequence number)."""
+        cast(Queue, self._events).push(at, NORMAL, ev)
 
     def _push_schedule(self, ev: _Deliveries, at: float) -> None:
         """Fallback for a SimPy without ``_queue`` / ``_eid``: the public ``schedule`` (its

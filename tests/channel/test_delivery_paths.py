@@ -21,12 +21,15 @@ from hypothesis import strategies as st
 from scripted import Plan, Script
 from test_verdicts import BITRATE, C, networks
 
+from aquasim_py import events
 from aquasim_py.channel import Constant, acoustic
 from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 
-pytestmark = pytest.mark.skipif(acoustic._delivery is None, reason="aquasim_py.channel._delivery is not built")
+pytestmark = pytest.mark.skipif(
+    acoustic._delivery is None or events._events is None, reason="the compiled extensions are not built"
+)
 
 
 class Receiver(Script):
@@ -59,11 +62,21 @@ class Receiver(Script):
 
 
 def _run(
-    xs: list[int], plan: Plan, cfg: ChannelConfig, clocks: str, compiled: bool, own_heap: bool = True
+    xs: list[int],
+    plan: Plan,
+    cfg: ChannelConfig,
+    clocks: str,
+    compiled: bool,
+    own_heap: bool = True,
+    compiled_queue: bool = False,
 ) -> tuple[dict[str, pd.DataFrame], bool]:
     cls = type("Planned", (Receiver,), {"plan": plan, "name": "planned_receiver"})
-    old = AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap
-    AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap = compiled, own_heap
+    old = AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap, events.compiled
+    AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap, events.compiled = (
+        compiled,
+        own_heap,
+        compiled_queue,
+    )
     try:
         sim = Simulation(3, ssp=Constant(C), channel=cfg)
 
@@ -77,8 +90,9 @@ def _run(
         sim.add_group(cls, len(xs), positions=[[64.0 * x, 0.0, 10.0] for x in xs], clocks=clock)
         sim.run(20.0)
         used = sim.channel._core is not None
+        assert isinstance(sim.env, events.Environment) == compiled_queue
     finally:
-        AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap = old
+        AcousticChannel.compiled_delivery, AcousticChannel.compiled_heap, events.compiled = old
     return sim.trace.frames(), used
 
 
@@ -89,14 +103,14 @@ def _run(
     jitter=st.sampled_from([0.0, 1e-3]),
     clocks=st.sampled_from(["exact", "skewed", "drifting"]),
     capture_db=st.sampled_from([0.0, 3.0, 10.0]),
-    own_heap=st.booleans(),
+    path=st.sampled_from(["compiled queue", "simpy, own heap", "simpy, simpy heap", "python on compiled queue"]),
     drain=st.booleans(),
 )
-def test_compiled_delivery_equals_the_python_reference(
-    net, collision, jitter, clocks, capture_db, own_heap, drain
-) -> None:
-    """Both paths, the compiled one with the channel's entries on its own heap or on SimPy's,
-    each deciding consecutive deliveries in one loop or one per Environment.step."""
+def test_compiled_delivery_equals_the_python_reference(net, collision, jitter, clocks, capture_db, path, drain) -> None:
+    """The reference: the Python delivery on SimPy's Environment. Against it: the compiled
+    delivery on the kernel's compiled queue, or on SimPy's with the channel's entries on its
+    own heap or on SimPy's; and the Python delivery on the compiled queue. Each deciding
+    consecutive deliveries in one loop or one per step."""
     xs, plan = net
     cfg = ChannelConfig(
         max_range_m=1e6,
@@ -109,10 +123,18 @@ def test_compiled_delivery_equals_the_python_reference(
     ref, used_ref = _run(xs, plan, cfg, clocks, compiled=False)
     AcousticChannel.drain_deliveries = drain
     try:
-        got, used = _run(xs, plan, cfg, clocks, compiled=True, own_heap=own_heap)
+        got, used = _run(
+            xs,
+            plan,
+            cfg,
+            clocks,
+            compiled=not path.startswith("python"),
+            own_heap=path == "simpy, own heap",
+            compiled_queue="compiled queue" in path,
+        )
     finally:
         AcousticChannel.drain_deliveries = True
-    assert used and not used_ref  # each run took the path it was meant to
+    assert used != path.startswith("python") and not used_ref  # each run took the path it was meant to
     assert ref.keys() == got.keys()
     for name in ref:
         pd.testing.assert_frame_equal(got[name], ref[name], check_exact=True)
@@ -127,7 +149,7 @@ def test_pressure_readings_equal() -> None:
     )
     out = []
     for compiled in (False, True):
-        frames, used = _run([0, 3, 5, 9], plan, cfg, "exact", compiled)
+        frames, used = _run([0, 3, 5, 9], plan, cfg, "exact", compiled, compiled_queue=compiled)
         assert used == compiled
         out.append(frames)
     got = out[1]["got"]
