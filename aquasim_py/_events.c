@@ -11,7 +11,10 @@
  * one Environment._eid iterates (it is this object).
  *
  * Queue.step is Environment.step (SimPy 4.1's, statement for statement): pop the first event,
- * set env._now to its time, run its callbacks, crash on a failed event nobody defused.
+ * set env._now to its time, run its callbacks, crash on a failed event nobody defused. With
+ * requeue (SimPy >= 4.1.2) a StopSimulation raised by a callback puts the event's remaining
+ * callbacks back on it and reschedules it at priority -1, as that release's step does; before
+ * it, the exception just propagates.
  *
  * Times: an exact float is kept as a double and made again at the pop (the same value); any
  * other time (an int, a float subclass) is kept as the object itself, so env.now has the type
@@ -37,6 +40,7 @@ typedef struct {
     Py_ssize_t n, cap;
     long long next_eid;
     PyObject *env;     /* the Environment whose _now step sets (owned; a cycle the GC breaks) */
+    int requeue;       /* on StopSimulation, reschedule the remaining callbacks (SimPy >= 4.1.2) */
 } Queue;
 
 static PyTypeObject QueueType;
@@ -193,9 +197,11 @@ static void Queue_dealloc(Queue *self) {
 }
 
 static int Queue_init(Queue *self, PyObject *args, PyObject *kwds) {
-    static char *kw[] = {"env", NULL};
+    static char *kw[] = {"env", "requeue", NULL};
     PyObject *env = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|O", kw, &env)) return -1;
+    int requeue = 1;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|Op", kw, &env, &requeue)) return -1;
+    self->requeue = requeue;
     Py_XSETREF(self->env, env == Py_None ? NULL : Py_NewRef(env));
     return 0;
 }
@@ -271,7 +277,7 @@ static PyObject *Queue_step(Queue *self, PyObject *unused) {
             PyObject *r = PyObject_CallOneArg(cb, ev);
             Py_DECREF(cb);
             if (r == NULL) {
-                if (PyErr_ExceptionMatches(StopSimulation)) {
+                if (self->requeue && PyErr_ExceptionMatches(StopSimulation)) {
                     /* the remaining callbacks go back on the event, rescheduled first at now */
                     PyObject *etype, *evalue, *etb;
                     PyErr_Fetch(&etype, &evalue, &etb);

@@ -14,6 +14,7 @@ Without the compiled extension (no C compiler at install), :func:`environment` g
 
 from __future__ import annotations
 
+from importlib.metadata import version
 from typing import Any
 
 import simpy
@@ -24,10 +25,25 @@ except ImportError:  # pragma: no cover - exercised only on installs without a c
     _events = None  # type: ignore[assignment]
 
 
+def _simpy_requeues() -> bool:
+    """Whether the installed SimPy's ``step`` reschedules an event's remaining callbacks when
+    one of them stops the run (4.1.2 and later; 4.1.0 and 4.1.1 let the exception drop them)."""
+    try:
+        parts = tuple(int(p) for p in version("simpy").split(".")[:3])
+    except ValueError:  # a pre-release or local tag: take the newer behaviour
+        return True
+    return parts >= (4, 1, 2)
+
+
+#: the installed SimPy's StopSimulation handling, which :class:`Environment` follows
+SIMPY_REQUEUES = _simpy_requeues()
+
+
 class Environment(simpy.Environment):
     """``simpy.Environment`` whose queue is :class:`aquasim_py._events.Queue`.
 
-    ``schedule`` and ``step`` are the queue's (SimPy 4.1's statement for statement, in C),
+    ``schedule`` and ``step`` are the queue's (the installed SimPy 4.1.x's statement for
+    statement, in C: :data:`SIMPY_REQUEUES`),
     ``_eid`` is its sequence counter and ``peek`` its first time. What SimPy's own code uses
     of an environment is unchanged; code that reads ``_queue`` as a list does not work here.
     """
@@ -36,7 +52,7 @@ class Environment(simpy.Environment):
         if _events is None:
             raise RuntimeError("aquasim_py._events is not built (no C compiler at install)")
         super().__init__(initial_time)
-        queue = _events.Queue(self)
+        queue = _events.Queue(self, SIMPY_REQUEUES)
         self._queue = queue  # type: ignore[assignment]
         self._eid = queue  # type: ignore[assignment]
         # instance attributes shadow the methods: SimPy's events call them with no Python
