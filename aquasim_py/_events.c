@@ -138,11 +138,9 @@ static int c_push(PyObject *q, double t, long prio, PyObject *ev) {
     return 0;
 }
 
-static PyObject *c_head(PyObject *q, double *t) {
+static PyObject *c_head(PyObject *q) {
     Queue *Q = (Queue *)q;
-    if (Q->n == 0) return NULL;
-    if (t) *t = Q->h[0].t;
-    return Q->h[0].ev;
+    return Q->n ? Q->h[0].ev : NULL;
 }
 
 /* pop the first entry, set env._now to its time; the event (a new reference) */
@@ -286,7 +284,7 @@ static PyObject *Queue_step(Queue *self, PyObject *unused) {
                     Py_XDECREF(rest);
                     if (!bad) {
                         PyObject *minus1 = PyLong_FromLong(-1);
-                        PyObject *argv[3] = {ev, minus1};
+                        PyObject *argv[2] = {ev, minus1};
                         PyObject *sched = minus1 ? PyObject_GetAttr(self->env, s_schedule) : NULL;
                         PyObject *rr = sched ? PyObject_Vectorcall(sched, argv, 2, NULL) : NULL;
                         Py_XDECREF(sched);

@@ -10,8 +10,8 @@ typedef struct {
     PyTypeObject *QueueType;
     /* push ev at time t (an exact float), priority prio, the queue's next sequence number */
     int (*push)(PyObject *queue, double t, long prio, PyObject *ev);
-    /* the first event (borrowed) and its time, or NULL when empty (no error set) */
-    PyObject *(*head)(PyObject *queue, double *t);
+    /* the first event (borrowed), or NULL when empty (no error set) */
+    PyObject *(*head)(PyObject *queue);
     /* pop the first event (a new reference) and set the environment's _now to its time */
     PyObject *(*pop_now)(PyObject *queue);
 } AquasimEventsAPI;

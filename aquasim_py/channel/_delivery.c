@@ -829,7 +829,7 @@ static PyObject *Core_run(Core *self, PyObject *ev) {
         if (!self->drain) break;
         if (self->cq) {
             /* the compiled queue's head: next iff it is an entry of this channel */
-            PyObject *nxt = events_api->head(self->queue, NULL);
+            PyObject *nxt = events_api->head(self->queue);
             if (nxt == NULL || Py_TYPE(nxt) != &DeliveriesType || ((Deliveries *)nxt)->callbacks != self->cb) break;
             Deliveries *popped = (Deliveries *)events_api->pop_now(self->queue); /* env._now: its time */
             Py_DECREF(d);

@@ -335,7 +335,8 @@ class AcousticChannel:
     #: with the compiled delivery: the channel's entries on its own heap (contiguous keys), only
     #: its head on SimPy's queue with that entry's own key (time, priority, sequence number), so
     #: SimPy takes it exactly when it would have taken it among all of them; False puts every
-    #: entry on SimPy's queue, as the Python path does
+    #: entry on SimPy's queue, as the Python path does. On the kernel's compiled queue
+    #: (aquasim_py.events.Environment) the entries always go on that queue and this has no effect
     compiled_heap = True
 
     def __init__(
