@@ -151,6 +151,14 @@ static PyObject *c_pop_now(PyObject *q) {
         return NULL;
     }
     Ent e = q_remove(Q);
+    /* the next event is needed at the next step, after this one's callbacks: asked for now,
+     * its object is in cache by then (in a large network it is a miss) */
+    if (Q->n) {
+        const char *nx = (const char *)Q->h[0].ev;
+        __builtin_prefetch(nx, 1);
+        __builtin_prefetch(nx + 64, 1);
+        __builtin_prefetch(nx + 128, 1);
+    }
     PyObject *t = e.t_obj ? e.t_obj : PyFloat_FromDouble(e.t);
     if (t == NULL) {
         Py_DECREF(e.ev);

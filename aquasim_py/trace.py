@@ -316,7 +316,10 @@ class Table:
     can precede (:meth:`order_by_time`), so the file is sorted as :meth:`frame` sorts.
     """
 
-    _BATCH = 4096
+    # rows buffered before they move into the columns: 512 row tuples (about 150 kB with their
+    # numbers) are still in the core's cache when the columns take them and free them; 4096
+    # were not in a large network (docs/performance.md, ninth pass)
+    _BATCH = 512
 
     def __init__(self, name: str, schema: Iterable[tuple[str, str]] = ()) -> None:
         self.name = name

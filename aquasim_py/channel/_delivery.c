@@ -112,7 +112,6 @@ typedef struct {
     double tof, snr;      /* delay (s), SNR (dB) */
     Py_ssize_t rid;       /* receiver */
     PyObject *path;       /* path name (one of a few interned strings) */
-    PyObject *tof_o, *snr_o; /* the row's objects (shared, as the Python rows share them) */
 } Heard;
 
 typedef struct {
@@ -124,8 +123,6 @@ typedef struct {
 static void Links_dealloc(Links *self) {
     for (Py_ssize_t i = 0; i < self->n; i++) {
         Py_XDECREF(self->h[i].path);
-        Py_XDECREF(self->h[i].tof_o);
-        Py_XDECREF(self->h[i].snr_o);
     }
     PyMem_Free(self->h);
     Py_TYPE(self)->tp_free((PyObject *)self);
@@ -178,16 +175,20 @@ typedef struct {
 } Core;
 
 struct Deliveries {
+    /* what a delivery reads comes first: the object's first two lines */
     PyObject_HEAD
     PyObject *callbacks;   /* what Environment.step reads and clears */
     Core *core;
-    Links *links;
-    PyObject *pkt, *kind, *bits, *uid_o, *src_o, *dst_o; /* the rows' fields */
-    long long uid;         /* the transmission, as the signal logs name it */
-    double t0, duration;
+    const Heard *hs;       /* links->h */
     Py_ssize_t k, n;       /* next delivery, one past the last */
+    Heard cur;             /* links->h[k], copied when k was queued: the delivery reads only d */
+    double t0, duration;
+    PyObject *src_o, *uid_o, *dst_o, *kind, *bits; /* the rows' fields */
+    long long uid;         /* the transmission, as the signal logs name it */
     int pressure;          /* the packet is a sound emission (kind == pressure_kind) */
     int proxied;           /* own heap: this entry is also on SimPy's queue, with the same key */
+    PyObject *pkt;
+    Links *links;
     double at;             /* own heap: the entry's key (time, eid) */
     PyObject *eid;
 };
@@ -425,9 +426,7 @@ static PyObject *Core_pack(Core *self, PyObject *heard) {
         }
         PyObject *path = PyTuple_GET_ITEM(h, 2);
         Py_INCREF(path);
-        Py_INCREF(t);
-        Py_INCREF(s);
-        L->h[i] = (Heard){tv, sv, rid, path, t, s};
+        L->h[i] = (Heard){tv, sv, rid, path};
         L->n = i + 1;
     }
     return (PyObject *)L;
@@ -614,6 +613,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->core = self;
     Py_INCREF(L);
     d->links = L;
+    d->hs = L->h;
     Py_INCREF(pkt);
     d->pkt = pkt;
     d->kind = PyObject_GetAttr(pkt, s_kind);
@@ -625,6 +625,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
     d->t0 = t0;
     d->duration = duration;
     d->k = k0;
+    d->cur = L->h[k0];
     d->n = n;
     d->pressure = 0;
     d->proxied = 0;
@@ -691,8 +692,18 @@ static int scan(Core *self, Node *rx, double arr, double end, double snr, long l
 
 /* one delivery of d (its k-th): AcousticChannel._next_delivery's body up to the next push */
 static int deliver_one(Core *self, Deliveries *d) {
-    const Heard *h = &d->links->h[d->k];
+    const Heard *h = &d->cur;
+    /* what this delivery reads after the node's deliver (the next record, for its push), and
+     * the receiver's state, asked for now: in a large network each is a miss, and asked for
+     * together they overlap */
+    if (d->k + 1 < d->n) __builtin_prefetch(d->hs + d->k + 1);
+    __builtin_prefetch(d->src_o, 1);
+    __builtin_prefetch(d->uid_o, 1);
     Node *rx = &self->nodes[h->rid];
+    if (rx->nsig) { /* every line of the signal log at once: the bisection's misses overlap */
+        const char *p = (const char *)rx->sig, *e = (const char *)(rx->sig + rx->nsig);
+        for (; p < e; p += 64) __builtin_prefetch(p);
+    }
     double arr = d->t0 + h->tof;
     double end = arr + d->duration;
     int v = scan(self, rx, arr, end, h->snr, d->uid);
@@ -701,16 +712,19 @@ static int deliver_one(Core *self, Deliveries *d) {
     if (row == NULL) return -1;
     /* the row's own objects (the tuple owns them from here, so one DECREF of it frees them all) */
     PyObject *arr_obj = PyFloat_FromDouble(arr), *rid = PyLong_FromSsize_t(h->rid);
-    PyObject *snr = h->snr_o;
+    /* the delay and SNR as new objects: the link's own would be a cold line each */
+    PyObject *tof = PyFloat_FromDouble(h->tof), *snr = PyFloat_FromDouble(h->snr);
     PyTuple_SET_ITEM(row, 0, arr_obj);
     PyTuple_SET_ITEM(row, 3, rid);
-    if (!arr_obj || !rid) {
+    PyTuple_SET_ITEM(row, 9, tof);
+    PyTuple_SET_ITEM(row, 10, snr);
+    if (!arr_obj || !rid || !tof || !snr) {
         Py_DECREF(row);
         return -1;
     }
-    PyObject *shared[5] = {d->src_o, d->dst_o, d->uid_o, h->tof_o, snr};
-    static const int at[5] = {4, 5, 6, 9, 10};
-    for (int i = 0; i < 5; i++) {
+    PyObject *shared[3] = {d->src_o, d->dst_o, d->uid_o};
+    static const int at[3] = {4, 5, 6};
+    for (int i = 0; i < 3; i++) {
         Py_INCREF(shared[i]);
         PyTuple_SET_ITEM(row, at[i], shared[i]);
     }
@@ -823,7 +837,8 @@ static PyObject *Core_run(Core *self, PyObject *ev) {
                 Py_INCREF(self->cb);
                 Py_XSETREF(d->callbacks, self->cb); /* Environment.step set it to None */
             }
-            double end = (d->t0 + d->links->h[k].tof) + d->duration;
+            d->cur = d->hs[k];
+            double end = (d->t0 + d->cur.tof) + d->duration;
             if (push(self, d, d->t0 + (end - d->t0)) < 0) goto fail;
         }
         if (!self->drain) break;
