@@ -175,7 +175,8 @@ typedef struct {
 } Core;
 
 struct Deliveries {
-    /* what a delivery reads comes first: the object's first two lines */
+    /* what a delivery reads comes first: the object's first 144 bytes (two or three lines;
+     * the compiled queue prefetches three when this entry becomes its head) */
     PyObject_HEAD
     PyObject *callbacks;   /* what Environment.step reads and clears */
     Core *core;
