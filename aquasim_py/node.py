@@ -263,7 +263,7 @@ class Node:
 
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""
-        return len(self.__k.inbox)
+        return self.__k.pending()
 
     def take_pending(self) -> list[Reception]:
         """Every buffered reception, oldest first, taken now without an event each (what
