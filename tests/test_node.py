@@ -401,6 +401,28 @@ def test_a_guessed_truth_attribute_says_what_a_node_can_use() -> None:
     assert not hasattr(node, "now")  # still an AttributeError, so hasattr() keeps working
 
 
+def test_a_protocol_may_use_a_guessed_truth_name_for_its_own() -> None:
+    """The hints do not reserve the names: a protocol's own attribute or method named like a
+    guessed truth attribute is its own."""
+
+    class Own(Node):
+        name = "own"
+
+        def setup(self):
+            self.time = 3.0  # its own (local) bookkeeping
+
+        def position(self):  # its own estimate
+            return (1.0, 2.0, 3.0)
+
+    sim = Simulation(1, ssp=C, volume=BOX)
+    node = sim.add_group(Own, 1, positions=[[1.0, 2.0, 3.0]])[0]
+    node.setup()
+    assert node.time == 3.0 and node.position() == (1.0, 2.0, 3.0)
+    with pytest.raises(AttributeError, match=r"no attribute 'now'.*local_time\(\)"):
+        node.now  # noqa: B018
+    assert not hasattr(node, "sim")
+
+
 def test_at_instant_end_runs_after_every_other_event_of_its_instant():
     """The hook comes after the events of its instant scheduled after it (zero timeouts made
     later in the same instant), and before the next instant."""
