@@ -81,11 +81,17 @@ class _NodeCore:
     """Kernel-side state of one node; the only bridge between a Node and ground truth, and the
     node's :class:`~aquasim_py.radio.RadioPort` on the channel."""
 
+    # What deliver reads comes first: CPython lays slots out in sorted order, and the names
+    # starting with "_" sort before the rest, so these six share the object's first 64 bytes
+    # with its reference count (one or two cache lines per reception, not four, in a network
+    # too large for the cache).
     __slots__ = (
-        "_rng_sensor",
-        "_rng_snr",
+        "_inbox",
         "_snr_noise",
         "_snr_std",
+        "_waiter",
+        "_waiter_kinds",
+        "_waiters",
         "affine",
         "channel",
         "clock",
@@ -94,16 +100,16 @@ class _NodeCore:
         "group",
         "has_position",
         "has_velocity",
-        "inbox",
         "index",
         "params",
         "protocol",
         "rng_protocol",
         "role",
+        "sensor_rngs",
         "sensors",
         "sim",
         "slot",
-        "waiters",
+        "snr_rng",
     )
 
     def __init__(
@@ -139,13 +145,19 @@ class _NodeCore:
         # std (dB) of the receiver's SNR estimate; its stream ("node", id, "snr_estimate") is
         # made on first use, so no other stream's draws change
         self._snr_std = float(sim.channel_config.snr_estimate_std_db)
-        self._rng_snr: np.random.Generator | None = None
+        self.snr_rng: np.random.Generator | None = None
         self._snr_noise: list[float] = []  # standard normals drawn ahead, in blocks (consumed from the end)
-        self._rng_sensor: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
+        self.sensor_rngs: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
         cap = getattr(group.node_cls, "inbox_capacity", None)
         # receptions not taken yet: (packet, rx_local, snr_db, pressure), see deliver
-        self.inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
-        self.waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
+        # The waiting recv events in the order they were made, each with its kinds (None: any):
+        # the first in two slots of its own, the others (rare: a node with several processes
+        # receiving at once) in a list, None when there are none. A node waits in almost every
+        # reception's deliver, and a list of tuples would be two or three more cold lines each.
+        self._waiter: simpy.Event | None = None
+        self._waiter_kinds: frozenset[str] | None = None
+        self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] | None = None
         self.channel.attach(self)
 
     # -- truth ------------------------------------------------------------------------------------
@@ -207,25 +219,65 @@ class _NodeCore:
             noise = self._snr_noise
             if not noise:
                 # blocks of draws: one numpy call per 256 receptions, not one per reception
-                rng = self._rng_snr
+                rng = self.snr_rng
                 if rng is None:
-                    rng = self._rng_snr = self.sim.rng("node", self.index, "snr_estimate")
+                    rng = self.snr_rng = self.sim.rng("node", self.index, "snr_estimate")
                 noise.extend(rng.standard_normal(256)[::-1].tolist())
             snr_db = snr_db + self._snr_std * noise.pop()
-        waiters = self.waiters
-        if waiters:
-            kind = packet.kind
-            for i, (ev, kinds) in enumerate(waiters):
-                if kinds is None or kind in kinds:
-                    del waiters[i]
-                    ev.succeed(_taken(packet, rx_local, snr_db, pressure))
-                    return
-        self.inbox.append((packet, rx_local, snr_db, pressure))
+        ev = self._waiter
+        if ev is not None:
+            kinds = self._waiter_kinds
+            if kinds is None or packet.kind in kinds:
+                if self._waiters is None:
+                    self._waiter = self._waiter_kinds = None
+                else:
+                    self._next_waiter()
+                ev.succeed(_taken(packet, rx_local, snr_db, pressure))
+                return
+            more = self._waiters
+            if more is not None:
+                kind = packet.kind
+                for i, (ev, kinds) in enumerate(more):
+                    if kinds is None or kind in kinds:
+                        del more[i]
+                        if not more:
+                            self._waiters = None
+                        ev.succeed(_taken(packet, rx_local, snr_db, pressure))
+                        return
+        self._inbox.append((packet, rx_local, snr_db, pressure))
+
+    def _next_waiter(self) -> None:
+        """The first waiting recv is served or expired: the next in line, if any, moves up."""
+        more = self._waiters
+        if more is None:
+            self._waiter = self._waiter_kinds = None
+        else:
+            self._waiter, self._waiter_kinds = more.pop(0)
+            if not more:
+                self._waiters = None
+
+    def _unwait(self, ev: simpy.Event) -> None:
+        """Take the waiting recv ``ev`` out of the line (its timeout won the race)."""
+        if self._waiter is ev:
+            self._next_waiter()
+            return
+        more = self._waiters
+        assert more is not None  # ev waits: if not first, then behind it
+        for i, (waiting, _) in enumerate(more):
+            if waiting is ev:
+                del more[i]
+                break
+        if not more:
+            self._waiters = None
+
+    def pending(self) -> int:
+        """Receptions buffered and not taken yet."""
+        return len(self._inbox)
 
     def take_pending(self) -> list[Reception]:
         """Every buffered reception, oldest first, as the node takes it (:func:`_taken`)."""
-        out = [_taken(*rec) for rec in self.inbox]
-        self.inbox.clear()
+        out = [_taken(*rec) for rec in self._inbox]
+        self._inbox.clear()
         return out
 
     def recv(self, timeout: float | None, kinds: str | Iterable[str] | None, view: NodeEnv) -> simpy.Event:
@@ -239,7 +291,7 @@ class _NodeCore:
         else:
             ks = frozenset(kinds)
         ev = view.event()
-        inbox = self.inbox
+        inbox = self._inbox
         if inbox:
             if ks is None:
                 return ev.succeed(_taken(*inbox.popleft()))
@@ -247,15 +299,19 @@ class _NodeCore:
                 if rec[0].kind in ks:
                     del inbox[i]
                     return ev.succeed(_taken(*rec))
-        entry = (ev, ks)
-        self.waiters.append(entry)
+        if self._waiter is None:
+            self._waiter, self._waiter_kinds = ev, ks
+        elif self._waiters is None:
+            self._waiters = [(ev, ks)]
+        else:
+            self._waiters.append((ev, ks))
         if timeout is not None:
             delay = self.true_delay(timeout)
 
             def expire(_: simpy.Event) -> None:
                 # The reception may have won the race in the meantime: then do nothing.
                 if not ev.triggered:
-                    self.waiters.remove(entry)
+                    self._unwait(ev)
                     ev.succeed(None)
 
             self.env.timeout(delay).callbacks.append(expire)
@@ -268,9 +324,9 @@ class _NodeCore:
         stream, made on first use; ``value`` itself when std = 0."""
         if std <= 0.0:
             return value
-        rng = self._rng_sensor.get(purpose)
+        rng = self.sensor_rngs.get(purpose)
         if rng is None:
-            rng = self._rng_sensor[purpose] = self.sim.rng("node", self.index, purpose)
+            rng = self.sensor_rngs[purpose] = self.sim.rng("node", self.index, purpose)
         if isinstance(value, float):
             return value + float(rng.normal(0.0, std))
         return value + rng.normal(0.0, std, np.shape(value))

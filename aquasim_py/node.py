@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Generator, Iterable, Mapping
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import simpy
@@ -32,6 +32,32 @@ BROADCAST = None
 #: priority of :meth:`NodeEnv.at_instant_end`'s events: SimPy orders its queue by (time,
 #: priority, insertion), so one after NORMAL comes after every other event of its instant
 LATE = EventPriority(NORMAL + 1)
+
+
+class _Unavailable:
+    """A name a node cannot use (a guess at ground truth, such as ``self.position`` or
+    ``env.now``): reading it raises an AttributeError that says what to use instead.
+
+    A non-data descriptor on the class, so a protocol may still give the name to its own
+    attribute or method (an instance attribute or a subclass's definition comes first), and
+    ``hasattr`` stays False. Not a ``__getattr__``: a class that defines one loses CPython's
+    specialized attribute loads on every attribute of its instances, and node code reads
+    ``self.<something>`` at every step.
+    """
+
+    __slots__ = ("message", "name")
+
+    def __init__(self, message: str) -> None:
+        self.message = message  # "{cls}" and "{name}" are filled in
+        self.name = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj: object, objtype: type | None = None) -> Any:
+        if obj is None:
+            return self
+        raise AttributeError(self.message.format(cls=type(obj).__name__, name=self.name))
 
 
 class Role(str, Enum):
@@ -93,10 +119,8 @@ class NodeEnv:
         self.__env = env
         self.__to_true_delay = to_true_delay
 
-    def __getattr__(self, name: str) -> Any:
-        if name == "now":
-            raise AttributeError("a node has no access to true time: use Node.local_time()")
-        raise AttributeError(name)
+    if not TYPE_CHECKING:  # to a type checker these names do not exist, as they should not
+        now = _Unavailable("a node has no access to true time: use Node.local_time()")
 
     # -- what SimPy's events and processes ask of their ``env`` --------------------------------
 
@@ -155,6 +179,15 @@ class NodeEnv:
         """Hand a kernel/channel event to the node: its ``env`` becomes this view (kernel use)."""
         event.env = self  # type: ignore[assignment]
         return event
+
+
+#: what reading a guessed truth attribute of a node says ({{cls}} and {{name}} are the
+#: _Unavailable's, {hint} what to use instead)
+_NO_TRUTH = (
+    "{{cls}} has no attribute {{name!r}}: a node sees only its local clock, its receptions and its own "
+    "sensors{hint} (README, 'Writing a protocol')"
+)
+_OWN_POSITION = "; its own position comes from known_position() (a position fix) or from localization"
 
 
 class _NoParams(BaseModel):
@@ -263,7 +296,7 @@ class Node:
 
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""
-        return len(self.__k.inbox)
+        return self.__k.pending()
 
     def take_pending(self) -> list[Reception]:
         """Every buffered reception, oldest first, taken now without an event each (what
@@ -318,24 +351,12 @@ class Node:
     def __repr__(self) -> str:
         return f"<{type(self).__name__} id={self.id} role={self.role.value}>"
 
-    def __getattr__(self, name: str) -> Any:
-        # only reached for names the node does not have: say what a node can use instead of
-        # letting the error surface from inside the kernel's process stepping
-        if name.startswith("__"):
-            raise AttributeError(name)
-        hint = _TRUTH_HINTS.get(name, "")
-        raise AttributeError(
-            f"{type(self).__name__} has no attribute {name!r}: a node sees only its local clock, its "
-            f"receptions and its own sensors{hint} (README, 'Writing a protocol')"
-        )
-
-
-#: what a node can use instead of the ground truth a protocol author may guess at
-_TRUTH_HINTS = {
-    "position": "; its own position comes from known_position() (a position fix) or from localization",
-    "true_position": "; its own position comes from known_position() (a position fix) or from localization",
-    "now": "; time is local_time()",
-    "time": "; time is local_time()",
-    "sim": "; the simulation is not reachable from a node",
-    "velocity_true": "; velocity() is the velocity sensor",
-}
+    # Ground truth a protocol author may guess at, and what a node can use instead (to a type
+    # checker these names do not exist, as they should not).
+    if not TYPE_CHECKING:
+        position = _Unavailable(_NO_TRUTH.format(hint=_OWN_POSITION))
+        true_position = _Unavailable(_NO_TRUTH.format(hint=_OWN_POSITION))
+        now = _Unavailable(_NO_TRUTH.format(hint="; time is local_time()"))
+        time = _Unavailable(_NO_TRUTH.format(hint="; time is local_time()"))
+        sim = _Unavailable(_NO_TRUTH.format(hint="; the simulation is not reachable from a node"))
+        velocity_true = _Unavailable(_NO_TRUTH.format(hint="; velocity() is the velocity sensor"))

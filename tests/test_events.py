@@ -1,13 +1,16 @@
 """The kernel's compiled event queue (aquasim_py/events.py, _events.c) against SimPy's own
 Environment: random SimPy programs (timeouts with tied, int and float delays, shared events
 succeeded and failed, conditions, interrupts, urgent and normal priorities) must log the same
-steps at the same times with the same time types, and end the same way."""
+steps at the same times with the same time types, and end the same way; and the queue alone,
+at sizes of thousands, pops in key order."""
 
 from __future__ import annotations
 
+import bisect
 import math
 from typing import Any
 
+import numpy as np
 import pytest
 import simpy
 from hypothesis import given, settings
@@ -119,6 +122,35 @@ def test_order_is_time_then_priority_then_sequence() -> None:
     ]
     env.run()
     assert seen == ["early", "u", "b", "a", "c"]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 3000), pop_share=st.sampled_from([0.1, 0.4, 0.5]))
+def test_the_queue_pops_in_key_order_at_any_size(seed: int, n: int, pop_share: float) -> None:
+    """Pushes and pops interleaved, with ties of time and priority, in queues of up to a
+    couple of thousand entries (several levels of the heap): every pop gives the least pending
+    key (time, priority, sequence number), checked against a sorted list of the keys."""
+    rng = np.random.default_rng(seed)
+    times = rng.choice([0.0, 0.5, 1.0, 1.0, 2.0, 3.5], size=n).tolist()
+    prios = rng.integers(-1, 3, size=n).tolist()
+    pops = (rng.random(n) < pop_share).tolist()
+    q = events._events.Queue()
+    pending: list[tuple[float, int, int]] = []  # the reference: the pending keys, kept sorted
+    popped, expected = [], []
+    eid = 0  # the queue's sequence number of the next push
+    for t, prio, pop in zip(times, prios, pops):
+        if pop:
+            if pending:
+                expected.append(pending.pop(0))
+                popped.append(q.pop())
+        else:
+            key = (t, prio, eid)
+            q.push(t, prio, key)  # the event object is the key itself
+            bisect.insort(pending, key)
+            eid += 1
+    popped.extend(q.pop() for _ in range(len(q)))
+    expected.extend(pending)
+    assert popped == expected
 
 
 @pytest.mark.parametrize("requeue", [True, False])

@@ -103,6 +103,50 @@ def test_recv_kinds_filter_keeps_other_packets():
     assert results[2] is None and results[3] == 0
 
 
+def test_several_waiting_recvs_are_served_in_line():
+    """With several processes waiting at once, a reception goes to the first waiting recv (in
+    the order they were made) that takes its kind; a recv that times out leaves the line, first
+    or not, and the others keep their places; what none takes stays in the inbox."""
+    got = []
+
+    class R(Node):
+        name = "r"
+
+        def waiter(self, label, **kw):
+            rec = yield self.recv(**kw)
+            got.append((label, None if rec is None else rec.packet.kind, self.local_time()))
+
+        def run(self):
+            # the line at t = 0: a (kind a), any (times out at 1.5), any, b (kind b)
+            self.env.process(self.waiter("p1", kinds="a"))
+            self.env.process(self.waiter("p2", timeout=1.5))
+            self.env.process(self.waiter("p3"))
+            self.env.process(self.waiter("p4", kinds="b", timeout=100.0))
+            yield self.sleep(6.0)
+            # the first in line times out with another behind it
+            self.env.process(self.waiter("q1", kinds="z", timeout=1.0))
+            self.env.process(self.waiter("q2", kinds="z"))
+            yield self.sleep(10.0)
+            got.append(("pending", self.pending(), self.local_time()))
+
+    # sent at t, heard at t + 1 (1500 m at 1500 m/s), plus 10 bits at 1 kbit/s (default bitrate)
+    sim = _sim(R, [(2.0, "b"), (2.5, "a"), (3.0, "c"), (4.0, "b"), (7.5, "z")])
+    sim.run(30.0)
+    labels = [(label, kind) for label, kind, _ in got]
+    assert labels == [
+        ("p2", None),  # 1.5: times out second in line
+        ("p3", "b"),  # 3: p1 wants "a", p3 is the first that takes "b"
+        ("p1", "a"),
+        ("p4", "b"),  # "c" (4) went to the inbox: p4 takes only "b"
+        ("q1", None),  # 7: the first in line times out, q2 moves up
+        ("q2", "z"),
+        ("pending", 1),  # the "c"
+    ]
+    times = [t for _, _, t in got]
+    assert times[0] == pytest.approx(1.5) and times[4] == pytest.approx(7.0)
+    assert times[1] < times[2] < times[3] < times[5]
+
+
 def test_sleep_and_timeouts_run_on_the_local_clock():
     """sleep / recv timeout / env.timeout take local seconds: with skew 1e-3 and offset 5 the
     true duration is dt / (1 + skew)."""
@@ -355,6 +399,28 @@ def test_a_guessed_truth_attribute_says_what_a_node_can_use() -> None:
     with pytest.raises(AttributeError, match=r"no attribute 'position'.*known_position\(\)"):
         node.position()  # type: ignore[attr-defined]
     assert not hasattr(node, "now")  # still an AttributeError, so hasattr() keeps working
+
+
+def test_a_protocol_may_use_a_guessed_truth_name_for_its_own() -> None:
+    """The hints do not reserve the names: a protocol's own attribute or method named like a
+    guessed truth attribute is its own."""
+
+    class Own(Node):
+        name = "own"
+
+        def setup(self):
+            self.time = 3.0  # its own (local) bookkeeping
+
+        def position(self):  # its own estimate
+            return (1.0, 2.0, 3.0)
+
+    sim = Simulation(1, ssp=C, volume=BOX)
+    node = sim.add_group(Own, 1, positions=[[1.0, 2.0, 3.0]])[0]
+    node.setup()
+    assert node.time == 3.0 and node.position() == (1.0, 2.0, 3.0)
+    with pytest.raises(AttributeError, match=r"no attribute 'now'.*local_time\(\)"):
+        node.now  # noqa: B018
+    assert not hasattr(node, "sim")
 
 
 def test_at_instant_end_runs_after_every_other_event_of_its_instant():

@@ -113,6 +113,40 @@ def test_stub_network_broadcast_timeline():
     assert ports[0].got == [] and all(p.jitter_asked == 0 for p in ports)
 
 
+class OtherPort(StubPort):
+    """A port of another class: its deliver is another function."""
+
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        self.got.append(("other", packet.kind))
+
+
+class PlainCallablePort(StubPort):
+    """A port whose deliver is a plain callable attribute, not a method."""
+
+    def __init__(self, index: int) -> None:
+        super().__init__(index)
+        self.deliver = lambda packet, rx_local, snr_db, pressure: self.got.append(("plain", packet.kind))
+
+
+@pytest.mark.usefixtures("delivery_path")
+def test_each_port_gets_its_own_deliver_called():
+    """Ports of different kinds on one channel (two classes, and a deliver that is not a
+    method): each reception goes to its receiver's own deliver."""
+    ports = [StubPort(0), OtherPort(1), PlainCallablePort(2), StubPort(3)]
+    env, ch, _ = _channel([[0, 0, 10], [1500, 0, 10], [0, 1500, 10], [-1500, 0, 10]], ports)
+
+    def sender() -> Any:
+        yield env.timeout(0.5)
+        yield ch.transmit(0, None, "ping", None, 100)
+
+    env.process(sender())
+    env.run(10.0)
+    assert ports[0].got == []
+    assert ports[1].got == [("other", "ping")] and ports[2].got == [("plain", "ping")]
+    (rec,) = ports[3].got
+    assert rec.packet.kind == "ping" and rec.packet.src == 0
+
+
 def test_stub_network_half_duplex_and_queue():
     """1 starts a 0.5 s packet at t = 0.8 while 0's packet (sent at 0) arrives over [1.0, 1.5):
     1 drops it (half-duplex). 0 queues a second packet behind its first one."""

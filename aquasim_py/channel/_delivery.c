@@ -38,7 +38,7 @@ static AquasimEventsAPI *events_api;
 /* ------------------------------------------------------------------------------------------ */
 /* interned strings and heapq */
 
-static PyObject *s_rx, *s_drop, *s_half_duplex, *s_collision, *s_now, *s_index;
+static PyObject *s_rx, *s_drop, *s_half_duplex, *s_collision, *s_now;
 static PyObject *s_uid, *s_src, *s_kind, *s_bits;
 static PyObject *heappush_fn, *heappop_fn;
 
@@ -58,10 +58,17 @@ typedef struct {
     double busy_until;    /* latest end of own transmissions (true s) */
     Sig *sig;             /* the signal log, sorted by arrival */
     Tx *tx;               /* own transmissions in order of start; room for log_cap + 1 */
-    PyObject *deliver;    /* the port's deliver(pkt, rx_local, snr, pressure) */
+    PyObject *deliver;    /* the port's deliver(pkt, rx_local, snr, pressure), or the port tagged (PORT) */
     double a, b;          /* exact clock: local = a * t + b with a = 1.0 + skew; a = 0: not exact */
     int32_t nsig, capsig, ntx, log_cap;
 } Node;
+
+/* Node.deliver holds the port itself, tagged in its low bit, when the port's deliver is the
+ * core's deliver_fn bound to it (every _NodeCore's is): the call then passes the port as the
+ * function's first argument, and the bound method object, one more cold line per delivery in a
+ * large network, is not kept. Any other deliver callable is kept as it is, untagged. */
+#define PORT ((uintptr_t)1)
+static inline PyObject *untag(PyObject *o) { return (PyObject *)((uintptr_t)o & ~PORT); }
 
 static int grow(void **p, Py_ssize_t cap, size_t size) {
     void *q = PyMem_Realloc(*p, (size_t)cap * size);
@@ -166,6 +173,7 @@ typedef struct {
     PyObject *pressure;    /* pressure(pkt, rid, t_send, t_arr) -> float */
     PyObject *pressure_kind;
     PyObject *cb;          /* [self.run]: the callbacks of every channel entry */
+    PyObject *deliver_fn;  /* the function of the first node's bound deliver (see PORT) */
     PyObject *nan;
     int own_heap;          /* the channel's entries on its own heap, its head proxied on SimPy's */
     int cq;                /* queue is the kernel's compiled queue (events_api): entries go on it */
@@ -198,7 +206,8 @@ static PyTypeObject CoreType;
 static PyTypeObject DeliveriesType;
 
 static int Core_traverse(Core *self, visitproc visit, void *arg) {
-    for (Py_ssize_t i = 0; i < self->n; i++) Py_VISIT(self->nodes[i].deliver);
+    for (Py_ssize_t i = 0; i < self->n; i++) Py_VISIT(untag(self->nodes[i].deliver));
+    Py_VISIT(self->deliver_fn);
     Py_VISIT(self->queue);
     Py_VISIT(self->eid);
     Py_VISIT(self->env);
@@ -211,7 +220,12 @@ static int Core_traverse(Core *self, visitproc visit, void *arg) {
 }
 
 static int Core_clear(Core *self) {
-    for (Py_ssize_t i = 0; i < self->n; i++) Py_CLEAR(self->nodes[i].deliver);
+    for (Py_ssize_t i = 0; i < self->n; i++) {
+        PyObject *o = untag(self->nodes[i].deliver);
+        self->nodes[i].deliver = NULL;
+        Py_XDECREF(o);
+    }
+    Py_CLEAR(self->deliver_fn);
     Py_CLEAR(self->queue);
     Py_CLEAR(self->eid);
     Py_CLEAR(self->env);
@@ -316,8 +330,21 @@ static PyObject *Core_attach(Core *self, PyObject *args) {
     nd->b = offset;
     nd->tx = tx;
     nd->log_cap = 8;
-    Py_INCREF(deliver);
-    nd->deliver = deliver;
+    if (PyMethod_Check(deliver)) {
+        PyObject *fn = PyMethod_GET_FUNCTION(deliver), *port = PyMethod_GET_SELF(deliver);
+        if (self->deliver_fn == NULL) {
+            Py_INCREF(fn);
+            self->deliver_fn = fn;
+        }
+        if (fn == self->deliver_fn) {
+            Py_INCREF(port);
+            nd->deliver = (PyObject *)((uintptr_t)port | PORT);
+        }
+    }
+    if (nd->deliver == NULL) {
+        Py_INCREF(deliver);
+        nd->deliver = deliver;
+    }
     self->n++;
     Py_RETURN_NONE;
 }
@@ -381,7 +408,7 @@ static int record(Node *nd, double arr, double end, double snr, long long uid, d
     return 0;
 }
 
-/* pack(heard): heard as _links gives it, [(modem, delay, path name, snr), ...] sorted by delay */
+/* pack(heard): heard as _links gives it, [(receiver id, delay, path name, snr), ...] sorted by delay */
 static PyObject *Core_pack(Core *self, PyObject *heard) {
     if (!PyList_Check(heard)) {
         PyErr_SetString(PyExc_TypeError, "pack: heard must be a list");
@@ -400,16 +427,10 @@ static PyObject *Core_pack(Core *self, PyObject *heard) {
         PyObject *h = PyList_GET_ITEM(heard, i);
         if (!PyTuple_Check(h) || PyTuple_GET_SIZE(h) != 4) {
             Py_DECREF(L);
-            PyErr_SetString(PyExc_TypeError, "pack: heard entries are (modem, delay, path, snr)");
+            PyErr_SetString(PyExc_TypeError, "pack: heard entries are (receiver id, delay, path, snr)");
             return NULL;
         }
-        PyObject *idx = PyObject_GetAttr(PyTuple_GET_ITEM(h, 0), s_index);
-        if (idx == NULL) {
-            Py_DECREF(L);
-            return NULL;
-        }
-        Py_ssize_t rid = PyLong_AsSsize_t(idx);
-        Py_DECREF(idx);
+        Py_ssize_t rid = PyLong_AsSsize_t(PyTuple_GET_ITEM(h, 0));
         if (rid == -1 && PyErr_Occurred()) {
             Py_DECREF(L);
             return NULL;
@@ -708,6 +729,11 @@ static int deliver_one(Core *self, Deliveries *d) {
         const char *p = (const char *)rx->sig, *e = (const char *)(rx->sig + rx->nsig);
         for (; p < e; p += 64) __builtin_prefetch(p);
     }
+    /* the port's first line (its reference count and, for a _NodeCore, every slot its deliver
+     * reads) and the next, for a port not aligned to a line */
+    const char *port = (const char *)untag(rx->deliver);
+    __builtin_prefetch(port, 1);
+    __builtin_prefetch(port + 63, 1);
     double arr = d->t0 + h->tof;
     double end = arr + d->duration;
     int v = scan(self, rx, arr, end, h->snr, d->uid);
@@ -775,8 +801,14 @@ static int deliver_one(Core *self, Deliveries *d) {
             Py_INCREF(self->nan);
             p = self->nan;
         }
-        PyObject *argv[4] = {d->pkt, rx_local, snr, p};
-        PyObject *r = PyObject_Vectorcall(rx->deliver, argv, 4, NULL);
+        PyObject *r;
+        if ((uintptr_t)rx->deliver & PORT) {
+            PyObject *argv[5] = {untag(rx->deliver), d->pkt, rx_local, snr, p};
+            r = PyObject_Vectorcall(self->deliver_fn, argv, 5, NULL);
+        } else {
+            PyObject *argv[4] = {d->pkt, rx_local, snr, p};
+            r = PyObject_Vectorcall(rx->deliver, argv, 4, NULL);
+        }
         Py_DECREF(p);
         if (r == NULL) {
             Py_DECREF(row);
@@ -1031,7 +1063,6 @@ PyMODINIT_FUNC PyInit__delivery(void) {
     INTERN(s_half_duplex, "half_duplex");
     INTERN(s_collision, "collision");
     INTERN(s_now, "_now");
-    INTERN(s_index, "index");
     INTERN(s_uid, "uid");
     INTERN(s_src, "src");
     INTERN(s_kind, "kind");

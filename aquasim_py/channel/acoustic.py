@@ -99,7 +99,7 @@ PATH_NAMES = {
     int(PathKind.BOTTOM): "bottom",
 }
 
-_DELAY = itemgetter(1)  # heard entries: (receiver modem, delay, path, snr)
+_DELAY = itemgetter(1)  # heard entries: (receiver id, delay, path, snr)
 # signal records: (arrival, end, snr_db, receiver id, packet, tof, path, dst)
 _Signal = tuple[float, float, float, int, Packet, float, str, int]
 
@@ -563,27 +563,28 @@ class AcousticChannel:
                 core.start(pkt, dst, t0, duration, packed[1], forget)
             return tx_local
         sigs: list[_Signal] = []
+        modems = self._modems
         if dst is None:
-            for rx, T, path, s in heard:
+            for rid, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
                 # one record is both the receiver's signal record (sorted by arrival) and the
                 # delivery's context
-                sig = (arr, end, s, rx.index, pkt, T, path, -1)
+                sig = (arr, end, s, rid, pkt, T, path, -1)
                 if track:
-                    rx.record(sig, forget)
+                    modems[rid].record(sig, forget)
                 sigs.append(sig)
         else:
             # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
-            for rx, T, path, s in heard:
-                intended = rx.index == dst
+            for rid, T, path, s in heard:
+                intended = rid == dst
                 if not (track or intended):
                     continue
                 arr = t0 + T
                 end = arr + duration
-                sig = (arr, end, s, rx.index, pkt, T, path, dst)
+                sig = (arr, end, s, rid, pkt, T, path, dst)
                 if track:
-                    rx.record(sig, forget)
+                    modems[rid].record(sig, forget)
                 if intended:
                     sigs.append(sig)
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
@@ -600,11 +601,12 @@ class AcousticChannel:
 
     def _links(
         self, src: int, t0: float
-    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+    ) -> tuple[list[int], list[tuple[int, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """Who hears ``src`` transmitting at ``t0``: (ids in range, in any order; heard; lost).
 
-        heard: (receiver modem, delay s, path name, SNR dB) of signals that reach the receiver,
-        sorted by delay;
+        heard: (receiver id, delay s, path name, SNR dB) of signals that reach the receiver,
+        sorted by delay (ids, not modems: a moving network makes these lists at every
+        transmission, and each receiver's modem object would be one more cold line);
         lost: (id, "no_path" | "snr", delay, path name, SNR) of those that do not. When no node
         moves the answer never changes, so it is cached per sender (recomputed if nodes are
         added; the loss model must be a pure function of the eigenray and the config).
@@ -667,16 +669,15 @@ class AcousticChannel:
 
     def _sorted_links(
         self, ids: list[int], times: NDArray[np.float64], paths: Iterable[str], snr: NDArray[np.float64]
-    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]]:
+    ) -> tuple[list[int], list[tuple[int, float, str, float]], list[tuple[int, str, float, str, float]]]:
         """(ids, heard, lost) of ``_links`` from the candidates' delays (s), path names and SNR (dB)."""
-        modems = self._modems
         thr = self.config.snr_threshold_db
-        heard: list[tuple[_Modem, float, str, float]] = []
+        heard: list[tuple[int, float, str, float]] = []
         lost: list[tuple[int, str, float, str, float]] = []
         # lost: no eigenray (NaN delay, shadow zone) or SNR below the threshold (a NaN SNR,
         # no loss model, compares False: never dropped on SNR)
         if not ((times != times) | (snr < thr)).any():  # the usual case: all heard, no loop
-            heard = list(zip(map(modems.__getitem__, ids), times.tolist(), paths, snr.tolist()))
+            heard = list(zip(ids, times.tolist(), paths, snr.tolist()))
         else:
             for rid, T, p, s in zip(ids, times.tolist(), paths, snr.tolist()):
                 if T != T:
@@ -684,13 +685,13 @@ class AcousticChannel:
                 elif s < thr:
                     lost.append((rid, "snr", T, p, s))
                 else:
-                    heard.append((modems[rid], T, p, s))
+                    heard.append((rid, T, p, s))
         heard.sort(key=_DELAY)  # stable: equal delays keep the candidates' order
         return ids, heard, lost
 
     def _compiled_links(
         self, near: NDArray[np.intp], t0: float
-    ) -> tuple[list[int], list[tuple[_Modem, float, str, float]], list[tuple[int, str, float, str, float]]] | None:
+    ) -> tuple[list[int], list[tuple[int, float, str, float]], list[tuple[int, str, float, str, float]]] | None:
         """``_links`` by the compiled kernel (``channel.straight``) for the sender ``near[0]``
         and its neighbourhood ``near[1:]``; None when the general path must decide."""
         assert self._lines is not None
@@ -709,13 +710,8 @@ class AcousticChannel:
             thr = self.config.snr_threshold_db
             snr, lost, ids, t_s, snr_s = finish(cand, times, length, np.log10(np.maximum(length, 1.0)), terms, thr)
             if not lost:  # the usual case: every receiver heard, already in order of arrival
-                modems = self._modems
                 in_range = ids.tolist()
-                return (
-                    in_range,
-                    list(zip(map(modems.__getitem__, in_range), t_s.tolist(), self._direct, snr_s.tolist())),
-                    [],
-                )
+                return in_range, list(zip(in_range, t_s.tolist(), self._direct, snr_s.tolist())), []
         else:  # any other model gets the whole ray, as _straight_moving makes it
             ray = _direct_rays(times, length, np.arctan2(diff[:, 2], np.hypot(diff[:, 0], diff[:, 1])))
             snr = np.asarray(model(ray, self.config), dtype=float)

@@ -559,8 +559,8 @@ def test_current_driven_receivers_one_exact_step_and_exact():
         assert heard and not lost
         if k % 9 == 0:
             p_src = positions_at(np.array([src]), np.array([t0]))[0]
-            for modem, tof, _, _ in heard:
-                j = np.array([modem.index])
+            for rid, tof, _, _ in heard:
+                j = np.array([rid])
                 ref = brentq(
                     lambda s, j=j: 1500.0 * s - np.linalg.norm(positions_at(j, np.array([t0 + s]))[0] - p_src),
                     0.0,
