@@ -12,7 +12,9 @@ Figures (docs/performance.md has the table and what each one means):
   1 m/s, steady state (after the first two simulated seconds);
 * scaling: steady-state CPU per reception at each network size at the same neighbour count
   (the square grows with sqrt(N)), static and moving, the ratio of the largest size to 200
-  nodes, and the same for bare SimPy; ``--plot`` draws it;
+  nodes, and the same for bare SimPy; ``--plot`` draws it. A single ratio varies by about
+  +-0.3 between runs of one checkout; ``--scaling-rounds N`` runs every point N times, the
+  sizes alternated, and reports the ratio of the medians with each round's ratio beside it;
 * e2e: a CLI run (``python -m aquasim_py``, a subprocess, packets traced to CSV) of 200 beacon
   nodes (100 anchors beaconing once a second, 100 listeners logging ranges; ~16 neighbours),
   two durations, so the start-up (imports, scenario, building) cancels: (receptions of the long
@@ -68,46 +70,66 @@ def kernel(until: float, seed: int) -> list[dict[str, Any]]:
     return rows
 
 
-def scaling(sizes: list[int], receptions: float, seed: int) -> list[dict[str, float]]:
+def scaling(sizes: list[int], receptions: float, seed: int, rounds: int = 1) -> list[dict[str, Any]]:
     """Steady-state CPU per reception (us) at each size, static and moving, with bare SimPy's
     per delivery: each run lasts 2 s of warm-up plus enough simulated time for about
-    ``receptions`` receptions (16 per transmission, one transmission per node and second)."""
+    ``receptions`` receptions (16 per transmission, one transmission per node and second).
+    With ``rounds`` > 1 every size is run once per round, the sizes alternated, and each point
+    holds the median of its rounds (``us_per_reception``) and every round's figure
+    (``rounds_us``): a single ratio between two sizes varies by about +-0.3 between runs."""
+    runs: dict[tuple[int, float], list[dict[str, Any]]] = {}
+    for r in range(rounds):
+        for n in sizes:
+            pos, rng_m = bk.layout(n, 16.0, seed)
+            until = 2.0 + max(2.0, round(receptions / (16.0 * n)))
+            for speed in (0.0, 1.0):
+                k = bk.run_both(pos, rng_m, until, True, seed, speed)
+                runs.setdefault((n, speed), []).append({"until": until, **k})
+                print(
+                    f"  {n:5d} nodes, {'moving' if speed else 'static'}: {k['steady_us_per_reception']:.2f} us per "
+                    f"reception, bare {k['steady_bare_us_per_delivery']:.2f} us, ratio {k['steady_ratio']:.3f}"
+                    + (f" (round {r + 1} of {rounds})" if rounds > 1 else ""),
+                    flush=True,
+                )
     out = []
-    for n in sizes:
-        pos, rng_m = bk.layout(n, 16.0, seed)
-        until = 2.0 + max(2.0, round(receptions / (16.0 * n)))
-        for speed in (0.0, 1.0):
-            k = bk.run_both(pos, rng_m, until, True, seed, speed)
-            out.append(
-                {
-                    "nodes": n,
-                    "speed": speed,
-                    "until": until,
-                    "us_per_reception": k["steady_us_per_reception"],
-                    "bare_us_per_delivery": k["steady_bare_us_per_delivery"],
-                    "ratio": k["steady_ratio"],
-                }
-            )
-            print(
-                f"  {n:5d} nodes, {'moving' if speed else 'static'}: {k['steady_us_per_reception']:.2f} us per "
-                f"reception, bare {k['steady_bare_us_per_delivery']:.2f} us, ratio {k['steady_ratio']:.3f}",
-                flush=True,
-            )
+    for (n, speed), ks in runs.items():
+        us = [k["steady_us_per_reception"] for k in ks]
+        bare = [k["steady_bare_us_per_delivery"] for k in ks]
+        out.append(
+            {
+                "nodes": n,
+                "speed": speed,
+                "until": ks[0]["until"],
+                "us_per_reception": statistics.median(us),
+                "bare_us_per_delivery": statistics.median(bare),
+                "ratio": statistics.median(k["steady_ratio"] for k in ks),
+                "rounds_us": us,
+                "rounds_bare_us": bare,
+            }
+        )
     return out
 
 
-def scaling_rows(points: list[dict[str, float]]) -> list[dict[str, Any]]:
+def scaling_rows(points: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The 5000 / 200 figures (largest / smallest size): the ratio of the points' medians, and
+    with several rounds each round's own ratio beside it."""
     rows: list[dict[str, Any]] = []
     n0, n1 = min(p["nodes"] for p in points), max(p["nodes"] for p in points)
     for speed in (0.0, 1.0):
         a = next(p for p in points if p["nodes"] == n0 and p["speed"] == speed)
         b = next(p for p in points if p["nodes"] == n1 and p["speed"] == speed)
         label = "moving" if speed else "static"
+        each = [y / x for x, y in zip(a.get("rounds_us", []), b.get("rounds_us", []))]
         rows.append(
             {
                 "figure": f"CPU per reception, {n1:g} / {n0:g} nodes, {label}",
                 "value": b["us_per_reception"] / a["us_per_reception"],
-                "unit": "x",
+                "unit": "x"
+                + (
+                    f" (median of {len(each)} rounds; each: {', '.join(f'{r:.2f}' for r in each)})"
+                    if len(each) > 1
+                    else ""
+                ),
                 "target": "<= 1.5",
             }
         )
@@ -122,7 +144,7 @@ def scaling_rows(points: list[dict[str, float]]) -> list[dict[str, Any]]:
     return rows
 
 
-def plot(points: list[dict[str, float]], path: Path) -> None:
+def plot(points: list[dict[str, Any]], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -289,6 +311,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", default="kernel,scaling,e2e,layered", help="comma-separated subset")
     ap.add_argument("--sizes", default="200,500,1000,2000,5000", help="network sizes for the scaling figure")
     ap.add_argument("--receptions", type=float, default=3e5, help="receptions per scaling point (steady state)")
+    ap.add_argument(
+        "--scaling-rounds", type=int, default=1, help="runs of every scaling point, sizes alternated (medians reported)"
+    )
     ap.add_argument("--kernel-until", type=float, default=50.0, help="simulated s of the 200-node kernel runs")
     ap.add_argument("--e2e", default="10,60", help="short,long durations (s) of the CLI runs")
     ap.add_argument("--e2e-rounds", type=int, default=3, help="pairs of CLI runs (the median is reported)")
@@ -305,13 +330,13 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     parts = set(args.only.split(","))
     rows: list[dict[str, Any]] = []
-    points: list[dict[str, float]] = []
+    points: list[dict[str, Any]] = []
     if "kernel" in parts:
         print("kernel, 200 nodes ...", flush=True)
         rows += kernel(args.kernel_until, args.seed)
     if "scaling" in parts:
         print("scaling ...", flush=True)
-        points = scaling([int(s) for s in args.sizes.split(",")], args.receptions, args.seed)
+        points = scaling([int(s) for s in args.sizes.split(",")], args.receptions, args.seed, args.scaling_rounds)
         rows += scaling_rows(points)
         if args.plot is not None:
             plot(points, args.plot)
