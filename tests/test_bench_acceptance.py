@@ -32,5 +32,5 @@ def test_scaling_ratio_is_of_the_medians_with_each_rounds_ratio() -> None:
     ]
     static, _, moving, _ = ba.scaling_rows(points)
     assert static["value"] == 2.5 / 1.5
-    assert static["unit"] == "x (median of 3 rounds; each: 2.00, 1.25, 2.20)"
+    assert static["unit"] == "x (of the medians of 3 rounds; each round's: 2.00, 1.25, 2.20)"
     assert moving["value"] == 1.5 and moving["unit"] == "x"  # one round: as before

@@ -126,7 +126,7 @@ def scaling_rows(points: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "value": b["us_per_reception"] / a["us_per_reception"],
                 "unit": "x"
                 + (
-                    f" (median of {len(each)} rounds; each: {', '.join(f'{r:.2f}' for r in each)})"
+                    f" (of the medians of {len(each)} rounds; each round's: {', '.join(f'{r:.2f}' for r in each)})"
                     if len(each) > 1
                     else ""
                 ),
@@ -324,6 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, default=None, help="write every figure and scaling point here")
     ap.add_argument("--replot", type=Path, default=None, help="only redraw --plot from a JSON written by --json")
     args = ap.parse_args(argv)
+    if args.scaling_rounds < 1:
+        ap.error(f"--scaling-rounds: must be >= 1 (got {args.scaling_rounds})")
     if args.replot is not None:
         plot(json.loads(args.replot.read_text())["scaling"], args.plot or Path("out/bench/scaling.png"))
         return 0
