@@ -228,7 +228,7 @@ class _NodeCore:
         if ev is not None:
             kinds = self._waiter_kinds
             if kinds is None or packet.kind in kinds:
-                if self._waiters is None:
+                if self._waiters is None:  # the usual case, one waiter: _next_waiter's first branch, inline
                     self._waiter = self._waiter_kinds = None
                 else:
                     self._next_waiter()

@@ -181,12 +181,14 @@ class NodeEnv:
         return event
 
 
-#: what reading a guessed truth attribute of a node says ({{cls}} and {{name}} are the
-#: _Unavailable's, {hint} what to use instead)
-_NO_TRUTH = (
-    "{{cls}} has no attribute {{name!r}}: a node sees only its local clock, its receptions and its own "
-    "sensors{hint} (README, 'Writing a protocol')"
-)
+def _no_truth(hint: str) -> _Unavailable:
+    """A node's answer to a guessed truth attribute; ``hint`` says what to use instead."""
+    return _Unavailable(
+        "{cls} has no attribute {name!r}: a node sees only its local clock, its receptions and its own "
+        f"sensors{hint} (README, 'Writing a protocol')"
+    )
+
+
 _OWN_POSITION = "; its own position comes from known_position() (a position fix) or from localization"
 
 
@@ -354,9 +356,9 @@ class Node:
     # Ground truth a protocol author may guess at, and what a node can use instead (to a type
     # checker these names do not exist, as they should not).
     if not TYPE_CHECKING:
-        position = _Unavailable(_NO_TRUTH.format(hint=_OWN_POSITION))
-        true_position = _Unavailable(_NO_TRUTH.format(hint=_OWN_POSITION))
-        now = _Unavailable(_NO_TRUTH.format(hint="; time is local_time()"))
-        time = _Unavailable(_NO_TRUTH.format(hint="; time is local_time()"))
-        sim = _Unavailable(_NO_TRUTH.format(hint="; the simulation is not reachable from a node"))
-        velocity_true = _Unavailable(_NO_TRUTH.format(hint="; velocity() is the velocity sensor"))
+        position = _no_truth(_OWN_POSITION)
+        true_position = _no_truth(_OWN_POSITION)
+        now = _no_truth("; time is local_time()")
+        time = _no_truth("; time is local_time()")
+        sim = _no_truth("; the simulation is not reachable from a node")
+        velocity_true = _no_truth("; velocity() is the velocity sensor")

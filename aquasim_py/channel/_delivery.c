@@ -667,7 +667,7 @@ static PyObject *Core_start(Core *self, PyObject *args) {
         d->pressure = eq;
     }
     /* the first end: t0 + (sigs[0][1] - t0) with sigs[0][1] = (t0 + T) + duration */
-    double arr = t0 + L->h[k0].tof;
+    double arr = t0 + d->cur.tof;
     double end = arr + duration;
     int rc = push(self, d, t0 + (end - t0));
     Py_DECREF(d);
