@@ -12,6 +12,7 @@ little as possible.
     python tools/bench_kernel.py --quick --nodes 5000 --until 4   # same density, 25x the area
     python tools/bench_kernel.py --quick --speed 1 [--numpy-links]   # moving: compiled (numpy) links
     python tools/bench_kernel.py --quick [--python-delivery | --simpy-heap]   # the delivery's variants
+    python tools/bench_kernel.py --quick --receiver drop   # what the receivers do (RECEIVERS)
 
 The reported "CPU per reception" (kernel CPU time / receptions decided) is the figure to
 compare across network sizes at the same neighbour count.
@@ -25,6 +26,7 @@ import math
 import resource
 import sys
 import time
+from typing import Any
 
 import numpy as np
 import simpy
@@ -32,7 +34,7 @@ from scipy.spatial import cKDTree
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
-from aquasim_py.kernel import Simulation, quiet_gc
+from aquasim_py.kernel import Simulation, _NodeCore, quiet_gc
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
 
@@ -70,14 +72,24 @@ def layout(n: int, neighbours: float, seed: int) -> tuple[np.ndarray, float]:
     return pos, hi
 
 
+#: what the benchmark's receivers do with their receptions (``--receiver``)
+RECEIVERS = {
+    "recv": "a process per node takes each reception with recv() (the default: a resume per reception)",
+    "take": "each node takes its inbox once a period with take_pending() (no resume per reception)",
+    "none": "nodes never take their receptions (the inbox keeps growing)",
+    "drop": "ablation: the kernel's deliver is a no-op (the channel and the senders alone)",
+}
+
+
 class BenchBeacon(Node):
-    """Broadcasts every PERIOD local seconds from a random phase; optionally drains its inbox."""
+    """Broadcasts every PERIOD local seconds from a random phase; takes its receptions as
+    ``receiver`` says (RECEIVERS)."""
 
     name = "bench_beacon"
-    listen = True
+    receiver = "recv"
 
     def run(self):
-        if self.listen:
+        if self.receiver in ("recv", "take"):
             self.env.process(self._drain())
         yield self.sleep(float(self.rng.uniform(0.0, PERIOD)))
         while True:
@@ -85,12 +97,28 @@ class BenchBeacon(Node):
             yield self.sleep(PERIOD - BITS / BITRATE)
 
     def _drain(self):
-        while True:
-            yield self.recv()
+        if self.receiver == "take":
+            while True:
+                yield self.sleep(PERIOD)
+                self.take_pending()
+        else:
+            while True:
+                yield self.recv()
 
 
-def build_kernel(pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: float = 0.0) -> Simulation:
-    cls = type("B", (BenchBeacon,), {"listen": listen})
+def _dropped(core: _NodeCore, packet: Any, rx_local: float, snr_db: float, pressure: float) -> None:
+    """The ``drop`` ablation's deliver: the reception is decided and traced, then discarded."""
+
+
+def build_kernel(
+    pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: float = 0.0, receiver: str | None = None
+) -> Simulation:
+    """The benchmark's network; ``receiver`` (RECEIVERS) overrides ``listen`` (True: "recv",
+    False: "none")."""
+    mode = receiver if receiver is not None else ("recv" if listen else "none")
+    if mode not in RECEIVERS:
+        raise ValueError(f"receiver must be one of {sorted(RECEIVERS)}, got {mode!r}")
+    cls = type("B", (BenchBeacon,), {"receiver": mode})
     side = side_m(len(pos))
     box = Box([-1.0, -1.0, 0.0], [side + 1.0, side + 1.0, 200.0])
     sim = Simulation(
@@ -99,13 +127,21 @@ def build_kernel(pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: 
         volume=box,
         channel=ChannelConfig(max_range_m=rng_m, bitrate_bps=BITRATE, collision="destructive"),
     )
-    if speed > 0.0:
-        # horizontal headings drawn per node: the channel then re-solves every delay per packet
-        head = np.random.default_rng(seed + 1).uniform(0.0, 2.0 * np.pi, len(pos))
-        vel = speed * np.column_stack([np.cos(head), np.sin(head), np.zeros(len(pos))])
-        sim.add_group(cls, len(pos), mobility=ConstantVelocity(pos, box, velocity=vel))
-    else:
-        sim.add_group(cls, len(pos), positions=pos)
+    # the channel takes each node's deliver when the node is attached: "drop" swaps the
+    # kernel's for the no-op while the group is added, and only then
+    kept = _NodeCore.deliver
+    if mode == "drop":
+        _NodeCore.deliver = _dropped  # type: ignore[method-assign,assignment]
+    try:
+        if speed > 0.0:
+            # horizontal headings drawn per node: the channel then re-solves every delay per packet
+            head = np.random.default_rng(seed + 1).uniform(0.0, 2.0 * np.pi, len(pos))
+            vel = speed * np.column_stack([np.cos(head), np.sin(head), np.zeros(len(pos))])
+            sim.add_group(cls, len(pos), mobility=ConstantVelocity(pos, box, velocity=vel))
+        else:
+            sim.add_group(cls, len(pos), positions=pos)
+    finally:
+        _NodeCore.deliver = kept  # type: ignore[method-assign]
     return sim
 
 
@@ -153,6 +189,7 @@ def run_both(
     speed: float,
     chunk: float = 1.0,
     warmup: float = 2.0 * PERIOD,
+    receiver: str | None = None,
 ) -> dict[str, float]:
     """Advance the kernel and the bare loop alternately, ``chunk`` simulated seconds at a time,
     summing each one's CPU time: load from other jobs then hits both alike.
@@ -161,8 +198,9 @@ def run_both(
     seconds: by then every node has sent (process start-up, a static sender's first link
     computation, the neighbour index's build are behind), so what is left is the cost that
     recurs with every reception, the one to compare across network sizes. Receptions decided
-    per chunk are counted exactly: rows added to the packets table minus transmissions."""
-    sim = build_kernel(pos, rng_m, listen, seed, speed)
+    per chunk are counted exactly: rows added to the packets table minus transmissions.
+    ``receiver``: as for :func:`build_kernel`."""
+    sim = build_kernel(pos, rng_m, listen, seed, speed, receiver)
     env, count = build_bare(pos, rng_m, first_tx_phases(len(pos), seed))
     table = sim.trace.table("packets")
     gc.collect()
@@ -220,7 +258,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--neighbours", type=float, default=16.0)
     ap.add_argument("--until", type=float, default=500.0, help="simulated seconds")
     ap.add_argument("--quick", action="store_true", help="50 simulated seconds")
-    ap.add_argument("--no-listen", action="store_true", help="nodes never call recv (modem buffers fill)")
+    ap.add_argument("--no-listen", action="store_true", help="nodes never take their receptions (= --receiver none)")
+    ap.add_argument(
+        "--receiver",
+        choices=sorted(RECEIVERS),
+        default=None,
+        help="what the nodes do with their receptions: " + "; ".join(f"{k}: {v}" for k, v in RECEIVERS.items()),
+    )
     ap.add_argument(
         "--speed",
         type=float,
@@ -244,6 +288,9 @@ def main(argv: list[str] | None = None) -> int:
         help="compiled delivery with every channel entry on SimPy's queue instead of the channel's own heap",
     )
     args = ap.parse_args(argv)
+    if args.no_listen and args.receiver not in (None, "none"):
+        ap.error(f"--no-listen and --receiver {args.receiver} disagree")
+    receiver = args.receiver or ("none" if args.no_listen else "recv")
     if args.numpy_links:
         AcousticChannel.compiled_links = False
     if args.python_delivery:
@@ -253,10 +300,10 @@ def main(argv: list[str] | None = None) -> int:
     until = min(50.0, args.until) if args.quick else args.until
     pos, rng_m = layout(args.nodes, args.neighbours, args.seed)
     mean_nb = float(np.mean([len(nb) for nb in neighbour_lists(pos, rng_m)]))
-    k = run_both(pos, rng_m, until, not args.no_listen, args.seed, args.speed)
+    k = run_both(pos, rng_m, until, receiver == "recv", args.seed, args.speed, receiver=receiver)
     print(
         f"nodes {args.nodes}, mean neighbours {mean_nb:.2f} (range {rng_m:.0f} m), {until:g} s simulated, "
-        f"nodes {'do not listen' if args.no_listen else 'drain their inbox'}, "
+        f"receivers: {RECEIVERS[receiver]}, "
         f"{f'moving at {args.speed:g} m/s' if args.speed > 0 else 'static'}"
     )
     print(
