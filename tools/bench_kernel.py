@@ -110,12 +110,10 @@ def _dropped(core: _NodeCore, packet: Any, rx_local: float, snr_db: float, press
     """The ``drop`` ablation's deliver: the reception is decided and traced, then discarded."""
 
 
-def build_kernel(
-    pos: np.ndarray, rng_m: float, listen: bool, seed: int, speed: float = 0.0, receiver: str | None = None
-) -> Simulation:
-    """The benchmark's network; ``receiver`` (RECEIVERS) overrides ``listen`` (True: "recv",
-    False: "none")."""
-    mode = receiver if receiver is not None else ("recv" if listen else "none")
+def build_kernel(pos: np.ndarray, rng_m: float, receiver: bool | str, seed: int, speed: float = 0.0) -> Simulation:
+    """The benchmark's network; ``receiver``: one of RECEIVERS, or True / False for "recv" /
+    "none" (nodes that listen or not)."""
+    mode = receiver if isinstance(receiver, str) else ("recv" if receiver else "none")
     if mode not in RECEIVERS:
         raise ValueError(f"receiver must be one of {sorted(RECEIVERS)}, got {mode!r}")
     cls = type("B", (BenchBeacon,), {"receiver": mode})
@@ -184,12 +182,11 @@ def run_both(
     pos: np.ndarray,
     rng_m: float,
     until: float,
-    listen: bool,
+    receiver: bool | str,
     seed: int,
     speed: float,
     chunk: float = 1.0,
     warmup: float = 2.0 * PERIOD,
-    receiver: str | None = None,
 ) -> dict[str, float]:
     """Advance the kernel and the bare loop alternately, ``chunk`` simulated seconds at a time,
     summing each one's CPU time: load from other jobs then hits both alike.
@@ -200,7 +197,7 @@ def run_both(
     recurs with every reception, the one to compare across network sizes. Receptions decided
     per chunk are counted exactly: rows added to the packets table minus transmissions.
     ``receiver``: as for :func:`build_kernel`."""
-    sim = build_kernel(pos, rng_m, listen, seed, speed, receiver)
+    sim = build_kernel(pos, rng_m, receiver, seed, speed)
     env, count = build_bare(pos, rng_m, first_tx_phases(len(pos), seed))
     table = sim.trace.table("packets")
     gc.collect()
@@ -300,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
     until = min(50.0, args.until) if args.quick else args.until
     pos, rng_m = layout(args.nodes, args.neighbours, args.seed)
     mean_nb = float(np.mean([len(nb) for nb in neighbour_lists(pos, rng_m)]))
-    k = run_both(pos, rng_m, until, receiver == "recv", args.seed, args.speed, receiver=receiver)
+    k = run_both(pos, rng_m, until, receiver, args.seed, args.speed)
     print(
         f"nodes {args.nodes}, mean neighbours {mean_nb:.2f} (range {rng_m:.0f} m), {until:g} s simulated, "
         f"receivers: {RECEIVERS[receiver]}, "
