@@ -254,6 +254,14 @@ def refuse_foreign(target: Path, file: Any, key: str, *, overwrite: bool = False
     return own
 
 
+#: The interruptions (SIGINT / SIGTERM) raised during the current command, which the CLI's
+#: signal handler notes before raising each one and clears when the command ends. Their
+#: exception can be lost on its way out: raised while a finalizer runs, Python only prints it,
+#: and the run goes on. staged_output raises it again instead of moving the outputs of an
+#: interrupted run into place.
+INTERRUPTIONS: list[BaseException] = []
+
+
 @contextmanager
 def _signals_held() -> Iterator[None]:
     """Hold SIGINT / SIGTERM while the staged files are moved into place (a few renames), so
@@ -328,6 +336,8 @@ def staged_output(target: str | Path, file: Path | None, key: str, *, overwrite:
     ok = False
     try:
         yield tmp
+        if INTERRUPTIONS:  # interrupted, but the exception was swallowed (see INTERRUPTIONS)
+            raise INTERRUPTIONS[-1]
         ok = True
     finally:
         if not ok:

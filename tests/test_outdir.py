@@ -314,6 +314,36 @@ def test_sigterm_just_after_a_folder_is_made_leaves_none(tmp_path, monkeypatch, 
     assert listing(tmp_path) == ["scen.toml", "tmpdir"]
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals as on Linux")
+def test_a_sigterm_whose_exception_is_swallowed_still_writes_nothing(tmp_path, monkeypatch, capsys):
+    """The handler's exception can be lost on its way out: raised while a finalizer (``__del__``,
+    a weakref callback) runs, it is only printed ("Exception ignored in ..."), and the handler
+    already ignores further signals, so the run goes on to its end (a test_sigterm_to_a_run once
+    ended with exit 0 and its outputs in place). The interruption still counts: exit 143, no
+    output, no staging folder."""
+    from aquasim_py import runner
+
+    sc = scenario(tmp_path)
+    real = runner._run
+
+    class SignalledInAFinalizer:
+        def __del__(self) -> None:
+            os.kill(os.getpid(), signal.SIGTERM)  # the handler runs in here: its raise is lost
+            sum(range(10))  # a few bytecodes, where a pending signal's handler runs at the latest
+
+    def run(sim: Any, sc: Any, progress: Any) -> float:
+        SignalledInAFinalizer()  # made and finalized at once
+        return real(sim, sc, progress)
+
+    monkeypatch.setattr(runner, "_run", run)
+    lost: list[Any] = []  # what Python reports of an exception it cannot raise
+    monkeypatch.setattr(sys, "unraisablehook", lost.append)
+    assert cli.main([str(sc), "--out", str(tmp_path / "res"), "--quiet"]) == 143
+    assert [type(u.exc_value).__name__ for u in lost] == ["Interrupted"]  # indeed swallowed
+    assert capsys.readouterr().err.splitlines() == ["error: interrupted by SIGTERM (no output written)"]
+    assert listing(tmp_path) == ["scen.toml"]
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc as on Linux")
 def test_sigkill_of_a_sweep_parent_leaves_no_worker_and_no_stale_folder(tmp_path):
     sc = scenario(tmp_path, duration=LONG, extra=SWEEP)

@@ -49,16 +49,22 @@ def _one_line_warnings() -> Iterator[None]:
 @contextmanager
 def _interruptible() -> Iterator[None]:
     """SIGINT and SIGTERM raise :class:`Interrupted` in the main thread; once one has arrived
-    further ones are ignored, so the clean-up on the way out is not itself interrupted."""
+    further ones are ignored, so the clean-up on the way out is not itself interrupted. Each is
+    noted in ``outdir.INTERRUPTIONS`` too, so an interruption whose exception is swallowed
+    still keeps the outputs from being moved into place."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    from aquasim_py.outdir import INTERRUPTIONS
+
     sigs = (signal.SIGINT, signal.SIGTERM)
 
     def handler(signum: int, frame: Any) -> None:
         for s in sigs:
             signal.signal(s, signal.SIG_IGN)
-        raise Interrupted(signum)
+        exc = Interrupted(signum)
+        INTERRUPTIONS.append(exc)
+        raise exc
 
     old = {s: signal.signal(s, handler) for s in sigs}
     try:
@@ -66,6 +72,7 @@ def _interruptible() -> Iterator[None]:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+        INTERRUPTIONS.clear()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
