@@ -2,9 +2,9 @@
 
 Two sources, loaded lazily on the first lookup:
 
-- built-ins: every family package of :mod:`aquasim_py.protocols` (the repository's top-level
-  ``protocols/`` folder) is imported; its modules register their Node subclasses with the
-  :func:`register` decorator. A family that fails to import does not break the registry (the
+- built-ins: every family package of :mod:`aquasim_protocols` (the repository's top-level
+  ``protocols/`` folder, installed under that name) is imported; its modules register their
+  Node subclasses with the :func:`register` decorator. A family that fails to import does not break the registry (the
   others still load); its error is reported when its name is asked for.
 - third-party packages: the entry-point group ``aquasim_py.protocols``, each entry point
   naming a Node subclass, e.g. in a plug-in's ``pyproject.toml``::
@@ -31,7 +31,7 @@ from pydantic import BaseModel
 __all__ = ["ProtocolDefinitionError", "UnknownProtocolError", "available", "get", "register"]
 
 ENTRY_POINT_GROUP = "aquasim_py.protocols"
-BUILTIN_PACKAGE = "aquasim_py.protocols"
+BUILTIN_PACKAGE = "aquasim_protocols"
 
 _registry: dict[str, type] = {}
 _load_errors: dict[str, str] = {}  # module or entry-point name -> why it did not load
@@ -94,8 +94,11 @@ def register(cls: _C) -> _C:
 def _load_builtins() -> None:
     try:
         pkg = importlib.import_module(BUILTIN_PACKAGE)
-    except ImportError as exc:  # installed without the protocols package
-        _load_errors[BUILTIN_PACKAGE] = f"{type(exc).__name__}: {exc}"
+    except ImportError as exc:  # aquasim_py imported from a source folder that is not installed
+        _load_errors[BUILTIN_PACKAGE] = (
+            f"the built-in protocols ({BUILTIN_PACKAGE}, the repository's protocols/ folder) did not import "
+            f"({type(exc).__name__}: {exc}); install the package (pip install . or pip install -e .)"
+        )
         return
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -153,7 +156,8 @@ def get(name: str) -> type:
     if name in _load_errors:
         raise UnknownProtocolError(name, f"protocol {name!r} is not available: {_load_errors[name]}")
     names = ", ".join(available()) or "none"
-    raise UnknownProtocolError(name, f"unknown protocol {name!r} (available: {names})")
+    why = f"; {_load_errors[BUILTIN_PACKAGE]}" if BUILTIN_PACKAGE in _load_errors else ""
+    raise UnknownProtocolError(name, f"unknown protocol {name!r} (available: {names}){why}")
 
 
 def load_errors() -> dict[str, Any]:

@@ -43,9 +43,9 @@ _ALONE = textwrap.dedent(
 _LIST = textwrap.dedent(
     """
     import json, pkgutil
-    import aquasim_py, aquasim_py.protocols
+    import aquasim_py, aquasim_protocols
     names = {"aquasim_py"}
-    for pkg in (aquasim_py, aquasim_py.protocols):
+    for pkg in (aquasim_py, aquasim_protocols):
         names.update(m.name for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."))
     print(json.dumps(sorted(names)))
     """
@@ -86,7 +86,7 @@ def test_seam_modules_load_alone(seam_alone):
 @pytest.mark.slow
 def test_every_module_loads_alone_in_a_fresh_interpreter():
     names = _python(_LIST)
-    assert isinstance(names, list) and "aquasim_py.kernel" in names and "aquasim_py.protocols.beacon" in names
+    assert isinstance(names, list) and "aquasim_py.kernel" in names and "aquasim_protocols.beacon" in names
     failed = {}
     for name in names:
         r = subprocess.run(

@@ -23,7 +23,7 @@ def fresh(monkeypatch):
 
 
 def test_beacon_is_built_in():
-    from aquasim_py.protocols.beacon import BeaconNode
+    from aquasim_protocols.beacon import BeaconNode
 
     assert registry.get("beacon") is BeaconNode
     assert "beacon" in registry.available()

@@ -325,8 +325,8 @@ class _Boom(RuntimeError):
 
 def _boom_protocol() -> str:
     """A beacon that raises inside the simulation when its ``boom`` parameter is set."""
+    from aquasim_protocols.beacon.node import BeaconNode
     from aquasim_py import registry
-    from aquasim_py.protocols.beacon.node import BeaconNode
 
     name = "test_sweep_boom"
     try:

@@ -104,7 +104,7 @@ def child(toml: Path, out: Path, ablate: str) -> dict[str, float]:
     clock.wrap(metrics, "summarize", "metrics")
     clock.wrap(runner.RunResult, "write_into", "outputs")
     if ablate == "listen":
-        from aquasim_py.protocols.beacon.node import BeaconNode
+        from aquasim_protocols.beacon.node import BeaconNode
 
         BeaconNode._listen_loop = _drain_listen_loop
     status = cli.main([str(toml), "--quiet", "--out", str(out)])

@@ -20,7 +20,7 @@ import networkx as nx
 
 ROOT = Path(__file__).resolve().parents[1]
 #: source folder -> package name it installs as (pyproject.toml's package-dir)
-SOURCES = {ROOT / "aquasim_py": "aquasim_py", ROOT / "protocols": "aquasim_py.protocols"}
+SOURCES = {ROOT / "aquasim_py": "aquasim_py", ROOT / "protocols": "aquasim_protocols"}
 
 
 def modules() -> dict[str, Path]:

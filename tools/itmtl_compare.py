@@ -14,7 +14,7 @@ Res collision fraction and short-round fraction; then ITMTL-wsc's gap over ITMTL
 statistics, each with a paired bootstrap 95 % CI over seeds:
 
 - the paper's (Figs 11-12): per round, on the (node, round) pairs both localized
-  (``aquasim_py.protocols.itmtl.paper.wsc_gap_per_round``, the main job's definition), the
+  (``aquasim_protocols.itmtl.paper.wsc_gap_per_round``, the main job's definition), the
   curves averaged over seeds; the sync gap is their largest difference over the iterations
   ("the maximum difference of 56.67 %"; a maximum over noisy points, biased upward), the NMSE
   decrease its median over the iterations (NMSE "about 25.8 %" lower for ITMTL) and largest;
@@ -42,9 +42,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from aquasim_protocols.itmtl.metrics import mac_metrics, per_round, protocol_metrics
+from aquasim_protocols.itmtl.paper import CLAIMS, node_rounds, wsc_gap_per_round
 from aquasim_py import scenario
-from aquasim_py.protocols.itmtl.metrics import mac_metrics, per_round, protocol_metrics
-from aquasim_py.protocols.itmtl.paper import CLAIMS, node_rounds, wsc_gap_per_round
 
 SCEN = Path(__file__).resolve().parents[1] / "scenarios" / "itmtl.toml"
 

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from aquasim_py.protocols.mswpf.math import MswpfConfig, MswpfTracker, thresholds
+from aquasim_protocols.mswpf.math import MswpfConfig, MswpfTracker, thresholds
 
 
 def setup(L: int = 8, n: int = 1000, seed: int = 0) -> tuple[MswpfTracker, np.ndarray, np.ndarray]:

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from aquasim_protocols.mswpf.metrics import step_errors
 from aquasim_py import scenario as _scenario
 from aquasim_py import sweep as _sweep
-from aquasim_py.protocols.mswpf.metrics import step_errors
 
 
 def run_one(base: dict[str, Any], path: str | None, job: _sweep.Job) -> pd.DataFrame:

@@ -27,7 +27,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from ramezani_mc import TrackingMC, simulate_trajectories, tracking_monte_carlo  # tools/, beside this script
 
-from aquasim_py.protocols.ramezani.math import (
+from aquasim_protocols.ramezani.math import (
     CUBE_VERTICES,
     PAPER_A,
     PAPER_B,

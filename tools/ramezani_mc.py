@@ -3,7 +3,7 @@
 
 ``tracking_monte_carlo(n, ...)`` draws n random-walk trajectories of the paper's model (eq 38),
 exact isogradient ToFs plus noise, depth reports every rho frames, runs EKF-ESSP / EKF-ASSP
-(:func:`aquasim_py.protocols.ramezani.math.batched_ekf`) and the PCRB along the trajectories.
+(:func:`aquasim_protocols.ramezani.math.batched_ekf`) and the PCRB along the trajectories.
 Used by ``tools/ramezani_figures.py`` and the slow test ``tests/estimation/test_ramezani_tracking.py``.
 
     python tools/ramezani_mc.py --runs 200 --sigma-t-ms 1
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from aquasim_py.protocols.ramezani.math import (
+from aquasim_protocols.ramezani.math import (
     PAPER_A,
     PAPER_B,
     TETRAHEDRON,

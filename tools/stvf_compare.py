@@ -83,7 +83,7 @@ def run_one(job: tuple[str, dict[str, Any], list, int, str, float | None]) -> di
     m = summarize(frames, warmup_s=sc.metrics.warmup_s)
     proto = sc.nodes[1].protocol
     # protocol metrics scored on the same window as the generic ones
-    from aquasim_py.protocols.stvf.metrics import localization_metrics
+    from aquasim_protocols.stvf.metrics import localization_metrics
 
     pm = localization_metrics(frames, proto, t_min=sc.metrics.warmup_s or None)
     row: dict[str, Any] = {"variant": variant, "seed": seed, "density": density}

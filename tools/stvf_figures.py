@@ -68,7 +68,7 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
     sim.run(sc.simulation.duration_s)
     cpu = time.process_time() - c0
     frames = sim.trace.frames()
-    from aquasim_py.protocols.stvf.metrics import localization_metrics
+    from aquasim_protocols.stvf.metrics import localization_metrics
 
     if job.get("t_min") is not None:
         # compare protocols over the same window (SLMP only localizes after its training)
@@ -223,7 +223,7 @@ def headline(args: argparse.Namespace, out: Path) -> None:
     df = pd.DataFrame(rows)
     df.to_csv(out / "headline.csv", index=False)
     assert frames is not None
-    from aquasim_py.protocols.stvf.metrics import localization_metrics
+    from aquasim_protocols.stvf.metrics import localization_metrics
 
     late = localization_metrics(frames, "stvf", t_min=args.training)
     print(

@@ -80,7 +80,7 @@ def simulate(config: str, seed: int, overrides: list[str]) -> Any:
 def one_run(config: str, seed: int, out: str) -> str:
     """Simulate one (configuration, seed) with the four estimators side by side (ALSO) and
     write its per-frame errors; returns the CSV path."""
-    from aquasim_py.protocols.svlpf.metrics import step_errors
+    from aquasim_protocols.svlpf.metrics import step_errors
 
     dest = Path(out) / "runs" / f"{config}_seed{seed}.csv"
     if dest.is_file():

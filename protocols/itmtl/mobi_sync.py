@@ -18,7 +18,7 @@ How each step is built here (open choices marked):
   current length scale of 4.5 km);
 - delay change: the node moves with ``v_hat`` during the whole exchange, the reference with
   its announced velocity between its stamps (``motion_mode = "separate"`` of
-  :meth:`~aquasim_py.protocols.itmtl.math.DelayModel.motion_rates`, straight rays at the mean
+  :meth:`~aquasim_protocols.itmtl.math.DelayModel.motion_rates`, straight rays at the mean
   speed), which splits each round trip into forward and backward delays (open choice: the
   paper predicts the delays from the trajectories; this is its first-order form);
 - regression: iterated least squares over all exchanges so far
@@ -27,7 +27,7 @@ How each step is built here (open choices marked):
   (``v_j = 0``) the estimate is zero and Mobi-Sync reduces to one regression on half round
   trips, i.e. MU-Sync.
 
-Localization as in :mod:`aquasim_py.protocols.itmtl.baseline`.
+Localization as in :mod:`aquasim_protocols.itmtl.baseline`.
 """
 
 from __future__ import annotations

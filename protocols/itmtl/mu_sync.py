@@ -3,7 +3,7 @@ protocol for underwater mobile networks", ACM WUWNet 2008.
 
 Two-way exchanges with the references; one-way delay = half the round trip; a first linear
 regression for the skew, the delays recomputed with it, a second regression
-(:func:`aquasim_py.estimation.sync.mu_sync`). Localization as in :mod:`aquasim_py.protocols.itmtl.baseline`.
+(:func:`aquasim_py.estimation.sync.mu_sync`). Localization as in :mod:`aquasim_protocols.itmtl.baseline`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 R. Gao, D. Qiao, M. Zhang, G. Xu et al., mobile target localization based on iterative
 tracing for underwater wireless sensor networks. The equations of the paper were lost; the
-maths follows the reconstruction in ``notes/papers.md`` (see :mod:`aquasim_py.protocols.itmtl.math` and
+maths follows the reconstruction in ``notes/papers.md`` (see :mod:`aquasim_protocols.itmtl.math` and
 :mod:`aquasim_py.estimation.sync`).
 
 Roles: buoys and anchors answer Req messages (true time, known position); ordinary nodes run

@@ -6,7 +6,7 @@ assuming each sender's delay constant (:func:`aquasim_py.estimation.sync.tshl_sk
 over references with one intercept each). The references' Res frames serve as the beacons
 (send stamp ``t3`` in the frame, receive stamp ``T4``). Phase 2: the latest round's two-way
 exchanges give the offset with symmetric delays (:func:`~aquasim_py.estimation.sync.tshl_offset`).
-Localization as in :mod:`aquasim_py.protocols.itmtl.baseline`.
+Localization as in :mod:`aquasim_protocols.itmtl.baseline`.
 """
 
 from __future__ import annotations

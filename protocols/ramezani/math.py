@@ -3,7 +3,7 @@ Carlo draws (numpy only, no SimPy): the ToF models of GNA/EKF-ESSP and -ASSP, th
 tracking model (eqs 38-40), a batched EKF (Algorithm 2), the PCRB along true trajectories
 (eqs 41-42) and the CRB of a fix (eqs 30-33, 37).
 
-Shared by the network protocol (:mod:`aquasim_py.protocols.ramezani.node`), its metrics, the
+Shared by the network protocol (:mod:`aquasim_protocols.ramezani.node`), its metrics, the
 acceptance tests and the paper-figure drivers in ``tools/`` (the Monte Carlo study of Sec. V is
 ``tools/ramezani_mc.py``). The generic pieces (Gauss-Newton, CRB / PCRB recursions,
 closed-form isogradient eigenrays) come from :mod:`aquasim_py.estimation` and

@@ -12,7 +12,7 @@ So it shows what multilateration can reach when it is given every measurement ev
 - Beacons (role ``anchor``) broadcast position, depth, confidence 1 and their predicted
   velocity every period; the first ``training_s`` only train the mobility predictors.
 - With >= ``min_refs`` (3, after projection on the depth plane) references: multilateration
-  and a confidence (:func:`~aquasim_py.protocols.slmp.math.slmp_confidence`); above ``delta``
+  and a confidence (:func:`~aquasim_protocols.slmp.math.slmp_confidence`); above ``delta``
   the node becomes a reference. Otherwise, with >= ``self_min_refs`` references in view and a
   previous estimate, the node self-estimates from its previous location and predicted velocity.
 

@@ -11,7 +11,7 @@ needed only when the prediction goes wrong.
 
 - Anchors (role ``anchor``) localize against the surface buoys (here: the kernel's position
   fix, ``Node.known_position()``, whose noise is the group's ``position_noise_std_m``) and
-  learn their mobility pattern (:class:`~aquasim_py.protocols.slmp.math.MobilityPredictor`).
+  learn their mobility pattern (:class:`~aquasim_protocols.slmp.math.MobilityPredictor`).
   What they advertise is their *predicted* position; the pattern is re-advertised (the fix
   replaces the prediction) only when the prediction misses the buoy fix by more than the
   threshold ``error_ratio`` x ``range_m`` (5 % of the range).
@@ -22,7 +22,7 @@ needed only when the prediction goes wrong.
   linear least squares on the references heard this period (>= ``min_refs``) and feed the fix
   to their predictor; otherwise the prediction stands (and is recorded as a known location).
 - Every localized node reports a position each period (its fix or its prediction) with a
-  confidence (:func:`~aquasim_py.protocols.slmp.math.slmp_confidence` against the references
+  confidence (:func:`~aquasim_protocols.slmp.math.slmp_confidence` against the references
   heard); at or above ``delta`` it is a reference and broadcasts that position and confidence
   from the next period start (beacons go out in the first half of a period, localization ends
   it).

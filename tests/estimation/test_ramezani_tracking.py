@@ -64,7 +64,7 @@ def test_pcrb_matches_kalman_covariance_on_linear_rows() -> None:
     # The PCRB recursion we compare against must equal the EKF's own covariance recursion when
     # the filter linearizes at the truth: run the batched EKF with h linear in x (straight rays
     # frozen at the true position's gradient) and compare P with the PCRB step by step.
-    from aquasim_py.protocols.ramezani.math import (
+    from aquasim_protocols.ramezani.math import (
         PAPER_A,
         PAPER_B,
         TETRAHEDRON,

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aquasim_protocols.beacon import BeaconNode, range_errors
 from aquasim_py import cli, metrics, scenario, trace
-from aquasim_py.protocols.beacon import BeaconNode, range_errors
 
 ANCHORS = np.array([[0.0, 0.0, 10.0], [1500.0, 0.0, 30.0], [0.0, 1200.0, 50.0]])
 SENSORS = np.array([[400.0, 300.0, 80.0], [1100.0, 900.0, 20.0]])

@@ -96,7 +96,7 @@ _TRUTH_FILES = tuple(
 
 
 def _builtin_protocols() -> list[str]:
-    return [n for n in registry.available() if registry.get(n).__module__.startswith("aquasim_py.protocols.")]
+    return [n for n in registry.available() if registry.get(n).__module__.startswith("aquasim_protocols.")]
 
 
 def test_every_protocol_has_a_case() -> None:

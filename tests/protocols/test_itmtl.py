@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aquasim_protocols.itmtl.metrics import mac_metrics, per_round, protocol_metrics
 from aquasim_py import scenario
 from aquasim_py.channel import Isogradient, travel_time
-from aquasim_py.protocols.itmtl.metrics import mac_metrics, per_round, protocol_metrics
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios" / "itmtl.toml"
 

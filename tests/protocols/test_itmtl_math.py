@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from aquasim_py.channel import Constant, Isogradient, travel_time
-from aquasim_py.protocols.itmtl.math import (
+from aquasim_protocols.itmtl.math import (
     DelayModel,
     fix_confidence,
     initial_clock,
     position_fix,
 )
+from aquasim_py.channel import Constant, Isogradient, travel_time
 
 C = 1500.0
 REFS = np.array([[0.0, 0.0, 5.0], [1000.0, 0.0, 15.0], [0.0, 900.0, 30.0], [950.0, 1000.0, 2.0], [500.0, -200.0, 60.0]])

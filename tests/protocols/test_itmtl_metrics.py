@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aquasim_py.protocols.itmtl.metrics import coverage_upper_bound, per_round, protocol_metrics
+from aquasim_protocols.itmtl.metrics import coverage_upper_bound, per_round, protocol_metrics
 
 
 def _nodes():
@@ -73,7 +73,7 @@ def test_metrics_sync_over_covered_nodes_and_nmse():
 
 
 def test_mac_metrics_on_a_hand_made_table():
-    from aquasim_py.protocols.itmtl.metrics import mac_metrics
+    from aquasim_protocols.itmtl.metrics import mac_metrics
 
     # 4 Res sent, 1 lost to a collision at its addressee, 1 to half duplex
     pk = pd.DataFrame(

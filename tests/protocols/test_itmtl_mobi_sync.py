@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from aquasim_protocols.itmtl.metrics import protocol_metrics
+from aquasim_protocols.itmtl.mobi_sync import correlation_weights
 from aquasim_py import scenario
 from aquasim_py.estimation.sync import neighbour_velocity
-from aquasim_py.protocols.itmtl.metrics import protocol_metrics
-from aquasim_py.protocols.itmtl.mobi_sync import correlation_weights
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios" / "itmtl.toml"
 

@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from aquasim_protocols.itmtl.paper import algorithm, comparison, node_rounds, wsc_gap_per_round
 from aquasim_py import cli
-from aquasim_py.protocols.itmtl.paper import algorithm, comparison, node_rounds, wsc_gap_per_round
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios" / "itmtl.toml"
 

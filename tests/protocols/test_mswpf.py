@@ -11,14 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aquasim_py import scenario
-from aquasim_py.estimation import normalize_log_weights
-from aquasim_py.protocols.mswpf.math import (
+from aquasim_protocols.mswpf.math import (
     equivalent_std,
     fusion_weights,
     sensor_model,
     weighted_log_likelihood,
 )
+from aquasim_py import scenario
+from aquasim_py.estimation import normalize_log_weights
 
 
 @settings(max_examples=30, deadline=None)
@@ -125,7 +125,7 @@ def _run(d: dict[str, Any]) -> dict[str, Any]:
 
 @pytest.mark.parametrize("ideal", [True, False])
 def test_network_tracks_and_is_deterministic(ideal: bool) -> None:
-    from aquasim_py.protocols.mswpf.metrics import mswpf_metrics
+    from aquasim_protocols.mswpf.metrics import mswpf_metrics
 
     a, b = _run(_small_network(ideal)), _run(_small_network(ideal))
     for t in ("mswpf_steps", "estimates", "packets"):
@@ -194,8 +194,8 @@ def test_pcrlb_selection_is_the_brute_force_det_j_maximizer() -> None:
     by central differences of eq 12 in the target position (r_x = 0, so r_m = r exactly)."""
     import itertools
 
+    from aquasim_protocols.mswpf.math import MswpfConfig, MswpfTracker, thresholds
     from aquasim_py.estimation import level_probabilities
-    from aquasim_py.protocols.mswpf.math import MswpfConfig, MswpfTracker, thresholds
 
     gam = thresholds(6, 5e4, 1.0, 50.0, 160.0)
     tr = MswpfTracker(
@@ -246,7 +246,7 @@ def test_ideal_fusion_weights_are_eq27_of_eq23_on_the_fc_particles(monkeypatch: 
     probabilities by scipy's normal cdf, independent of the package's quantizer maths."""
     from scipy.stats import norm
 
-    from aquasim_py.protocols.mswpf import math as mm
+    from aquasim_protocols.mswpf import math as mm
 
     seen: list[tuple[Any, ...]] = []
     orig = mm.MswpfTracker.update

@@ -7,9 +7,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from aquasim_protocols.common import periodic
 from aquasim_py import scenario
 from aquasim_py.node import Node
-from aquasim_py.protocols.common import periodic
 
 QUICK = Path(__file__).resolve().parents[2] / "scenarios" / "stvf_quick.toml"
 

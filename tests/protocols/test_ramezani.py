@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aquasim_protocols.ramezani import RamezaniNode
+from aquasim_protocols.ramezani.math import PAPER_A, PAPER_B, TETRAHEDRON, fix_crb
 from aquasim_py import scenario
-from aquasim_py.protocols.ramezani import RamezaniNode
-from aquasim_py.protocols.ramezani.math import PAPER_A, PAPER_B, TETRAHEDRON, fix_crb
 
 SCEN = Path(__file__).resolve().parents[2] / "scenarios"
 
@@ -141,7 +141,7 @@ def test_tracking_from_first_fix_without_depth(tmp_path: Path) -> None:
 # --------------------------------------------------------------------------- pure maths
 @pytest.mark.parametrize("a", [0.1, 0.017, -0.05, 0.0, 1e-9])
 def test_continued_model_equals_channel_in_water(a: float) -> None:
-    from aquasim_py.protocols.ramezani.math import essp_model
+    from aquasim_protocols.ramezani.math import essp_model
 
     rng = np.random.default_rng(1)
     X = rng.uniform([-3000, -3000, 0], [3000, 3000, 400], (2000, 3))
@@ -155,7 +155,7 @@ def test_continued_model_equals_channel_in_water(a: float) -> None:
 
 
 def test_continued_gradient_above_surface_finite_differences() -> None:
-    from aquasim_py.protocols.ramezani.math import essp_model
+    from aquasim_protocols.ramezani.math import essp_model
 
     tc, gc = essp_model(PAPER_B, PAPER_A, continued=True)
     X = np.array([[800.0, 40.0, -20.0], [300.0, -200.0, -5.0], [60.0, 50.0, -60.0]])
@@ -169,7 +169,7 @@ def test_continued_gradient_above_surface_finite_differences() -> None:
 
 def test_fig6_essp_stays_on_crb_assp_departs() -> None:
     # Fig. 6 (pure maths): sigma_t = 1 ms, target = [x, 50, 50] + N(0, 100 I); plain Algorithm 1
-    from aquasim_py.protocols.ramezani.math import localize_batch, tof_functions
+    from aquasim_protocols.ramezani.math import localize_batch, tof_functions
 
     rng = np.random.default_rng(6)
     tt, _ = tof_functions("essp", PAPER_B, PAPER_A, TETRAHEDRON)

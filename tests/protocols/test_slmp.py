@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from aquasim_protocols.slmp import math as sm
 from aquasim_py import scenario
-from aquasim_py.protocols.slmp import math as sm
 from aquasim_py.registry import get
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -206,7 +206,7 @@ def test_slmp_least_squares_keeps_fixes_at_the_edge_of_range():
     still refused."""
     from types import SimpleNamespace
 
-    from aquasim_py.protocols.slmp.node import SlmpNode, SlmpParams
+    from aquasim_protocols.slmp.node import SlmpNode, SlmpParams
 
     me = SimpleNamespace(params=SlmpParams())
     refs = np.array([[10.0, 100.0], [89.9, 50.0], [89.9, 150.0], [130.0, 100.0]])

@@ -9,9 +9,9 @@ import pandas as pd
 import pytest
 
 import aquasim_py
+from aquasim_protocols.stvf import node as stvf_node
 from aquasim_py import scenario
 from aquasim_py.estimation import variational as vf
-from aquasim_py.protocols.stvf import node as stvf_node
 from aquasim_py.registry import get
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -84,7 +84,7 @@ def test_same_seed_same_estimates():
 
 
 def test_localization_metrics_hand_computed():
-    from aquasim_py.protocols.stvf.metrics import localization_metrics
+    from aquasim_protocols.stvf.metrics import localization_metrics
 
     nodes = pd.DataFrame(
         {"node": [0, 1, 2, 3], "role": ["anchor", "ordinary", "ordinary", "ordinary"], "protocol": ["stvf"] * 4}
@@ -137,7 +137,7 @@ def test_promoted_node_beacons_in_the_next_period():
 def test_coverage_uses_the_configured_period():
     """Four estimates of one node at 0.9, 1.9, 2.9, 3.9 s: with a 2-s period that is every
     period (coverage 1); scored as 1-s periods (3 periods from 1 to 3) it is 4 / (3 x 2)."""
-    from aquasim_py.protocols.stvf.metrics import localization_metrics
+    from aquasim_protocols.stvf.metrics import localization_metrics
 
     nodes = pd.DataFrame({"node": [0, 1, 2], "role": ["anchor", "ordinary", "ordinary"], "protocol": ["stvf"] * 3})
     t = [1.8, 3.8, 1.9, 3.9]

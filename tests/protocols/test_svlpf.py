@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import aquasim_py
+from aquasim_protocols.svlpf.metrics import step_errors
 from aquasim_py import metrics, scenario
-from aquasim_py.protocols.svlpf.metrics import step_errors
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = ["simulation.duration_s=5.9", 'nodes.0.params.cache="memory"']

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import linalg, stats
 
-from aquasim_py.protocols.svlpf import math as sv
+from aquasim_protocols.svlpf import math as sv
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -208,9 +208,9 @@ def test_propagation_loss_eq24(r):
 def test_fusion_defaults_match_the_channel_defaults():
     """TIL - RIL is read from the SNR with the receiver's known noise level: the defaults must be
     the channel's (10 kHz, 5 kHz band, shipping 0.5, no wind; Thorp absorption at 10 kHz)."""
+    from aquasim_protocols.svlpf import SvlpfParams
     from aquasim_py.channel import loss
     from aquasim_py.channel.acoustic import ChannelConfig
-    from aquasim_py.protocols.svlpf import SvlpfParams
 
     c, p = ChannelConfig(), SvlpfParams()
     noise = loss.noise_psd_db(c.frequency_khz, c.shipping, c.wind_mps) + 10 * np.log10(c.bandwidth_khz * 1e3)

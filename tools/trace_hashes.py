@@ -1,0 +1,91 @@
+"""sha256 of every shipped scenario's traces: the table that shows a change left them alone.
+
+Runs each ``scenarios/*.toml`` as ``aquasim-py SCENARIO --quiet`` (every variant; a sweep
+scenario's base run, not its grid) into a temporary directory and hashes every trace file:
+each CSV table, and ``summary.json``'s metrics and resolved scenario (its wall time left out).
+Files whose columns are wall-clock times (a variants run's ``variants.csv``) are skipped.
+
+    python tools/trace_hashes.py --json before.json            # on the old checkout
+    python tools/trace_hashes.py --json after.json --compare before.json
+
+``--compare`` prints the files whose hash changed, appeared or disappeared and exits 1 if any did.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+#: files whose content depends on the wall clock
+SKIP = {"variants.csv", ".aquasim-output.json"}
+
+
+def _summary_digest(path: Path) -> str:
+    doc = json.loads(path.read_text())
+    doc.pop("wall_time_s", None)
+    doc.pop("aquasim_py_version", None)
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def hash_tree(out: Path) -> dict[str, str]:
+    """relative path -> sha256 of every trace file under ``out``."""
+    hashes: dict[str, str] = {}
+    for f in sorted(out.rglob("*")):
+        if not f.is_file() or f.name in SKIP or f.suffix not in {".csv", ".json"}:
+            continue
+        rel = f.relative_to(out).as_posix()
+        hashes[rel] = _summary_digest(f) if f.name == "summary.json" else hashlib.sha256(f.read_bytes()).hexdigest()
+    return hashes
+
+
+def run(scenario: Path, cli: str) -> tuple[dict[str, str], float]:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        t0 = time.perf_counter()
+        proc = subprocess.run(
+            [cli, str(scenario), "--quiet", "--out", str(out)], check=False, capture_output=True, text=True
+        )
+        dt = time.perf_counter() - t0
+        if proc.returncode != 0:
+            raise SystemExit(f"{scenario.name}: exit {proc.returncode}\n{proc.stderr}")
+        return hash_tree(out), dt
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenarios", nargs="*", type=Path, help="default: every scenarios/*.toml")
+    ap.add_argument("--cli", default=str(Path(sys.executable).with_name("aquasim-py")), help="the aquasim-py to run")
+    ap.add_argument("--json", type=Path, help="write {scenario: {file: sha256}} here")
+    ap.add_argument("--compare", type=Path, help="a --json file of an earlier run to compare with")
+    args = ap.parse_args(argv)
+    paths = args.scenarios or sorted((ROOT / "scenarios").glob("*.toml"))
+    table: dict[str, dict[str, str]] = {}
+    for p in paths:
+        table[p.name], dt = run(p, args.cli)
+        print(f"{p.name:45s} {len(table[p.name]):3d} files  {dt:7.1f} s", flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
+    if args.compare is None:
+        return 0
+    old = json.loads(args.compare.read_text())
+    changed = 0
+    for name in sorted(set(old) & set(table)):
+        a, b = old[name], table[name]
+        for f in sorted(set(a) | set(b)):
+            if a.get(f) != b.get(f):
+                changed += 1
+                state = "new" if f not in a else "gone" if f not in b else "changed"
+                print(f"{state:8s} {name}/{f}")
+    print(f"{changed} file(s) differ" if changed else "all traces identical")
+    return 1 if changed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
