@@ -1,33 +1,21 @@
-"""Compiled speed-ups, built with the package (setuptools reads everything else from pyproject.toml).
+"""The optional compiled CSV writer, built with the package (setuptools reads everything else
+from pyproject.toml).
 
-Each extension is optional: without a C compiler the install still succeeds and the package
-runs its pure-Python reference path (the same results, slower; tests hold the two equal).
-CI checks that all three were built (``.ci/run``, wheel lane).
+``aquasim_py._fastcsv`` formats trace rows as CSV and moves row tuples into the trace's typed
+columns in C; its pure-Python reference is ``aquasim_py/trace/csvfmt.py`` and ``Table``'s batch
+append, which give the same bytes (tests/test_trace_csv.py holds the two equal, field by field,
+against ``repr`` and pandas). Without a C compiler the install still succeeds and the reference
+runs (``aquasim-py --version`` says which); CI runs the suite both ways (``.ci/run``).
 """
 
 from setuptools import Extension, setup
 
-# -ffp-contract=off: no fused multiply-adds, so every float expression rounds as its Python
-# reference does (bit-identical traces whichever path runs)
+# -ffp-contract=off: no fused multiply-adds (the writer only formats floats, but a compiler
+# default must not change any float it touches)
 _FLAGS = ["-O2", "-ffp-contract=off", "-fno-strict-aliasing"]
 
 setup(
     ext_modules=[
         Extension("aquasim_py._fastcsv", ["aquasim_py/_fastcsv.c"], optional=True, extra_compile_args=_FLAGS),
-        Extension(
-            "aquasim_py._events",
-            ["aquasim_py/_events.c"],
-            depends=["aquasim_py/_events.h"],
-            optional=True,
-            extra_compile_args=_FLAGS,
-        ),
-        # queues its entries on _events' queue through that module's C interface (_events.h)
-        Extension(
-            "aquasim_py.channel._delivery",
-            ["aquasim_py/channel/_delivery.c"],
-            depends=["aquasim_py/_events.h"],
-            optional=True,
-            extra_compile_args=_FLAGS,
-        ),
     ]
 )

@@ -27,13 +27,13 @@ import numpy as np
 import simpy
 from pydantic import BaseModel
 
-from .channel.acoustic import AcousticChannel, ChannelConfig, LossModel
+from .channel.acoustic import AcousticChannel
+from .channel.config import ChannelConfig, LossModel
 from .channel.ssp import Constant, SoundSpeedProfile
-from .events import environment
-from .mobility import ConstantVelocity, Mobility
+from .mobility import Mobility
 from .node import Node, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
-from .trace import Trace, TraceConfig
+from .trace import SCHEMAS, Trace, TraceConfig
 
 __all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig", "quiet_gc"]
 
@@ -359,34 +359,24 @@ class _NodeCore:
             reserved = sorted({"time", "node", "protocol"} & set(columns))
             raise ValueError(f"log(): columns {reserved} are added by the kernel")
         # straight to the table as tuples, no keyword packing (a protocol may log per reception)
-        self.sim.trace.table(table).append_row(
-            ("time", "node", "protocol", *columns), (self.env.now, self.index, self.protocol, *columns.values())
+        self.sim.trace.table(table).append(
+            (self.env.now, self.index, self.protocol, *columns.values()), ("time", "node", "protocol", *columns)
         )
 
     def log_estimate(
         self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]
     ) -> None:
+        _no_reserved("log_estimate", extra, _ESTIMATE_COLUMNS)
         t = self.env.now
         tx, ty, tz = (float(v) for v in self.position(t))
         err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
-        self.sim.trace.append(
-            "estimates",
-            time=t,
-            node=self.index,
-            protocol=self.protocol,
-            x=x,
-            y=y,
-            z=z,
-            true_x=tx,
-            true_y=ty,
-            true_z=tz,
-            error=err,
-            confidence=confidence,
-            is_reference=is_reference,
-            **extra,
+        self.sim.trace.table("estimates").append(
+            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference, *extra.values()),
+            _ESTIMATE_COLUMNS + tuple(extra),
         )
 
     def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
+        _no_reserved("log_clock", extra, _CLOCK_COLUMNS)
         t = self.env.now
         clock = self.clock
         local = float(clock.to_local(t))
@@ -394,18 +384,21 @@ class _NodeCore:
         true_offset = float(clock.offset_at(t))
         # the node's estimate of true time now, from its own clock reading and its clock model
         err = (local - offset) / (1.0 + skew) - t
-        self.sim.trace.append(
-            "clocks",
-            time=t,
-            node=self.index,
-            protocol=self.protocol,
-            skew=skew,
-            offset=offset,
-            true_skew=true_skew,
-            true_offset=true_offset,
-            error=err,
-            **extra,
+        self.sim.trace.table("clocks").append(
+            (t, self.index, self.protocol, skew, offset, true_skew, true_offset, err, *extra.values()),
+            _CLOCK_COLUMNS + tuple(extra),
         )
+
+
+_ESTIMATE_COLUMNS = tuple(c for c, _ in SCHEMAS["estimates"])
+_CLOCK_COLUMNS = tuple(c for c, _ in SCHEMAS["clocks"])
+
+
+def _no_reserved(what: str, extra: Mapping[str, Any], columns: tuple[str, ...]) -> None:
+    """A protocol's extra columns must not be the table's own (the kernel fills those)."""
+    reserved = sorted(set(extra).intersection(columns))
+    if reserved:
+        raise ValueError(f"{what}(): columns {reserved} are the table's own (added by the kernel)")
 
 
 def _taken(pkt: Packet, rx_local: float, snr_db: float, pressure: float) -> Reception:
@@ -479,7 +472,7 @@ class Simulation:
         ss = np.random.SeedSequence(seed)
         self.seed: int = int(ss.entropy)  # type: ignore[arg-type]
         self._seedseq = ss
-        self.env = environment()
+        self.env = simpy.Environment()
         self.ssp: SoundSpeedProfile = ssp if ssp is not None else Constant(1500.0)
         self.volume = volume
         self.out_of_band: dict[str, Any] = {}  # Node.out_of_band: shared by the run's nodes
@@ -625,7 +618,9 @@ class Simulation:
             self._cores.append(core)
             self.nodes.append(node)
             new.append(node)
-            self.trace.append("nodes", node=start + i, role=role.value, protocol=protocol, group=gname)
+            self.trace.table("nodes").append(
+                (start + i, role.value, protocol, gname), ("node", "role", "protocol", "group")
+            )
         self.groups.append(group)
         self._moving = np.concatenate([self._moving, np.full(count, not group.static)])
         self._group_of = np.concatenate([self._group_of, np.full(count, len(self.groups) - 1)])
@@ -743,14 +738,6 @@ class Simulation:
             if batched is not None:
                 return np.asarray(batched(idx - group.start, t), dtype=float)
         return self.velocities(t)[idx]
-
-    def line_records(self) -> np.ndarray | None:
-        """Every node's straight-line trajectory record ((N, 7, 3), ``ConstantVelocity.line_records``)
-        when every group moves at constant velocity folded into its box, else None (for the
-        channel's compiled links; the records do not change once the groups are added)."""
-        if not self.groups or not all(type(g.mobility) is ConstantVelocity for g in self.groups):
-            return None
-        return np.concatenate([g.mobility.line_records() for g in self.groups])
 
     def is_moving(self) -> np.ndarray:
         """(N,) bool: which nodes belong to a non-static mobility group."""

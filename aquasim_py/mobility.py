@@ -411,14 +411,6 @@ class ConstantVelocity(Mobility):
     def _raw_velocity_at(self, idx: NDArray[np.intp], t: Array) -> Array:
         return self._v[idx]
 
-    def line_records(self) -> Array:
-        """Each node's trajectory as a record (n, 7, 3): start position (m), velocity (m/s),
-        and the box's lo, hi, size, 2 size, 1 / (2 size) (m, 1/m), the constants
-        :meth:`Box.fold` uses (for the channel's compiled links, ``channel.straight``)."""
-        b = self.box
-        consts = (b.lo, b.hi, b.size, b._period, b._inv_period)
-        return np.stack([self._p0, self._v, *(np.broadcast_to(a, (self.n, 3)) for a in consts)], axis=1)
-
 
 class CoordinatedTurn(Mobility):
     """Constant horizontal speed on circles in x-y plus a constant vertical speed.

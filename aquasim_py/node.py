@@ -113,11 +113,12 @@ class NodeEnv:
     local duration the node asked for).
     """
 
-    __slots__ = ("__env", "__to_true_delay")
+    __slots__ = ("__env", "__late", "__to_true_delay")
 
     def __init__(self, env: simpy.Environment, to_true_delay: Any) -> None:
         self.__env = env
         self.__to_true_delay = to_true_delay
+        self.__late: simpy.Event | None = None  # the event at_instant_end is triggering
 
     if not TYPE_CHECKING:  # to a type checker these names do not exist, as they should not
         now = _Unavailable("a node has no access to true time: use Node.local_time()")
@@ -128,9 +129,16 @@ class NodeEnv:
         """Schedule ``event`` after ``delay`` local seconds (SimPy's hook).
 
         SimPy passes a delay only for timeouts; ``succeed``/``fail`` pass none: those are
-        scheduled now, without a trip through the clock model.
+        scheduled now, without a trip through the clock model (and the event of
+        :meth:`at_instant_end` with priority LATE).
         """
-        self.__env.schedule(event, priority, 0 if delay is None else self.__to_true_delay(delay))
+        if delay is None:
+            if event is self.__late:
+                self.__late = None
+                priority = LATE
+            self.__env.schedule(event, priority, 0)
+        else:
+            self.__env.schedule(event, priority, self.__to_true_delay(delay))
 
     @property
     def active_process(self) -> simpy.Process | None:
@@ -169,10 +177,10 @@ class NodeEnv:
         instant, including those scheduled while the instant runs: e.g. to run what several
         nodes hand in at one instant as one vectorized batch."""
         event = simpy.Event(self)  # type: ignore[arg-type]
-        event._ok = True  # already triggered, as a Timeout is when it is made
-        event._value = None
         event.callbacks.append(callback)
-        self.schedule(event, LATE)
+        # succeed() schedules through self.schedule (SimPy's hook), which gives it LATE
+        self.__late = event
+        event.succeed()
         return event
 
     def adopt(self, event: simpy.Event) -> simpy.Event:

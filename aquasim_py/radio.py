@@ -103,12 +103,8 @@ class RadioPort(Protocol):
 
 
 class PacketLog(Protocol):
-    """The ``packets`` trace table: the channel appends row tuples in :data:`PACKET_FIELDS` order."""
+    """The ``packets`` trace table: the channel appends rows in :data:`PACKET_FIELDS` order."""
 
-    def row_buffer(self) -> list[tuple[Any, ...]]:
-        """The list rows are appended to (kept and appended to directly: one append per row)."""
-        ...
-
-    def flush_if_large(self) -> None:
-        """Move buffered rows into the table if many are waiting (called now and then)."""
+    def append(self, values: tuple[Any, ...]) -> None:
+        """Append one row (a tuple of the :data:`PACKET_FIELDS`, in that order)."""
         ...

@@ -14,14 +14,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node, NodeEnv
 from aquasim_py.packet import copy_payload
 
 # every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
-pytestmark = pytest.mark.usefixtures("delivery_path")
 
 C = Constant(1500.0)
 P0, P1, P2 = [0.0, 0.0, 20.0], [1500.0, 0.0, 20.0], [0.0, 1500.0, 20.0]  # 1 s from node 0

@@ -317,7 +317,11 @@ def test_trace_table_selection(scen, tmp_path, capsys):
 
 def test_version_and_help(capsys):
     rc, out, _ = run(capsys, "--version")
-    assert rc == 0 and re.fullmatch(r"aquasim-py \S+\n", out)
+    m = re.fullmatch(r"aquasim-py \S+ \(Python \S+, SimPy \S+; trace CSV writer: (.+)\)\n", out)
+    assert rc == 0 and m, out
+    from aquasim_py.trace import csvfmt
+
+    assert m.group(1) == ("pure Python" if csvfmt.fastcsv is None else "compiled (aquasim_py._fastcsv)")
     rc, out, _ = run(capsys, "--help")
     assert rc == 0 and "examples:" in out and "aquasim-py sweep" in out and "--set" in out
     rc, out, _ = run(capsys, "sweep", "--help")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity, RandomWalk
@@ -14,7 +14,6 @@ from aquasim_py.node import Node, Sensors
 from aquasim_py.trace import TraceConfig
 
 # every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
-pytestmark = pytest.mark.usefixtures("delivery_path")
 
 C = Constant(1500.0)
 BOX = Box([0.0, 0.0, 0.0], [3000.0, 3000.0, 300.0])

@@ -12,7 +12,7 @@ import pytest
 import simpy
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity, Mobility

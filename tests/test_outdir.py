@@ -204,7 +204,7 @@ def test_tampered_manifest_deletes_nothing_outside(tmp_path):
 @pytest.mark.parametrize("bad", ["../x", "a/b", "..", ".hidden", "-x", "", "a\\b", "x\x00"])
 def test_bad_table_names_refused_at_log_time(bad):
     with pytest.raises(ValueError, match="invalid trace table name"):
-        Trace().append(bad, a=1)
+        Trace().table(bad).append((1,), ("a",))
     with pytest.raises(ValueError, match="invalid trace table name"):
         write_frames({bad: __import__("pandas").DataFrame({"a": [1]})}, "/nonexistent-never-made")
 
@@ -221,7 +221,7 @@ def test_protocol_logging_outside_the_output_directory_is_refused(tmp_path):
     sim.add_group(Escaper, 1, positions=[[0.0, 0.0, 10.0]])
     with pytest.raises(ValueError, match=r"invalid trace table name '\.\./x'"):
         sim.run(5.0)
-    Trace().append("my_table.v2-a", a=1)  # the allowed alphabet
+    Trace().table("my_table.v2-a").append((1,), ("a",))  # the allowed alphabet
 
 
 # --------------------------------------------------------------------------- item 2: signals

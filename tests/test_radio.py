@@ -10,7 +10,8 @@ import pytest
 import simpy
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig, no_snr
+from aquasim_py.channel.acoustic import AcousticChannel
+from aquasim_py.channel.config import ChannelConfig, no_snr
 from aquasim_py.packet import Packet, Reception
 from aquasim_py.radio import PACKET_FIELDS
 from aquasim_py.trace import SCHEMAS
@@ -61,11 +62,8 @@ class ListLog:
     def __init__(self) -> None:
         self.rows: list[tuple[Any, ...]] = []
 
-    def row_buffer(self) -> list[tuple[Any, ...]]:
-        return self.rows
-
-    def flush_if_large(self) -> None:
-        pass
+    def append(self, values: tuple[Any, ...]) -> None:
+        self.rows.append(values)
 
     def table(self) -> list[dict[str, Any]]:
         return [dict(zip(PACKET_FIELDS, r, strict=True)) for r in self.rows]
@@ -128,7 +126,6 @@ class PlainCallablePort(StubPort):
         self.deliver = lambda packet, rx_local, snr_db, pressure: self.got.append(("plain", packet.kind))
 
 
-@pytest.mark.usefixtures("delivery_path")
 def test_each_port_gets_its_own_deliver_called():
     """Ports of different kinds on one channel (two classes, and a deliver that is not a
     method): each reception goes to its receiver's own deliver."""

@@ -125,7 +125,7 @@ def test_resolved_scenario_round_trips(base):
 
 
 def test_channel_defaults_match_the_kernel():
-    from aquasim_py.channel.acoustic import ChannelConfig
+    from aquasim_py.channel.config import ChannelConfig
     from aquasim_py.scenario_schema import ChannelSpec
 
     spec = ChannelSpec()

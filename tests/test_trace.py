@@ -11,10 +11,11 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from trace_paths import PATHS, using
+from trace_paths import PATHS, row, using
 
 from aquasim_py import trace
 from aquasim_py.trace import SCHEMAS, Table, Trace
+from aquasim_py.trace.columns import Column
 
 
 def test_design_tables_exist_with_design_columns_first():
@@ -49,9 +50,9 @@ def test_design_tables_exist_with_design_columns_first():
 
 def test_rows_with_new_and_missing_columns():
     t = Table("custom")
-    t.append(time=0.0, node=1, label="a")
-    t.append(time=1.5, node=2, extra=3.25)
-    t.append(time=2.0, label="b", node=3)
+    t.append(*row(time=0.0, node=1, label="a"))
+    t.append(*row(time=1.5, node=2, extra=3.25))
+    t.append(*row(time=2.0, label="b", node=3))
     df = t.frame()
     assert list(df.columns) == ["time", "node", "label", "extra"]
     assert df.node.tolist() == [1, 2, 3] and df.node.dtype == np.int64
@@ -61,11 +62,11 @@ def test_rows_with_new_and_missing_columns():
 
 def test_columns_widen_instead_of_failing():
     t = Table("w")
-    t.append(v=1)
-    t.append(v=2.5)  # int column meets a float
-    t.append(v=None)
-    t.append(w="x")
-    t.append(w=[1, 2])  # categorical meets an unhashable object
+    t.append(*row(v=1))
+    t.append(*row(v=2.5))  # int column meets a float
+    t.append(*row(v=None))
+    t.append(*row(w="x"))
+    t.append(*row(w=[1, 2]))  # categorical meets an unhashable object
     df = t.frame()
     assert df.v.tolist()[:2] == [1.0, 2.5] and pd.isna(df.v[2])
     assert df.w.tolist()[3] == "x" and df.w.tolist()[4] == [1, 2]
@@ -84,7 +85,7 @@ def test_extend_vectorized_rows():
         vy=np.zeros(n),
         vz=np.zeros(n),
     )
-    t.append(time=3.0, node=0, x=1.0, y=2.0, z=3.0, vx=0.0, vy=0.0, vz=0.0, flag="late")
+    t.append(*row(time=3.0, node=0, x=1.0, y=2.0, z=3.0, vx=0.0, vy=0.0, vz=0.0, flag="late"))
     df = t.frame()
     assert df.x.tolist() == [0.0, 1.5, 3.0, 4.5, 1.0] and df.node.tolist() == [0, 1, 2, 3, 0]
     assert df.flag.isna().sum() == 4 and df.flag.iloc[-1] == "late"
@@ -94,7 +95,7 @@ def test_extend_vectorized_rows():
 
 def test_packets_sorted_by_time_stably():
     tr = Trace()
-    row = tr.table("packets").append_fast
+    row = tr.table("packets").append
     nan = math.nan
     row((2.0, "rx", None, 1, 0, -1, 0, "a", 10, 2.0, nan, "direct", 2.0))
     row((0.0, "tx", None, 0, 0, -1, 0, "a", 10, nan, nan, None, 0.0))
@@ -137,35 +138,37 @@ def test_csv_round_trip_is_exact_and_byte_stable(tmp_path):
     vals = AWKWARD + rand
     tr = Trace()
     for i, v in enumerate(vals):
-        tr.append(
-            "clocks",
-            time=float(i),
-            node=i,
-            protocol="p" if i % 3 else "NA",
-            skew=v,
-            offset=-v,
-            true_skew=math.nan if i % 5 == 0 else 0.0,
-            true_offset=v * 3,
-            error=v / 7,
+        tr.table("clocks").append(
+            *row(
+                time=float(i),
+                node=i,
+                protocol="p" if i % 3 else "NA",
+                skew=v,
+                offset=-v,
+                true_skew=math.nan if i % 5 == 0 else 0.0,
+                true_offset=v * 3,
+                error=v / 7,
+            )
         )
-    tr.append("events", time=1.0, node=0, what='x,y "quoted"', ok=True)
-    tr.append("events", time=2.0, node=2**62, what="007", ok=False)
+    tr.table("events").append(*row(time=1.0, node=0, what='x,y "quoted"', ok=True))
+    tr.table("events").append(*row(time=2.0, node=2**62, what="007", ok=False))
     # categories that look like numbers or NA markers, and an all-missing category column
-    tr.append(
-        "packets",
-        time=0.5,
-        event="tx",
-        reason=None,
-        node=1,
-        src=1,
-        dst=2,
-        uid=7,
-        kind="1.50",
-        bits=256,
-        tof=math.nan,
-        snr_db=-0.0,
-        path="null",
-        local_time=0.5000000000000001,
+    tr.table("packets").append(
+        *row(
+            time=0.5,
+            event="tx",
+            reason=None,
+            node=1,
+            src=1,
+            dst=2,
+            uid=7,
+            kind="1.50",
+            bits=256,
+            tof=math.nan,
+            snr_db=-0.0,
+            path="null",
+            local_time=0.5000000000000001,
+        )
     )
     tr.write(tmp_path / "a")
     tr.write(tmp_path / "b")
@@ -209,8 +212,8 @@ def test_write_rejects_unknown_format_and_load_missing_dir(tmp_path):
 def test_parquet_round_trip(tmp_path):
     pytest.importorskip("pyarrow")
     tr = Trace()
-    tr.append(
-        "clocks", time=1.0, node=0, protocol="p", skew=1e-5, offset=0.1, true_skew=0.0, true_offset=0.0, error=0.1
+    tr.table("clocks").append(
+        *row(time=1.0, node=0, protocol="p", skew=1e-5, offset=0.1, true_skew=0.0, true_offset=0.0, error=0.1)
     )
     tr.write(tmp_path, fmt="parquet")
     back = trace.load(tmp_path)
@@ -221,8 +224,8 @@ def test_batched_fast_rows_widen_without_duplicates():
     t = Table("fast", (("a", "i"), ("b", "f")))
     rows = [(i, float(i)) for i in range(5)] + [(2.5, 1.0)] + [(i, 0.0) for i in range(3)]
     for r in rows:
-        t.append_fast(r)
-    t.append(a=7, b=7.0, c="late")  # a generic row after buffered ones keeps the order
+        t.append(r)
+    t.append(*row(a=7, b=7.0, c="late"))  # a generic row after buffered ones keeps the order
     df = t.frame()
     assert df["a"].tolist() == [0, 1, 2, 3, 4, 2.5, 0, 1, 2, 7]
     assert df["b"].tolist()[-1] == 7.0 and df["c"].isna().sum() == 9 and t.n == 10
@@ -244,7 +247,7 @@ _cell = st.one_of(
 )
 
 
-def _state(col: trace._Column) -> tuple[Any, ...]:
+def _state(col: Column) -> tuple[Any, ...]:
     """Everything a column holds: kind, values (by type and repr: NaN, -0.0 and 1 vs 1.0 vs
     True told apart; arrays by their bytes), categories in code order, floated."""
     data = col.data
@@ -266,7 +269,7 @@ def test_batches_of_rows_fill_columns_as_the_python_path_does(kinds, before, row
     batch = [tuple(r[: len(kinds)]) for r in rows]
     states = {}
     for path in PATHS:
-        cols = [trace._Column(k) for k in kinds]
+        cols = [Column(k) for k in kinds]
         for col in cols:
             for v in before:
                 col.push(v)

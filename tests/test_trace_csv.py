@@ -1,4 +1,4 @@
-"""The bulk CSV formatter of streamed traces (trace._csv_bytes, through trace_paths.csv_text): the bytes pandas' own
+"""The bulk CSV formatter of streamed traces (trace.csvfmt.csv_bytes, through trace_paths.csv_text): the bytes pandas' own
 ``DataFrame.to_csv(index=False, lineterminator="\\n")`` writes, on adversarial values, and
 pandas' path whenever a column is of a kind the formatter does not take; both the C formatter
 (aquasim_py._fastcsv, when built) and the Python reference (trace_paths.PATHS)."""
@@ -14,9 +14,10 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from trace_paths import PATHS, csv_text, using
+from trace_paths import PATHS, csv_text, row, using
 
-from aquasim_py import trace
+from aquasim_py.trace.columns import Chunk
+from aquasim_py.trace.sinks import CsvSink
 
 # values that trip formatters: signed zero, subnormals, the repr switch to exponents at 1e16
 # and 1e-4, integers beyond 2**53, NaN with another payload, the extremes
@@ -130,10 +131,10 @@ def test_columns_it_does_not_take_go_to_pandas(tmp_path) -> None:
                 continue  # a table holds no float32 column: no sink sees one
             # the chunk a table of these columns hands its sink (float64 "f", int64 "i", others "o")
             kinds = {c: {"float64": "f", "int64": "i"}.get(str(df[c].dtype), "o") for c in df.columns}
-            chunk = trace._Chunk(
+            chunk = Chunk(
                 {c: (k, df[c].tolist() if k == "o" else df[c].to_numpy(), []) for c, k in kinds.items()}, len(df)
             )
-            sink = trace._CsvSink(tmp_path / f"{path}{i}.csv")
+            sink = CsvSink(tmp_path / f"{path}{i}.csv")
             with using(path):
                 sink.write(chunk, kinds)
             assert (tmp_path / f"{path}{i}.csv").read_text(encoding="utf-8") == _pandas(df, True)
@@ -227,11 +228,11 @@ def test_columns_read_alone_are_the_whole_tables_columns(tmp_path) -> None:
         pk = tr.table("packets")
         for i in range(23):
             ev = ("tx", "rx", "drop")[i % 3]
-            pk.append_fast(
+            pk.append(
                 (i * 0.5, ev, "collision" if ev == "drop" else None, i % 4, 0, -1, i // 3, "007", 64)
                 + (1e-300 * i, -0.0 if i % 2 else math.nan, None, math.nan)
             )
-            tr.append("noise", v=i)
+            tr.table("noise").append(*row(v=i))
         done = tr.close()
         files = TraceFiles({k: p for k, (p, _) in done.items() if p is not None}, dropped=["noise"])
         whole = read_table(d / f"packets.{fmt}", "packets")

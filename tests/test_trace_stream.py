@@ -19,10 +19,11 @@ import pandas as pd
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-from trace_paths import PATHS, using
+from trace_paths import PATHS, row, using
 
 from aquasim_py import metrics, run_scenario, trace
 from aquasim_py.trace import TableNotKept, Trace, TraceFiles, write_frames
+from aquasim_py.trace.read import _read_csv
 
 # --------------------------------------------------------------------------- the sinks
 # one operation on a trace: (table, row) appended through Trace.append; values of every kind
@@ -39,11 +40,11 @@ _ops = st.lists(st.tuples(st.sampled_from(["t1", "t2", "estimates"]), _row), max
 
 
 def _replay(tr: Trace, ops: list[tuple[str, dict[str, Any]]]) -> None:
-    for i, (name, row) in enumerate(ops):
+    for i, (name, values) in enumerate(ops):
         if name == "estimates":  # a schema table: fixed columns first, extra ones after
-            tr.append(name, time=float(i), node=i % 3, protocol="p", **row)
+            tr.table(name).append(*row(time=float(i), node=i % 3, protocol="p", **values))
         else:
-            tr.append(name, **row)
+            tr.table(name).append(*row(**values))
 
 
 def _streamed(tmp: Path, ops: list[tuple[str, dict[str, Any]]], chunk: int, fmt: str = "csv") -> dict[str, Path]:
@@ -110,8 +111,7 @@ def test_time_ordered_table_streams_in_the_order_frame_sorts(tmp_path):
             # times in [now - lag, now + 5]: late receptions and drops decided ahead
             t = now[0] + float(rng.uniform(-lag, 5.0))
             t = round(t, 1)  # many equal times: the sort must be stable
-            pk.append_fast((t, "rx", None, 1, 2, -1, uid, "k", 8, 0.1, 3.0, "d", t))
-            pk.flush_if_large()
+            pk.append((t, "rx", None, 1, 2, -1, uid, "k", 8, 0.1, 3.0, "d", t))
 
     ref = Trace()
     fill(ref)
@@ -131,16 +131,16 @@ def test_a_row_breaking_the_order_promise_is_an_error_not_a_misordered_file(tmp_
     pk = tr.table("packets")
     pk.order_by_time(lambda: 100.0)
     tr.stream(lambda n: tmp_path / f"{n}.csv", chunk_rows=1)
-    pk.append(time=150.0, event="tx")  # streamed: the file now holds rows before t = 100
+    pk.append(*row(time=150.0, event="tx"))  # streamed: the file now holds rows before t = 100
     with pytest.raises(RuntimeError, match="order_by_time"):
-        pk.append(time=50.0, event="rx")  # earlier than the promised 100 s
+        pk.append(*row(time=50.0, event="rx"))  # earlier than the promised 100 s
 
 
 def test_dropped_table_keeps_nothing_and_says_so(tmp_path):
     tr = Trace()
     tr.stream(lambda n: None if n == "noise" else tmp_path / f"{n}.csv", chunk_rows=10)
     for i in range(1000):
-        tr.append("noise", v=i)
+        tr.table("noise").append(*row(v=i))
     assert tr.tables["noise"].frame().empty  # no rows held
     done = tr.close()
     assert done["noise"] == (None, 1000)
@@ -166,7 +166,7 @@ def test_a_tally_counts_the_rows_handed_to_the_file(tmp_path_factory, rows, chun
     tr.stream(lambda n: tmp / f"{n}.csv", chunk_rows=chunk)
     for t in (ref, tr):
         for i, (event, reason) in enumerate(rows):
-            t.append("packets", time=float(i), event=event, reason=reason)
+            t.table("packets").append(*row(time=float(i), event=event, reason=reason))
     tr.close()
     tally = tr.tables["packets"].tallies[("event", "reason")]
     whole = ref.frames()["packets"]
@@ -181,7 +181,7 @@ def test_a_tally_gives_up_on_a_column_that_is_not_categorical_and_the_counts_rea
     tr.table("packets").tally(("event", "reason"))
     tr.stream(lambda n: tmp_path / f"{n}.csv", chunk_rows=2)
     for i, event in enumerate(["tx", "rx", "drop", 7, "rx"]):  # 7: the column becomes "o"
-        tr.append("packets", time=float(i), event=event, reason="collision" if event == "drop" else None)
+        tr.table("packets").append(*row(time=float(i), event=event, reason="collision" if event == "drop" else None))
     done = tr.close()
     assert tr.tables["packets"].tallies[("event", "reason")] is None
     files = TraceFiles({k: p for k, (p, _) in done.items() if p}, tallies={"packets": tr.tables["packets"].tallies})
@@ -212,7 +212,7 @@ def test_columns_kept_as_written_are_what_the_file_reads_back(tmp_path_factory, 
     tr.table("packets").keep(("event", "uid", "node", "time"))
     tr.stream(lambda n: tmp / f"{n}.csv", chunk_rows=chunk)
     for event, uid, node, t in rows:
-        tr.append("packets", time=t, event=event, uid=uid, node=node)
+        tr.table("packets").append(*row(time=t, event=event, uid=uid, node=node))
     table = tr.tables["packets"]
     done = tr.close()
     kept = table.kept()
@@ -224,7 +224,7 @@ def test_columns_kept_as_written_are_what_the_file_reads_back(tmp_path_factory, 
         kept={} if kept is None else {"packets": (kept, tuple(table.columns))},
     )
     for cols in (["event", "uid", "node", "time"], ["time", "node"], ["uid", "reason"], ["event"]):
-        back = trace._read_csv(tmp / "packets.csv", "packets", cols)
+        back = _read_csv(tmp / "packets.csv", "packets", cols)
         got = files.columns("packets", cols)
         pd.testing.assert_frame_equal(got, back, check_exact=True)
         assert got.dtypes.tolist() == back.dtypes.tolist()
@@ -240,7 +240,7 @@ def test_columns_outside_the_schema_are_not_kept(tmp_path):
     tr.table("samples").keep(("label",))
     tr.stream(lambda n: tmp_path / f"{n}.csv", chunk_rows=2)
     for i in range(5):
-        tr.append("samples", time=float(i), label="007")
+        tr.table("samples").append(*row(time=float(i), label="007"))
     table = tr.tables["samples"]
     done = tr.close()
     assert table.kept() is None
@@ -260,7 +260,7 @@ def _peak_streaming(rows: int, tmp: Path) -> int:
     gc.collect()
     tracemalloc.start()
     for i in range(rows):
-        tr.append("samples", time=i * 0.01, node=i % 7, value=float(i) / 7.0)
+        tr.table("samples").append(*row(time=i * 0.01, node=i % 7, value=float(i) / 7.0))
     tr.close()
     peak = tracemalloc.get_traced_memory()[1]
     tracemalloc.stop()

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from aquasim_py.channel import Constant, Isogradient, travel_time
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node, Role

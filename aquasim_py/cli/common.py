@@ -28,6 +28,22 @@ class Interrupted(KeyboardInterrupt):
         self.detail: str | None = None
 
 
+def version_line() -> str:
+    """``aquasim-py --version``: the package, Python and SimPy versions, and whether the optional
+    compiled CSV writer (aquasim_py._fastcsv, built at install when a C compiler is there) is
+    in use; without it the trace is written by its pure-Python reference, with the same bytes."""
+    from importlib.metadata import version
+    from importlib.util import find_spec
+
+    from aquasim_py import __version__
+
+    fast = "compiled (aquasim_py._fastcsv)" if find_spec("aquasim_py._fastcsv") is not None else "pure Python"
+    return (
+        f"aquasim-py {__version__} (Python {sys.version.split()[0]}, SimPy {version('simpy')}; "
+        f"trace CSV writer: {fast})"
+    )
+
+
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, not usage + message
         raise UsageError(f"{message} (see {self.prog} --help)")

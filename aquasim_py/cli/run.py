@@ -9,7 +9,6 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from aquasim_py import __version__
 from aquasim_py.cli import common
 from aquasim_py.runner import (
     RunResult,
@@ -55,7 +54,7 @@ def parser() -> argparse.ArgumentParser:
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--version", action="version", version=f"aquasim-py {__version__}")
+    p.add_argument("--version", action="version", version=common.version_line())
     common.add_common(p)
     p.add_argument(
         "--variant",

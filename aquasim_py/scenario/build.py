@@ -196,7 +196,7 @@ def _clock_factory(spec: Any) -> Any:
 
 def channel_config(sc: Scenario) -> Any:
     """The kernel's ChannelConfig for the scenario's [channel] table."""
-    from aquasim_py.channel.acoustic import ChannelConfig
+    from aquasim_py.channel.config import ChannelConfig
 
     c = sc.channel
     return ChannelConfig(
@@ -247,7 +247,7 @@ def build(sc: Scenario) -> Any:
     mobility model, ("node", id, "clock") for each node's clock. Errors that only the physics
     constructors detect (e.g. a mobility parameter out of range) become ScenarioError.
     """
-    from aquasim_py.channel.acoustic import no_snr
+    from aquasim_py.channel.config import no_snr
     from aquasim_py.kernel import Simulation
     from aquasim_py.mobility import Box
     from aquasim_py.node import Sensors

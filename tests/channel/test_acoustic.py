@@ -11,11 +11,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from scipy.optimize import brentq
 from scripted import Script, planned
 
-from aquasim_py.channel import Constant, Isogradient, acoustic, travel_time
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel import Constant, Isogradient, config, eigenray, fixed_point, links, travel_time
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.channel.rays import Eigenray, PathKind
 from aquasim_py.clock import Clock
 from aquasim_py.kernel import Simulation
@@ -23,7 +25,6 @@ from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
 
 # every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
-pytestmark = pytest.mark.usefixtures("delivery_path")
 
 # Use the isogradient profile as soon as the ray tracer supports it; Constant only until then.
 _ISO = Isogradient(1480.0, 0.1)
@@ -268,14 +269,14 @@ def test_snr_and_no_path_drops(monkeypatch):
     d = _at(_packets(sim), 1, "drop").iloc[0]
     assert d.reason == "snr" and d.snr_db == 3.0 and math.isclose(d.time, 1.0)
 
-    real = acoustic.eigenray
+    real = links.eigenray
 
     def shadow(ssp, s, d, reflections="fallback"):
         r = real(ssp, s, d, reflections=reflections)
         nan = np.full(np.shape(r.time), np.nan)
         return Eigenray(nan, nan, nan, nan, nan, np.full(np.shape(r.time), PathKind.NONE, dtype=np.int8))
 
-    monkeypatch.setattr(acoustic, "eigenray", shadow)
+    monkeypatch.setattr(links, "eigenray", shadow)
     sim = Simulation(8, ssp=C)
     sim.add_group(planned({0: [(0.0, None, 100)]}), 2, positions=[A, R])
     sim.run(3.0)
@@ -414,14 +415,14 @@ def test_constant_moving_root_matches_brentq():
     c = 1500.0
     d = rng.uniform(-3000.0, 3000.0, (40, 3))
     v = rng.normal(0.0, 8.0, (40, 3))
-    t = acoustic._constant_moving_root(c, d, v)
+    t = fixed_point.constant_moving_root(c, d, v)
     dv = np.einsum("ij,ij->i", d, v)
     assert (dv < 0).any() and (dv > 0).any()
     for i in range(len(d)):
         ref = brentq(lambda s: np.linalg.norm(d[i] + v[i] * s) - c * s, 0.0, 10.0, xtol=1e-15, rtol=1e-15)
         assert abs(t[i] - ref) <= 4e-15 * ref
     # a receiver as fast as sound has no root: NaN, so the caller falls back to iteration
-    assert np.isnan(acoustic._constant_moving_root(c, d[:1], np.array([[c, 0.0, 0.0]])))[0]
+    assert np.isnan(fixed_point.constant_moving_root(c, d[:1], np.array([[c, 0.0, 0.0]])))[0]
 
 
 @pytest.mark.parametrize("reflections", ["fallback", "all"])
@@ -433,17 +434,17 @@ def test_linear_fixed_point_isogradient_matches_brentq(reflections):
     src = np.array([0.0, 0.0, 80.0])
     p0 = np.column_stack([rng.uniform(-2500, 2500, 12), rng.uniform(-2500, 2500, 12), rng.uniform(20, 300, 12)])
     v = rng.normal(0.0, 3.0, (12, 3))
-    ray = acoustic.eigenray(ssp, src, p0, reflections=reflections)
+    ray = eigenray(ssp, src, p0, reflections=reflections)
     assert np.isfinite(ray.time).all()
     calls = []
-    fn = acoustic._travel_time_fn(ssp, reflections, src, ray.path)
+    fn = fixed_point.travel_time_fn(ssp, reflections, src, ray.path)
 
     def counted(dst):
         calls.append(len(dst))
         return fn(dst)
 
-    slope = acoustic._slope_along(ssp, src, p0, v, ray.arrival_angle)
-    t = acoustic._secant_fixed_point(counted, p0, v, ray.time, slope)
+    slope = fixed_point.slope_along(ssp, src, p0, v, ray.arrival_angle)
+    t = fixed_point.secant_fixed_point(counted, p0, v, ray.time, slope)
     T = lambda q: float(travel_time(ssp, src, q, reflections=reflections))  # noqa: E731
     for i in range(len(p0)):
         assert abs(t[i] - _brentq_linear(T, p0[i], v[i])) < 1e-12
@@ -493,7 +494,7 @@ def test_physical_snr_is_loss_snr_db_bit_for_bit():
             frequency_khz=25.0, bandwidth_khz=8.0, spreading=2.0, shipping=0.9, wind_mps=7.0, source_level_db=180.0
         ),
     ):
-        got = acoustic.physical_snr(ray, cfg)
+        got = config.physical_snr(ray, cfg)
         ref = loss.snr_db(
             cfg.source_level_db,
             lengths,
@@ -516,8 +517,8 @@ def test_accelerated_root_matches_brentq():
     v = rng.normal(0.0, 1.0, (200, 3))
     a = rng.normal(0.0, 1e-3, (200, 3))
     a[:20] = 0.0  # rows without an acceleration keep the straight-line root, bit for bit
-    t_lin = acoustic._constant_moving_root(c, d, v)
-    t = acoustic._accelerated_root(c, d, v, a, t_lin)
+    t_lin = fixed_point.constant_moving_root(c, d, v)
+    t = fixed_point.accelerated_root(c, d, v, a, t_lin)
     assert np.array_equal(t[:20], t_lin[:20])
     for i in range(20, 200):
         ref = brentq(
@@ -555,7 +556,7 @@ def test_current_driven_receivers_one_exact_step_and_exact():
     for k, t0 in enumerate(np.arange(0.0, 20.0, 0.37)):
         src = k % 30
         evaluations.append(0)
-        _, heard, lost = ch._links(src, float(t0))
+        _, heard, lost = ch.links.links(src, float(t0), 30)
         assert heard and not lost
         if k % 9 == 0:
             p_src = positions_at(np.array([src]), np.array([t0]))[0]
@@ -568,6 +569,26 @@ def test_current_driven_receivers_one_exact_step_and_exact():
                     xtol=1e-15,
                     rtol=1e-15,
                 )
-                assert abs(tof - ref) <= acoustic.FIXED_POINT_TOL_S
-    assert ch._index is None  # the path under test: no speed bound
+                assert abs(tof - ref) <= fixed_point.FIXED_POINT_TOL_S
+    assert ch.links._index is None  # the path under test: no speed bound
     assert evaluations[0] == 2 and np.mean(evaluations[10:]) <= 1.1, evaluations
+
+
+@given(
+    now=st.floats(0.0, 1e7, allow_subnormal=False),
+    at=st.floats(0.0, 1e7, allow_subnormal=False),
+)
+def test_a_timeout_of_the_difference_fires_at_the_instant_whenever_any_can(now: float, at: float) -> None:
+    """The channel schedules a delivery at true time ``at`` as a Timeout of ``at - now``, which
+    SimPy fires at ``now + (at - now)``: that is ``at`` bit for bit unless no delay gives it
+    (brute force over the delays around ``at - now``), and then an ulp from it."""
+    now, at = min(now, at), max(now, at)
+    if now + (at - now) != at:
+        around = []
+        for step in (math.inf, -math.inf):
+            x = at - now
+            for _ in range(16):
+                x = math.nextafter(x, step)
+                around.append(x)
+        assert all(now + x != at for x in around)
+        assert abs(now + (at - now) - at) <= math.ulp(at)

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.channel.neighbours import NeighbourIndex
 from aquasim_py.kernel import Simulation
 from aquasim_py.mobility import Box, ConstantVelocity
@@ -140,21 +140,3 @@ def test_deliveries_of_a_transmission_take_one_queue_entry() -> None:
     dist = np.linalg.norm(pos[rx["node"].to_numpy()] - pos[0], axis=1)
     np.testing.assert_allclose(rx["time"].to_numpy(), dist / 1500.0, rtol=0.0, atol=1e-12)
     assert np.all(np.diff(rx["time"].to_numpy()) >= 0.0)
-
-
-def test_public_schedule_fallback_gives_the_same_packets(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Without SimPy's queue internals the channel schedules through ``Environment.schedule``:
-    the same receptions, times equal to within an ulp of the run time."""
-    direct = _packets(4, True, monkeypatch)
-    orig = AcousticChannel.__init__
-
-    def no_queue(self: AcousticChannel, *a: Any, **k: Any) -> None:
-        orig(self, *a, **k)
-        self._push = self._push_schedule
-        self._queue = []  # and no access to SimPy's queue: every pop is Environment.step's
-        self._core = None  # and the Python delivery (the compiled one drives SimPy's queue itself)
-
-    monkeypatch.setattr(AcousticChannel, "__init__", no_queue)
-    fallback = _packets(4, True, monkeypatch)
-    assert (direct["event"] == "rx").sum() > 200
-    pd.testing.assert_frame_equal(direct, fallback, check_exact=False, rtol=1e-14, atol=1e-12)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.channel.obstacles import ObstacleConfig, ObstacleField
 from aquasim_py.channel.ssp import Constant
 from aquasim_py.kernel import Simulation

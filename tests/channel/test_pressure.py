@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.channel.pressure import (
     received_pressure,
     received_pressure_and_gradient,

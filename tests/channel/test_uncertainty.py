@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.channel.uncertainty import SoundSpeedUncertainty, ou_step, perturbed_delay
 from aquasim_py.kernel import Simulation
 from aquasim_py.node import Node

@@ -12,17 +12,15 @@ its addressee gets a row.
 from __future__ import annotations
 
 import pandas as pd
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scripted import Plan, planned
 
 from aquasim_py.channel import Constant
-from aquasim_py.channel.acoustic import AcousticChannel, ChannelConfig
+from aquasim_py.channel.config import ChannelConfig
 from aquasim_py.kernel import Simulation
 
 # every test on both delivery paths (compiled and the Python reference), see tests/conftest.py
-pytestmark = pytest.mark.usefixtures("delivery_path")
 
 C = 1024.0  # m/s
 BITRATE = 1024.0  # bit/s
@@ -123,20 +121,3 @@ def test_the_brute_force_sees_touching_and_equal_signals() -> None:
     ]
     assert got[4:] == [(2.0, "drop", "half_duplex"), (2.125, "rx", None)]
     assert _observed(p) == _brute_force(xs, p)
-
-
-@pytest.mark.parametrize("collision", ["destructive", "capture", "none"])
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(net=networks())
-def test_deliveries_in_the_queue_loop_give_the_same_rows_in_the_same_order(collision: str, net) -> None:
-    """Deciding consecutive deliveries at the head of SimPy's queue in the channel's loop gives
-    the rows (every field, the row order) that one Environment.step per delivery gives."""
-    xs, plan = net
-    looped = _run(xs, plan, collision)
-    AcousticChannel.drain_deliveries = False
-    try:
-        stepped = _run(xs, plan, collision)
-    finally:
-        AcousticChannel.drain_deliveries = True
-    assert len(looped) == len(stepped)
-    pd.testing.assert_frame_equal(looped, stepped, check_exact=True)

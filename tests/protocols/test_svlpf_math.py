@@ -210,7 +210,7 @@ def test_fusion_defaults_match_the_channel_defaults():
     the channel's (10 kHz, 5 kHz band, shipping 0.5, no wind; Thorp absorption at 10 kHz)."""
     from aquasim_protocols.svlpf import SvlpfParams
     from aquasim_py.channel import loss
-    from aquasim_py.channel.acoustic import ChannelConfig
+    from aquasim_py.channel.config import ChannelConfig
 
     c, p = ChannelConfig(), SvlpfParams()
     noise = loss.noise_psd_db(c.frequency_khz, c.shipping, c.wind_mps) + 10 * np.log10(c.bandwidth_khz * 1e3)

@@ -1,0 +1,162 @@
+"""The research-run benchmark: wall time, CPU time and peak memory of the runs researchers make,
+this checkout against another one, timed in the same session and alternated.
+
+    python tools/bench_scenarios.py                        # against the previous commit (HEAD~1)
+    python tools/bench_scenarios.py --baseline v0.1.0 --rounds 5
+    python tools/bench_scenarios.py --baseline-python ../old/.venv/bin/python
+    python tools/bench_scenarios.py --only itmtl,stvf_quick --json out/bench.json
+
+Each run is the CLI on a shipped scenario (``aquasim-py SCENARIO --quiet``, every variant unless
+one is named), in a fresh process, its CPU (user + system) and peak RSS read from the kernel's
+accounting of that child (``os.wait4``). The baseline is a git revision, installed with
+``pip install --no-deps --target`` into a temporary folder (its own compiled extensions, if it
+has any, built as its setup says) and run by this interpreter with that folder first on its
+path; or another environment's Python (``--baseline-python``). Each round runs every scenario on
+both sides, the side that goes first alternating between rounds; the table gives the medians
+and the ratio of the medians (current / baseline).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: name -> (scenario file, extra CLI arguments): the research runs of the performance table
+RUNS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "itmtl": ("scenarios/itmtl.toml", ()),
+    "stvf_quick": ("scenarios/stvf_quick.toml", ()),
+    "stvf_table1": ("scenarios/stvf.toml", ("--variant", "stvf")),
+    "mswpf_2d": ("scenarios/mswpf_2d.toml", ()),
+    "svlpf": ("scenarios/svlpf.toml", ()),
+    "beacon": ("scenarios/beacon.toml", ()),
+}
+
+#: runs the CLI of whatever aquasim_py comes first on the path (no console script needed)
+_CLI = "import sys; from aquasim_py.cli import main; sys.exit(main(sys.argv[1:]))"
+
+
+@dataclass
+class Side:
+    """One checkout to time: its interpreter, extra path entries and scenario folder."""
+
+    label: str
+    python: str
+    root: Path
+    pythonpath: str | None = None
+
+    def run(self, scenario: str, extra: tuple[str, ...], out: Path) -> tuple[float, float, float]:
+        """(wall s, CPU s, peak RSS MiB) of one CLI run."""
+        env = dict(os.environ)
+        if self.pythonpath is not None:
+            env["PYTHONPATH"] = self.pythonpath
+        cmd = [self.python, "-c", _CLI, str(self.root / scenario), "--quiet", "--out", str(out), *extra]
+        t0 = time.perf_counter()
+        # cwd outside both checkouts: Python puts the current directory first on its path
+        proc = subprocess.Popen(cmd, env=env, cwd=out.parent, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        stderr = proc.stderr.read().decode() if proc.stderr else ""
+        if proc.stderr:
+            proc.stderr.close()
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            raise SystemExit(f"{self.label}: {scenario} exited {proc.returncode}\n{stderr}")
+        shutil.rmtree(out, ignore_errors=True)
+        return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
+
+
+def install_revision(rev: str, tmp: Path) -> Side:
+    """A side for git revision ``rev``: its tree checked out and installed into ``tmp``."""
+    tree, site = tmp / "tree", tmp / "site"
+    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree), rev], check=True)
+    try:
+        subprocess.run(
+            [sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
+             "--target", str(site), str(tree)],
+            check=True,
+        )  # fmt: skip
+    finally:
+        # the files needed are installed; the scenarios are copied out of the tree first
+        shutil.copytree(tree / "scenarios", tmp / "scenarios")
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=True)
+    return Side(rev, sys.executable, tmp, pythonpath=str(site))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    base = ap.add_mutually_exclusive_group()
+    base.add_argument("--baseline", default="HEAD~1", help="git revision to compare with (default HEAD~1)")
+    base.add_argument("--baseline-python", help="compare with the aquasim_py this Python imports")
+    base.add_argument("--no-baseline", action="store_true", help="time this checkout alone")
+    ap.add_argument(
+        "--baseline-root", type=Path, help="scenario folder's parent for --baseline-python (default: this checkout)"
+    )
+    ap.add_argument("--rounds", type=int, default=3, help="rounds (default 3)")
+    ap.add_argument("--only", help=f"comma-separated subset of {', '.join(RUNS)}")
+    ap.add_argument("--json", type=Path, help="write every measurement here")
+    args = ap.parse_args(argv)
+    if args.rounds < 1:
+        ap.error("--rounds must be >= 1")
+    names = list(RUNS) if not args.only else [n.strip() for n in args.only.split(",")]
+    unknown = [n for n in names if n not in RUNS]
+    if unknown:
+        ap.error(f"unknown run(s) {unknown}; known: {', '.join(RUNS)}")
+
+    with tempfile.TemporaryDirectory(prefix="bench-scenarios-") as tmp_s:
+        tmp = Path(tmp_s)
+        sides = [Side("current", sys.executable, ROOT)]
+        if args.baseline_python:
+            sides.append(Side("baseline", args.baseline_python, args.baseline_root or ROOT))
+        elif not args.no_baseline:
+            print(f"installing {args.baseline} ...", file=sys.stderr, flush=True)
+            sides.append(install_revision(args.baseline, tmp / "baseline"))
+        results: dict[str, dict[str, list[tuple[float, float, float]]]] = {
+            n: {s.label: [] for s in sides} for n in names
+        }
+        for r in range(args.rounds):
+            order = sides if r % 2 == 0 else sides[::-1]
+            for name in names:
+                scenario, extra = RUNS[name]
+                for side in order:
+                    m = side.run(scenario, extra, tmp / "out")
+                    results[name][side.label].append(m)
+                    print(f"round {r + 1} {name:12s} {side.label:10s} wall {m[0]:7.2f} s  CPU {m[1]:7.2f} s  "
+                          f"peak {m[2]:6.0f} MiB", file=sys.stderr, flush=True)  # fmt: skip
+
+    def med(ms: list[tuple[float, float, float]], i: int) -> float:
+        return statistics.median(m[i] for m in ms)
+
+    cur, old = sides[0].label, (sides[1].label if len(sides) > 1 else None)
+    cols = ["run", "CPU s", "wall s", "peak MiB"]
+    if old:
+        cols += [f"CPU s ({old})", f"peak MiB ({old})", "CPU ratio"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    for name in names:
+        c = results[name][cur]
+        row = f"| {name} | {med(c, 1):.2f} | {med(c, 0):.2f} | {med(c, 2):.0f} |"
+        if old:
+            b = results[name][old]
+            row += f" {med(b, 1):.2f} | {med(b, 2):.0f} | {med(c, 1) / med(b, 1):.3f} |"
+        print(row)
+    print(f"\nmedians of {args.rounds} round(s), sides alternated; CPU = user + system of the run's process")
+    if args.json:
+        args.json.write_text(
+            json.dumps({"rounds": args.rounds, "sides": [s.label for s in sides], "results": results}, indent=1)
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
