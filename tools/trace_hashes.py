@@ -7,8 +7,10 @@ Files whose columns are wall-clock times (a variants run's ``variants.csv``) are
 
     python tools/trace_hashes.py --json before.json            # on the old checkout
     python tools/trace_hashes.py --json after.json --compare before.json
+    python tools/trace_hashes.py --rev HEAD --json head.json   # a commit, whatever the work tree holds
 
-``--compare`` prints the files whose hash changed, appeared or disappeared and exits 1 if any did.
+``--rev`` installs that revision into a temporary folder first (as tools/bench_scenarios.py
+does) and runs its scenarios with its code. ``--compare`` prints the files whose hash changed, appeared or disappeared and exits 1 if any did.
 """
 
 from __future__ import annotations
@@ -16,11 +18,15 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from bench_scenarios import _CLI as CLI  # tools/, beside this script
+from bench_scenarios import install_revision
 
 ROOT = Path(__file__).resolve().parents[1]
 #: files whose content depends on the wall clock
@@ -45,12 +51,19 @@ def hash_tree(out: Path) -> dict[str, str]:
     return hashes
 
 
-def run(scenario: Path, cli: str) -> tuple[dict[str, str], float]:
+def run(scenario: Path, cli: list[str], env: dict[str, str] | None = None) -> tuple[dict[str, str], float]:
+    """(file -> sha256, wall s) of one CLI run of ``scenario`` (``cli``: the command before it)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
         t0 = time.perf_counter()
+        # cwd outside the checkout: Python puts the current directory first on its path
         proc = subprocess.run(
-            [cli, str(scenario), "--quiet", "--out", str(out)], check=False, capture_output=True, text=True
+            [*cli, str(scenario), "--quiet", "--out", str(out)],
+            check=False,
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=tmp,
         )
         dt = time.perf_counter() - t0
         if proc.returncode != 0:
@@ -64,12 +77,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cli", default=str(Path(sys.executable).with_name("aquasim-py")), help="the aquasim-py to run")
     ap.add_argument("--json", type=Path, help="write {scenario: {file: sha256}} here")
     ap.add_argument("--compare", type=Path, help="a --json file of an earlier run to compare with")
+    ap.add_argument("--rev", help="run this git revision's code and scenarios (installed into a temporary folder)")
     args = ap.parse_args(argv)
-    paths = args.scenarios or sorted((ROOT / "scenarios").glob("*.toml"))
-    table: dict[str, dict[str, str]] = {}
-    for p in paths:
-        table[p.name], dt = run(p, args.cli)
-        print(f"{p.name:45s} {len(table[p.name]):3d} files  {dt:7.1f} s", flush=True)
+    with tempfile.TemporaryDirectory(prefix="trace-hashes-") as tmp:
+        cli, env, root = [args.cli], None, ROOT
+        if args.rev:
+            side = install_revision(args.rev, Path(tmp) / "rev")
+            cli, root = [side.python, "-c", CLI], side.root
+            env = {**os.environ, "PYTHONPATH": str(side.pythonpath)}
+        paths = (
+            [root / "scenarios" / p.name for p in args.scenarios]
+            if args.scenarios
+            else sorted((root / "scenarios").glob("*.toml"))
+        )
+        table: dict[str, dict[str, str]] = {}
+        for p in paths:
+            table[p.name], dt = run(p.resolve(), cli, env)
+            print(f"{p.name:45s} {len(table[p.name]):3d} files  {dt:7.1f} s", flush=True)
     if args.json:
         args.json.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
     if args.compare is None:
