@@ -2,7 +2,8 @@
 
 Runs each ``scenarios/*.toml`` as ``aquasim-py SCENARIO --quiet`` (every variant; a sweep
 scenario's base run, not its grid) into a temporary directory and hashes every trace file:
-each CSV table, and ``summary.json``'s metrics and resolved scenario (its wall time left out).
+each CSV table, and ``summary.json``'s metrics and resolved scenario (its wall time, version
+and the scenario file's path left out).
 Files whose columns are wall-clock times (a variants run's ``variants.csv``) are skipped.
 
     python tools/trace_hashes.py --json before.json            # on the old checkout
@@ -37,6 +38,7 @@ def _summary_digest(path: Path) -> str:
     doc = json.loads(path.read_text())
     doc.pop("wall_time_s", None)
     doc.pop("aquasim_py_version", None)
+    doc.pop("scenario_file", None)  # the path the file was given by, which differs between checkouts
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
