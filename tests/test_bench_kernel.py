@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 
 import bench_kernel as bk
 
-from aquasim_py.kernel import _NodeCore
+from aquasim_py.nodecore import NodeCore
 
 N, UNTIL = 40, 6.0
 
@@ -46,9 +46,9 @@ def test_what_each_receiver_leaves_in_its_inbox():
 
 
 def test_drop_restores_the_kernels_deliver():
-    before = _NodeCore.deliver
+    before = NodeCore.deliver
     _run("drop")
-    assert _NodeCore.deliver is before
+    assert NodeCore.deliver is before
     with pytest.raises(ValueError, match="receiver must be one of"):
         bk.build_kernel(*bk.layout(N, 6.0, 3), "sometimes", 3)
-    assert _NodeCore.deliver is before
+    assert NodeCore.deliver is before

@@ -33,9 +33,10 @@ from scipy.spatial import cKDTree
 
 from aquasim_py.channel import Constant
 from aquasim_py.channel.config import ChannelConfig
-from aquasim_py.kernel import Simulation, _NodeCore, quiet_gc
+from aquasim_py.kernel import Simulation, quiet_gc
 from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.node import Node
+from aquasim_py.nodecore import NodeCore
 
 SPEED = 1500.0
 BITS = 64
@@ -105,7 +106,7 @@ class BenchBeacon(Node):
                 yield self.recv()
 
 
-def _dropped(core: _NodeCore, packet: Any, rx_local: float, snr_db: float, pressure: float) -> None:
+def _dropped(core: NodeCore, packet: Any, rx_local: float, snr_db: float, pressure: float) -> None:
     """The ``drop`` ablation's deliver: the reception is decided and traced, then discarded."""
 
 
@@ -126,9 +127,9 @@ def build_kernel(pos: np.ndarray, rng_m: float, receiver: bool | str, seed: int,
     )
     # the channel takes each node's deliver when the node is attached: "drop" swaps the
     # kernel's for the no-op while the group is added, and only then
-    kept = _NodeCore.deliver
+    kept = NodeCore.deliver
     if mode == "drop":
-        _NodeCore.deliver = _dropped  # type: ignore[method-assign,assignment]
+        NodeCore.deliver = _dropped  # type: ignore[method-assign,assignment]
     try:
         if speed > 0.0:
             # horizontal headings drawn per node: the channel then re-solves every delay per packet
@@ -138,7 +139,7 @@ def build_kernel(pos: np.ndarray, rng_m: float, receiver: bool | str, seed: int,
         else:
             sim.add_group(cls, len(pos), positions=pos)
     finally:
-        _NodeCore.deliver = kept  # type: ignore[method-assign]
+        NodeCore.deliver = kept  # type: ignore[method-assign]
     return sim
 
 

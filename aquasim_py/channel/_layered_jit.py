@@ -4,7 +4,7 @@
 Imported lazily by :mod:`aquasim_py.channel.layered` on its first solve (``import numba``
 costs about 64 MiB and 0.15 s, which runs without a layered profile never pay). One family
 evaluation is a loop over the layers one ray crosses, per (pair, sample); the numpy version
-(``layered._family``) does the same arithmetic as ~25 passes over (pairs x samples x layers)
+(``layer_stack.family``) does the same arithmetic as ~25 passes over (pairs x samples x layers)
 arrays. Every expression here is written in the numpy version's order, and the layer sums in
 numpy's pairwise order (up to 128 layers), so both give the same doubles
 (tests/channel/test_layered.py checks it); the time, arc length and turning depth of the
@@ -73,7 +73,7 @@ def _turning(p: float, w: float, g: float, deriv: bool) -> tuple[float, float]:
 @_inline
 def _family1(z, c, g, chs, za, zb, ka, kb, ca, cb, pm, fam: int, phi: float, deriv: bool, buf) -> tuple[float, float]:
     """Range X(phi) (m; NaN where the family has no ray) of one pair and, with ``deriv``,
-    d X / d phi (m/rad) (layered._family with full=False): the direct piece A -> B, and for a
+    d X / d phi (m/rad) (layer_stack.family with full=False): the direct piece A -> B, and for a
     turning family the piece from B down to its turning layer (L) or from A up to it (U).
 
     Each piece is two partial layers at its ends plus the full layers k1 < k < k2, whose

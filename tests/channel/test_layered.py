@@ -23,7 +23,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aquasim_py.channel import Constant, Isogradient, Layered, PathKind, isogradient, layered
+from aquasim_py.channel import Constant, Isogradient, Layered, PathKind, isogradient, layer_stack, layered
 
 sys.path.insert(0, str(Path(__file__).parent))
 import ray_ode
@@ -397,7 +397,7 @@ def test_bad_reflections_option() -> None:
 @given(seed=st.integers(0, 2**32 - 1), layers=st.one_of(st.integers(1, 12), st.integers(129, 140)))
 def test_compiled_ranges_equal_numpy(seed: int, layers: int) -> None:
     """The numba kernel (layered._range) and the numpy evaluation it replaces
-    (layered._family) give the same doubles for X(phi) and d X / d phi, every family, on
+    (layer_stack.family) give the same doubles for X(phi) and d X / d phi, every family, on
     random profiles, their mirrored stacks (the reflected paths), random pairs and grazing
     angles. Above 128 layers numpy's pairwise sum splits into halves and the kernel adds
     in turn: X (a sum of <= K + 3 positive terms, each summation off by <= K eps of it) then
@@ -406,21 +406,25 @@ def test_compiled_ranges_equal_numpy(seed: int, layers: int) -> None:
     z = np.concatenate([[0.0], np.sort(rng.choice(np.arange(1.0, 2000.0), layers, replace=False))])
     c = 1480.0 + np.cumsum(rng.normal(0.0, 8.0, layers + 1))
     prof = Layered(z, c, bottom=float(z[-1]) if rng.random() < 0.5 else None)
-    base = layered._stack(prof, float(z[-1]))
+    base = layer_stack.stack(prof, float(z[-1]))
     for stack in (base, base.mirrored("surface")):
         n = 40
         zz = rng.uniform(0.0, stack.zmax, (2, n))
         zz[0, :5] = zz[1, :5]  # same depth
         zz[0, 5:10] = stack.z[rng.integers(0, stack.g.size, 5)]  # on a breakpoint
         za, zb = np.sort(zz, axis=0)  # the solver's order: A is the shallower point
-        geo = layered._geometry(stack, za, zb)
-        fams = ((layered._FAM_D, np.full(n, 0.5 * np.pi)), (layered._FAM_L, geo.phi_l), (layered._FAM_U, geo.phi_u))
+        geo = layer_stack.geometry(stack, za, zb)
+        fams = (
+            (layer_stack.FAM_D, np.full(n, 0.5 * np.pi)),
+            (layer_stack.FAM_L, geo.phi_l),
+            (layer_stack.FAM_U, geo.phi_u),
+        )
         for fam, ext in fams:
             phi = ext[:, None] * np.concatenate([[0.0, 1.0 - 1e-10], rng.uniform(0.0, 1.0, 6)])[None, :]
             phi[0, 2] = np.nan
             with np.errstate(all="ignore"):
-                x_np, dx_np, _, _ = layered._family(stack, geo.col(), fam, phi, deriv=True)
-                x0_np = layered._family(stack, geo.col(), fam, phi)[0]
+                x_np, dx_np, _, _ = layer_stack.family(stack, geo.col(), fam, phi, deriv=True)
+                x0_np = layer_stack.family(stack, geo.col(), fam, phi)[0]
             x, dx = layered._range(stack, geo, fam, phi, deriv=True)
             if stack.g.size > 128:
                 k = stack.g.size + 3

@@ -91,7 +91,17 @@ DOCUMENTED = {
 
 # files whose functions hold or compute ground truth; protocol code must not call into them
 _TRUTH_FILES = tuple(
-    str(ROOT / "aquasim_py" / f) for f in ("kernel.py", "mobility.py", "clock.py", "trace.py", "channel/acoustic.py")
+    str(ROOT / "aquasim_py" / f)
+    for f in (
+        "kernel.py",
+        "nodecore.py",
+        "mobility/",
+        "clock.py",
+        "trace/",
+        "channel/acoustic.py",
+        "channel/links.py",
+        "channel/modem.py",
+    )
 )
 
 
@@ -118,8 +128,10 @@ def _watch(run: Any, code_files: tuple[str, ...]) -> list[str]:
         callee = frame.f_code.co_filename
         is_now = callee.endswith("simpy/core.py") and frame.f_code.co_name == "now"
         if callee.startswith(_TRUTH_FILES) or is_now:
+            where = Path(callee)
+            shown = where.relative_to(ROOT / "aquasim_py") if where.is_relative_to(ROOT / "aquasim_py") else where.name
             leaks.append(
-                f"{Path(caller.f_code.co_filename).name}:{caller.f_lineno} calls {Path(callee).name}:{frame.f_code.co_name}"
+                f"{Path(caller.f_code.co_filename).name}:{caller.f_lineno} calls {shown}:{frame.f_code.co_name}"
             )
 
     sys.setprofile(hook)
@@ -187,7 +199,7 @@ def test_truth_watch_catches_a_leaky_protocol() -> None:
     _LeakyNode.mobility = ConstantVelocity([[1.0, 2.0, 3.0]], box, velocity=[0.1, 0.0, 0.0])
     sim.add_group(_LeakyNode, 1, mobility=_LeakyNode.mobility)
     leaks = _watch(lambda: sim.run(until=2.0), (__file__,))
-    assert any("mobility.py" in leak for leak in leaks), leaks
+    assert any("calls mobility/" in leak for leak in leaks), leaks
 
 
 # --------------------------------------------------------------------------- source lint

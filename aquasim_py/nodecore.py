@@ -1,0 +1,326 @@
+"""The kernel side of one node: the only bridge between a :class:`~aquasim_py.node.Node` and
+ground truth, and the node's :class:`~aquasim_py.radio.RadioPort` on the channel.
+
+A :class:`NodeCore` is held by its node in a name-mangled attribute; its methods hand back
+local observables only: local clock readings, noisy sensor readings, receptions with local MAC
+stamps. It logs the node's rows (with the truth beside them, for the metrics) into the trace.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import simpy
+from pydantic import BaseModel
+
+from .node import NodeEnv, Role, Sensors, SensorUnavailable
+from .packet import Packet, Reception, copy_payload, snapshot_payload
+from .trace import SCHEMAS
+
+__all__ = ["Group", "NodeCore"]
+
+
+@dataclass
+class Group:
+    """Nodes added by one :meth:`Simulation.add_group` call (one mobility object)."""
+
+    name: str
+    node_cls: type
+    role: Role
+    mobility: Any
+    start: int
+    count: int
+    static: bool
+    # the group's positions at the last true time a node asked for its own (NodeCore.position):
+    # nodes of a group often ask at one instant (a period's depth readings and estimates)
+    pos_t: float = field(default=math.nan, repr=False)
+    pos: Any = field(default=None, repr=False)
+
+
+class NodeCore:
+    """Kernel-side state of one node; the only bridge between a Node and ground truth, and the
+    node's :class:`~aquasim_py.radio.RadioPort` on the channel.
+
+    sim: the :class:`~aquasim_py.kernel.Simulation` (its env, channel, channel_config, nodes,
+    trace and keyed streams; typed loosely so that this module need not import the kernel,
+    which imports it)."""
+
+    __slots__ = (
+        "_inbox",
+        "_snr_noise",
+        "_snr_std",
+        "_waiters",
+        "affine",
+        "channel",
+        "clock",
+        "env",
+        "exact_stamp",
+        "group",
+        "has_position",
+        "has_velocity",
+        "index",
+        "params",
+        "protocol",
+        "rng_protocol",
+        "role",
+        "sensor_rngs",
+        "sensors",
+        "sim",
+        "slot",
+        "snr_rng",
+    )
+
+    def __init__(
+        self,
+        sim: Any,
+        index: int,
+        group: Group,
+        local: int,
+        clock: Any,
+        sensors: Sensors,
+        params: BaseModel,
+        protocol: str,
+    ) -> None:
+        self.sim = sim
+        self.env = sim.env
+        self.channel = sim.channel
+        self.index = index
+        self.role = group.role
+        self.params = params
+        self.protocol = protocol
+        self.group = group
+        self.slot = local
+        self.clock = clock
+        # A drift-free Clock is the affine map local = (1 + skew) t + offset: evaluate it on
+        # Python floats (same IEEE operations as Clock.to_local) to skip numpy scalar overhead
+        # on the per-packet path.
+        self.affine = getattr(clock, "drift_std", None) == 0.0 and hasattr(clock, "skew") and hasattr(clock, "offset")
+        self.exact_stamp = self.affine and getattr(clock, "jitter_std", None) == 0.0
+        self.sensors = sensors
+        self.has_velocity = sensors.has_velocity(group.role)
+        self.has_position = sensors.has_position(group.role)
+        self.rng_protocol = sim.sealed_rng("node", index, "protocol")
+        # std (dB) of the receiver's SNR estimate; its stream ("node", id, "snr_estimate") is
+        # made on first use, so no other stream's draws change
+        self._snr_std = float(sim.channel_config.snr_estimate_std_db)
+        self.snr_rng: np.random.Generator | None = None
+        self._snr_noise: list[float] = []  # standard normals drawn ahead, in blocks (consumed from the end)
+        self.sensor_rngs: dict[str, np.random.Generator] = {}  # purpose -> stream, made on first use
+        cap = getattr(group.node_cls, "inbox_capacity", None)
+        # receptions not taken yet: (packet, rx_local, snr_db, pressure), see deliver
+        self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
+        # the waiting recv events in the order they were made, each with its kinds (None: any)
+        self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        self.channel.attach(self)
+
+    # -- truth ------------------------------------------------------------------------------------
+
+    def position(self, t: float) -> np.ndarray:
+        g = self.group
+        if t != g.pos_t:  # one trajectory evaluation per group and instant
+            g.pos, g.pos_t = g.mobility.position(t), t
+        return g.pos[self.slot]
+
+    def local(self, t: float) -> float:
+        """The node's clock reading at true time ``t`` (no jitter)."""
+        c = self.clock
+        if self.affine:
+            return (1.0 + c.skew) * t + c.offset
+        return float(c.to_local(t))
+
+    def true_delay(self, dt_local: float) -> float:
+        """True-time duration (s) after which the local clock has advanced by ``dt_local``."""
+        dt_local = float(dt_local)
+        if not dt_local >= 0.0:
+            raise ValueError(f"a delay must be >= 0 local seconds, got {dt_local!r}")
+        now = self.env.now
+        c = self.clock
+        if self.affine:
+            return dt_local / (1.0 + c.skew)
+        return max(0.0, float(c.to_true(c.to_local(now) + dt_local)) - now)
+
+    # -- modem (the RadioPort the channel uses, and the node's way onto the channel) ---------------
+
+    def clock_stamp(self, t: float) -> float:
+        """The clock's MAC stamp of true time ``t`` (local s); the channel adds its jitter."""
+        c = self.clock
+        return (1.0 + c.skew) * t + c.offset if self.exact_stamp else float(c.stamp(t))
+
+    def jitter_stream(self) -> np.random.Generator:
+        """The node's MAC-jitter stream ("node", id, "mac_jitter")."""
+        return self.sim.rng("node", self.index, "mac_jitter")
+
+    def stream(self, purpose: str) -> np.random.Generator:
+        """The node's own stream ("node", id, ``purpose``) for a channel-side measurement."""
+        return self.sim.rng("node", self.index, purpose)
+
+    def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+        if dst is not None and not 0 <= dst < len(self.sim.nodes):
+            raise ValueError(f"node {self.index}: no node with id {dst}")
+        # the packet carries a snapshot: the sender's later changes to its object reach no one
+        return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
+
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        # What the node gets: the modem's SNR estimate (the channel traced the true SNR), drawn
+        # here in delivery order, and its own copy of the payload in a Reception (_taken),
+        # made when the node takes it: at once for a waiting recv, from the inbox (which keeps
+        # the fields as a tuple) in recv / take_pending. The packet holds the send-time
+        # snapshot, which no node ever gets (each takes a copy), so a copy made later is the
+        # same copy; a reception never taken (a node that does not listen) costs no copy and
+        # no Reception.
+        if self._snr_std > 0.0 and snr_db == snr_db:  # NaN (no loss model) stays NaN
+            noise = self._snr_noise
+            if not noise:
+                # blocks of draws: one numpy call per 256 receptions, not one per reception
+                rng = self.snr_rng
+                if rng is None:
+                    rng = self.snr_rng = self.sim.rng("node", self.index, "snr_estimate")
+                noise.extend(rng.standard_normal(256)[::-1].tolist())
+            snr_db = snr_db + self._snr_std * noise.pop()
+        kind = packet.kind
+        for i, (ev, kinds) in enumerate(self._waiters):
+            if kinds is None or kind in kinds:  # the first waiting recv that takes this kind
+                del self._waiters[i]
+                ev.succeed(_taken(packet, rx_local, snr_db, pressure))
+                return
+        self._inbox.append((packet, rx_local, snr_db, pressure))
+
+    def pending(self) -> int:
+        """Receptions buffered and not taken yet."""
+        return len(self._inbox)
+
+    def take_pending(self) -> list[Reception]:
+        """Every buffered reception, oldest first, as the node takes it (:func:`_taken`)."""
+        out = [_taken(*rec) for rec in self._inbox]
+        self._inbox.clear()
+        return out
+
+    def recv(self, timeout: float | None, kinds: str | Iterable[str] | None, view: NodeEnv) -> simpy.Event:
+        """The node's receive event (its ``env`` is the node's ``view``); the expiry timer is
+        the kernel's own, in true time."""
+        ks: frozenset[str] | None
+        if kinds is None:
+            ks = None
+        elif isinstance(kinds, str):
+            ks = frozenset((kinds,))
+        else:
+            ks = frozenset(kinds)
+        ev = view.event()
+        inbox = self._inbox
+        if inbox:
+            if ks is None:
+                return ev.succeed(_taken(*inbox.popleft()))
+            for i, rec in enumerate(inbox):
+                if rec[0].kind in ks:
+                    del inbox[i]
+                    return ev.succeed(_taken(*rec))
+        waiting = (ev, ks)
+        self._waiters.append(waiting)
+        if timeout is not None:
+            delay = self.true_delay(timeout)
+
+            def expire(_: simpy.Event) -> None:
+                # The reception may have won the race in the meantime: then do nothing.
+                if not ev.triggered:
+                    self._waiters.remove(waiting)
+                    ev.succeed(None)
+
+            self.env.timeout(delay).callbacks.append(expire)
+        return ev
+
+    # -- sensors ----------------------------------------------------------------------------------
+
+    def _noisy(self, purpose: str, value: Any, std: float) -> Any:
+        """``value`` plus Gaussian noise of ``std`` from the node's own ("node", id, purpose)
+        stream, made on first use; ``value`` itself when std = 0."""
+        if std <= 0.0:
+            return value
+        rng = self.sensor_rngs.get(purpose)
+        if rng is None:
+            rng = self.sensor_rngs[purpose] = self.sim.rng("node", self.index, purpose)
+        if isinstance(value, float):
+            return value + float(rng.normal(0.0, std))
+        return value + rng.normal(0.0, std, np.shape(value))
+
+    def read_depth(self) -> float:
+        return self._noisy("depth", float(self.position(self.env.now)[2]), self.sensors.depth_std)
+
+    def read_velocity(self) -> np.ndarray:
+        if not self.has_velocity:
+            raise SensorUnavailable(
+                f"node {self.index} ({self.role.value}) has no velocity sensor; give its group "
+                "Sensors(velocity=True) to add one"
+            )
+        v = np.array(self.group.mobility.velocity(self.env.now)[self.slot], dtype=float)
+        return self._noisy("velocity", v, self.sensors.velocity_std)
+
+    def read_position(self) -> np.ndarray:
+        if not self.has_position:
+            raise SensorUnavailable(
+                f"node {self.index} ({self.role.value}) has no position fix; give its group "
+                "Sensors(position=True) to add one (GPS / surveyed mooring)"
+            )
+        p = np.array(self.position(self.env.now), dtype=float)
+        return self._noisy("position", p, self.sensors.position_std)
+
+    # -- logging ----------------------------------------------------------------------------------
+
+    def log(self, table: str, columns: Mapping[str, Any]) -> None:
+        if "time" in columns or "node" in columns or "protocol" in columns:
+            reserved = sorted({"time", "node", "protocol"} & set(columns))
+            raise ValueError(f"log(): columns {reserved} are added by the kernel")
+        # straight to the table as tuples, no keyword packing (a protocol may log per reception)
+        self.sim.trace.table(table).append(
+            (self.env.now, self.index, self.protocol, *columns.values()), ("time", "node", "protocol", *columns)
+        )
+
+    def log_estimate(
+        self, x: float, y: float, z: float, confidence: float, is_reference: bool, extra: Mapping[str, Any]
+    ) -> None:
+        _no_reserved("log_estimate", extra, _ESTIMATE_COLUMNS)
+        t = self.env.now
+        tx, ty, tz = (float(v) for v in self.position(t))
+        err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
+        self.sim.trace.table("estimates").append(
+            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference, *extra.values()),
+            _ESTIMATE_COLUMNS + tuple(extra),
+        )
+
+    def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
+        _no_reserved("log_clock", extra, _CLOCK_COLUMNS)
+        t = self.env.now
+        clock = self.clock
+        local = float(clock.to_local(t))
+        true_skew = float(clock.skew_at(t))
+        true_offset = float(clock.offset_at(t))
+        # the node's estimate of true time now, from its own clock reading and its clock model
+        err = (local - offset) / (1.0 + skew) - t
+        self.sim.trace.table("clocks").append(
+            (t, self.index, self.protocol, skew, offset, true_skew, true_offset, err, *extra.values()),
+            _CLOCK_COLUMNS + tuple(extra),
+        )
+
+
+_ESTIMATE_COLUMNS = tuple(c for c, _ in SCHEMAS["estimates"])
+_CLOCK_COLUMNS = tuple(c for c, _ in SCHEMAS["clocks"])
+
+
+def _no_reserved(what: str, extra: Mapping[str, Any], columns: tuple[str, ...]) -> None:
+    """A protocol's extra columns must not be the table's own (the kernel fills those)."""
+    reserved = sorted(set(extra).intersection(columns))
+    if reserved:
+        raise ValueError(f"{what}(): columns {reserved} are the table's own (added by the kernel)")
+
+
+def _taken(pkt: Packet, rx_local: float, snr_db: float, pressure: float) -> Reception:
+    """The reception as a node takes it: with its own copy of the payload (the packet's
+    send-time snapshot shared only when it is immutable, :func:`~aquasim_py.packet.copy_payload`)."""
+    payload = copy_payload(pkt.payload)
+    if payload is not pkt.payload:
+        pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
+    return Reception(pkt, rx_local, snr_db, pressure)
