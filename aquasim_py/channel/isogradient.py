@@ -28,6 +28,10 @@ which satisfy Snell's law (eq 3) and the geometry of eqs 8-11 identically. The a
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+from typing import Any, TypeVar
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -44,6 +48,21 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+
+def _quiet(fn: _F) -> _F:
+    """Run ``fn`` with numpy's divide / invalid / overflow warnings off: the forms below divide
+    by zero and take the root of negatives on purpose and select the valid results (one
+    ``np.errstate`` per public call, not one per helper)."""
+
+    @functools.wraps(fn)
+    def quiet(*args: Any, **kwargs: Any) -> Any:
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            return fn(*args, **kwargs)
+
+    return quiet  # type: ignore[return-value]
+
 
 def _split(src: ArrayLike, dst: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
     """(dx, dy, z1, z2, R^2) for broadcast src/dst (..., 3)."""
@@ -55,7 +74,8 @@ def _split(src: ArrayLike, dst: ArrayLike) -> tuple[FloatArray, FloatArray, Floa
     dy = d[..., 1] - s[..., 1]
     z1 = s[..., 2]
     z2 = d[..., 2]
-    z1, z2 = np.broadcast_arrays(z1, z2)
+    if z1.shape != z2.shape:
+        z1, z2 = np.broadcast_arrays(z1, z2)
     return dx, dy, z1, z2, dx * dx + dy * dy
 
 
@@ -65,10 +85,9 @@ def _profile(b: ArrayLike, a: ArrayLike) -> tuple[FloatArray, FloatArray]:
 
 
 def _ratio(num: FloatArray, den: FloatArray, at_zero: float = 1.0) -> FloatArray:
-    """num / den, with ``at_zero`` where den == 0 (the removable singularities below)."""
-    out = np.full(np.broadcast(num, den).shape, at_zero, dtype=float)
-    np.divide(num, den, out=out, where=den != 0.0)
-    return out
+    """num / den, with ``at_zero`` where den == 0 (the removable singularities below). The
+    division runs everywhere (its warnings are off, :func:`_quiet`)."""
+    return np.where(den != 0.0, num / den, at_zero)
 
 
 # Below this |a| the arc equals the straight line to far beyond double precision
@@ -82,16 +101,15 @@ def _time(a: FloatArray, D: FloatArray, c1: FloatArray, c2: FloatArray) -> Float
     No cancellation: asinh keeps full relative precision for tiny y, so for |a| -> 0 this is
     D / sqrt(c1 c2) to a few ulps (the products and quotients only add rounding).
     """
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g = np.sqrt(c1 * c2)
-        if np.ndim(a) == 0:
-            a0 = abs(float(a))
-            if a0 < _A_TINY:
-                return D / g
-            return np.arcsinh(D * (0.5 * a0) / g) * (2.0 / a0)
-        aa = np.abs(a)
-        aa = np.where(aa < _A_TINY, 0.0, aa)
-        return np.where(aa > 0.0, 2.0 * np.arcsinh(aa * D / (2.0 * g)) / aa, D / g)
+    g = np.sqrt(c1 * c2)
+    if np.ndim(a) == 0:
+        a0 = abs(float(a))
+        if a0 < _A_TINY:
+            return D / g
+        return np.arcsinh(D * (0.5 * a0) / g) * (2.0 / a0)
+    aa = np.abs(a)
+    aa = np.where(aa < _A_TINY, 0.0, aa)
+    return np.where(aa > 0.0, 2.0 * np.arcsinh(aa * D / (2.0 * g)) / aa, D / g)
 
 
 def _turning(
@@ -104,10 +122,9 @@ def _turning(
     with T = tan(theta_1) to avoid the difference of nearly equal numbers.
     """
     has = np.abs(dz) * S < np.abs(a) * R2
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        N1 = a * R2 + dz * S
-        T2 = _ratio(N1 * N1, 4.0 * R2 * c1 * c1, 0.0)
-        zv = z1 + _ratio(c1 * T2, a * (1.0 + np.sqrt(1.0 + T2)), 0.0)
+    N1 = a * R2 + dz * S
+    T2 = _ratio(N1 * N1, 4.0 * R2 * c1 * c1, 0.0)
+    zv = z1 + _ratio(c1 * T2, a * (1.0 + np.sqrt(1.0 + T2)), 0.0)
     return np.where(has, zv, np.nan), has
 
 
@@ -125,25 +142,24 @@ def _blocked(
 
     ``zv`` is the turning depth (NaN where none; NaN compares False).
     """
-    with np.errstate(invalid="ignore"):
-        if np.ndim(a) == 0 and np.ndim(b) == 0 and float(b) > 0.0:
-            # scalar profile: c > 0 <=> z above the depth -b/a where c vanishes (a < 0 only)
-            af, bf = float(a), float(b)
-            bad = np.minimum(z1, z2) < 0.0
-            if af < 0.0 or bottom is not None:
-                z_hi = np.maximum(z1, z2)
-                if af < 0.0:
-                    bad |= z_hi >= -bf / af
-                    bad |= zv < 0.0  # with a < 0 the vertex is the shallowest point
-                if bottom is not None:
-                    bad |= z_hi > bottom
-                    if af > 0.0:
-                        bad |= zv > bottom  # with a > 0 it is the deepest
-            return bad
-        bad = (z1 < 0.0) | (z2 < 0.0) | ~(c1 > 0.0) | ~(c2 > 0.0)
-        bad |= zv < 0.0
-        if bottom is not None:
-            bad |= (z1 > bottom) | (z2 > bottom) | (zv > bottom)
+    if np.ndim(a) == 0 and np.ndim(b) == 0 and float(b) > 0.0:
+        # scalar profile: c > 0 <=> z above the depth -b/a where c vanishes (a < 0 only)
+        af, bf = float(a), float(b)
+        bad = np.minimum(z1, z2) < 0.0
+        if af < 0.0 or bottom is not None:
+            z_hi = np.maximum(z1, z2)
+            if af < 0.0:
+                bad |= z_hi >= -bf / af
+                bad |= zv < 0.0  # with a < 0 the vertex is the shallowest point
+            if bottom is not None:
+                bad |= z_hi > bottom
+                if af > 0.0:
+                    bad |= zv > bottom  # with a > 0 it is the deepest
+        return bad
+    bad = (z1 < 0.0) | (z2 < 0.0) | ~(c1 > 0.0) | ~(c2 > 0.0)
+    bad |= zv < 0.0
+    if bottom is not None:
+        bad |= (z1 > bottom) | (z2 > bottom) | (zv > bottom)
     return bad
 
 
@@ -152,11 +168,12 @@ def _vertex_if_needed(
 ) -> FloatArray | float:
     """Turning depth for the water-column check, skipped (NaN) when it cannot matter: with
     a > 0 the vertex is the deepest point of the arc, so without a bottom it never leaves."""
-    if bottom is None and not bool(np.any(a < 0.0)):
+    if bottom is None and not (float(a) < 0.0 if np.ndim(a) == 0 else bool((a < 0.0).any())):
         return np.nan
     return _turning(a, R2, dz, z1, c1, c1 + c2)[0]
 
 
+@_quiet
 def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None) -> FloatArray:
     """Direct-arc travel time (s) from ``src`` to ``dst`` (..., 3) in c = b + a z (eq 13).
 
@@ -175,6 +192,7 @@ def travel_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bott
     return np.where(bad, np.nan, t)
 
 
+@_quiet
 def turning_depth(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> FloatArray:
     """Depth (m) of the arc's vertex when it lies strictly between the end points, else NaN (eqs 21-22).
 
@@ -202,17 +220,17 @@ def _angles_length(
     # positive factor). l = |theta_1 - theta_2| / (|a| xi), 1/xi = sqrt(4 R^2 c1^2 + N1^2) / (2R).
     x = 4.0 * R2 * c1 * c2 + N1 * N2
     hyp = np.sqrt(4.0 * R2 * c1 * c1 + N1 * N1)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        # x > 0 (|theta_1 - theta_2| < pi/2): l = S D^2 hyp / x * atan(u)/u, u = y/x, no 1/a.
-        u = _ratio(2.0 * R * a * S * D2, x, 0.0)
-        small = _ratio(S * D2 * hyp, x, 0.0) * _ratio(np.arctan(u), u)
-        # x <= 0: strongly bent arcs (ranges of order c/|a|), where a is far from 0.
-        big = _ratio(hyp * np.abs(np.arctan2(2.0 * R * a * S * D2, x)), 2.0 * R * np.abs(a), 0.0)
+    # x > 0 (|theta_1 - theta_2| < pi/2): l = S D^2 hyp / x * atan(u)/u, u = y/x, no 1/a.
+    u = _ratio(2.0 * R * a * S * D2, x, 0.0)
+    small = _ratio(S * D2 * hyp, x, 0.0) * _ratio(np.arctan(u), u)
+    # x <= 0: strongly bent arcs (ranges of order c/|a|), where a is far from 0.
+    big = _ratio(hyp * np.abs(np.arctan2(2.0 * R * a * S * D2, x)), 2.0 * R * np.abs(a), 0.0)
     length = np.where(x > 0.0, small, big)
     length = np.where(D2 == 0.0, 0.0, length)
     return th1, th2, length
 
 
+@_quiet
 def arc_length(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> FloatArray:
     """Arc length (m) of the direct eigenray (eq 19), without the water-column check."""
     _dx, _dy, z1, z2, R2 = _split(src, dst)
@@ -222,6 +240,7 @@ def arc_length(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> Fl
     return _angles_length(a, R2, z2 - z1, c1, c2)[2]
 
 
+@_quiet
 def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None) -> Eigenray:
     """Direct eigenray from ``src`` to ``dst`` (..., 3) in c = b + a z (eqs 3-22).
 
@@ -244,16 +263,21 @@ def eigenray(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom:
     bad = _blocked(a, b, z1, z2, zv, c1, c2, bottom)
     shape = bad.shape
     nan = np.nan
+
+    def full(a: FloatArray) -> FloatArray:
+        return a if a.shape == shape else np.broadcast_to(a, shape)
+
     return Eigenray(
         time=np.where(bad, nan, t),
-        length=np.where(bad, nan, np.broadcast_to(length, shape)),
-        launch_angle=np.where(bad, nan, np.broadcast_to(th1, shape)),
-        arrival_angle=np.where(bad, nan, np.broadcast_to(th2, shape)),
-        turning_depth=np.broadcast_to(zv, shape).copy(),
+        length=np.where(bad, nan, full(length)),
+        launch_angle=np.where(bad, nan, full(th1)),
+        arrival_angle=np.where(bad, nan, full(th2)),
+        turning_depth=np.array(full(zv)),
         path=np.where(bad, np.int8(PathKind.NONE), np.int8(PathKind.DIRECT)).astype(np.int8),
     )
 
 
+@_quiet
 def travel_time_gradient(
     b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike, bottom: float | None = None
 ) -> FloatArray:
@@ -270,18 +294,18 @@ def travel_time_gradient(
     c1 = b + a * z1
     c2 = b + a * z2
     D = np.sqrt(R2 + dz * dz)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        g = np.sqrt(c1 * c2)
-        y = np.abs(a) * D / (2.0 * g)
-        k = 1.0 / (g * np.sqrt(1.0 + y * y))
-        ux, uy, uz = _ratio(dx, D, 0.0), _ratio(dy, D, 0.0), _ratio(dz, D, 0.0)
-        gz = uz - np.multiply(a, D) / (2.0 * c2)
+    g = np.sqrt(c1 * c2)
+    y = np.abs(a) * D / (2.0 * g)
+    k = 1.0 / (g * np.sqrt(1.0 + y * y))
+    ux, uy, uz = _ratio(dx, D, 0.0), _ratio(dy, D, 0.0), _ratio(dz, D, 0.0)
+    gz = uz - np.multiply(a, D) / (2.0 * c2)
     gz = np.where(D == 0.0, 0.0, gz)
     bad = _blocked(a, b, z1, z2, _vertex_if_needed(a, R2, dz, z1, c1, c2, bottom), c1, c2, bottom)
     k = np.where(bad, np.nan, k)
     return np.stack(np.broadcast_arrays(k * ux, k * uy, k * gz), axis=-1)
 
 
+@_quiet
 def straight_line_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLike) -> FloatArray:
     """Straight-ray travel time (s) with the exact line integral of 1/c along the chord (eqs 23-24).
 
@@ -294,6 +318,5 @@ def straight_line_time(b: ArrayLike, a: ArrayLike, src: ArrayLike, dst: ArrayLik
     dz = z2 - z1
     c1 = b + a * z1
     D = np.sqrt(R2 + dz * dz)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        d = np.multiply(a, dz) / c1
-        return D / c1 * _ratio(np.log1p(d), d)
+    d = np.multiply(a, dz) / c1
+    return D / c1 * _ratio(np.log1p(d), d)
