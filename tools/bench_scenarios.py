@@ -8,10 +8,11 @@ this checkout against another one, timed in the same session and alternated.
 
 Each run is the CLI on a shipped scenario (``aquasim-py SCENARIO --quiet``, every variant unless
 one is named), in a fresh process, its CPU (user + system) and peak RSS read from the kernel's
-accounting of that child (``os.wait4``). The baseline is a git revision, installed with
-``pip install --no-deps --target`` into a temporary folder (its own compiled extensions, if it
-has any, built as its setup says) and run by this interpreter with that folder first on its
-path; or another environment's Python (``--baseline-python``). Each round runs every scenario on
+accounting of that child (``os.wait4``). Both sides are installed alike, with ``pip install
+--no-deps --target`` into a temporary folder (byte-compiled, their own compiled extensions, if
+they have any, built as their setup says), and run by this interpreter with that folder first
+on its path: this checkout as it is, and the baseline, a git revision; or the baseline is
+another environment's Python (``--baseline-python``). Each round runs every scenario on
 both sides, the side that goes first alternating between rounds; the table gives the medians
 and the ratio of the medians (current / baseline).
 """
@@ -76,21 +77,35 @@ class Side:
         return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
 
 
+def _install(tree: Path, site: Path) -> None:
+    """``pip install --no-deps --target site tree``: the package as users get it (byte-compiled,
+    its optional extension built if it has one), so both sides of a comparison start alike."""
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
+         "--target", str(site), str(tree)],
+        check=True,
+    )  # fmt: skip
+
+
 def install_revision(rev: str, tmp: Path) -> Side:
     """A side for git revision ``rev``: its tree checked out and installed into ``tmp``."""
     tree, site = tmp / "tree", tmp / "site"
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree), rev], check=True)
     try:
-        subprocess.run(
-            [sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
-             "--target", str(site), str(tree)],
-            check=True,
-        )  # fmt: skip
+        _install(tree, site)
     finally:
         # the files needed are installed; the scenarios are copied out of the tree first
         shutil.copytree(tree / "scenarios", tmp / "scenarios")
         subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=True)
     return Side(rev, sys.executable, tmp, pythonpath=str(site))
+
+
+def install_checkout(tmp: Path) -> Side:
+    """A side for this checkout as it is (uncommitted changes included), installed into ``tmp``:
+    an editable install would be timed differently (no byte code where writing it is off,
+    the editable finder on every import)."""
+    _install(ROOT, tmp / "site")
+    return Side("current", sys.executable, ROOT, pythonpath=str(tmp / "site"))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -115,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory(prefix="bench-scenarios-") as tmp_s:
         tmp = Path(tmp_s)
-        sides = [Side("current", sys.executable, ROOT)]
+        print("installing this checkout ...", file=sys.stderr, flush=True)
+        sides = [install_checkout(tmp / "current")]
         if args.baseline_python:
             sides.append(Side("baseline", args.baseline_python, args.baseline_root or ROOT))
         elif not args.no_baseline:
