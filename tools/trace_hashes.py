@@ -2,9 +2,9 @@
 
 Runs each ``scenarios/*.toml`` as ``aquasim-py SCENARIO --quiet`` (every variant; a sweep
 scenario's base run, not its grid) into a temporary directory and hashes every trace file:
-each CSV table, and ``summary.json``'s metrics and resolved scenario (its wall time, version
-and the scenario file's path left out).
-Files whose columns are wall-clock times (a variants run's ``variants.csv``) are skipped.
+each CSV table, and ``summary.json``'s metrics and resolved scenario (:func:`_summary_digest`
+leaves out what is not a result of the simulation). Files of wall-clock times (a variants
+run's ``variants.csv``, MSWPF's timing table) are skipped.
 
     python tools/trace_hashes.py --json before.json            # on the old checkout
     python tools/trace_hashes.py --json after.json --compare before.json
@@ -30,15 +30,25 @@ from bench_scenarios import _CLI as CLI  # tools/, beside this script
 from bench_scenarios import install_revision
 
 ROOT = Path(__file__).resolve().parents[1]
-#: files whose content depends on the wall clock
-SKIP = {"variants.csv", ".aquasim-output.json"}
+#: files whose content depends on the wall clock (a variants run's table, MSWPF's timing table)
+SKIP = {"variants.csv", "mswpf_timing.csv", ".aquasim-output.json"}
+#: metrics that are wall-clock measurements, not simulation results
+WALL_CLOCK_METRICS = ("step_ms", "select_ms")
 
 
 def _summary_digest(path: Path) -> str:
+    """sha256 of a run's summary without what is not a result of the simulation: the wall time,
+    the package version, where the scenario file and the output were (paths that differ
+    between checkouts and runs) and wall-clock metrics."""
     doc = json.loads(path.read_text())
-    doc.pop("wall_time_s", None)
-    doc.pop("aquasim_py_version", None)
-    doc.pop("scenario_file", None)  # the path the file was given by, which differs between checkouts
+    for key in ("wall_time_s", "aquasim_py_version", "scenario_file"):
+        doc.pop(key, None)
+    scenario = doc.get("scenario")
+    if isinstance(scenario, dict) and isinstance(scenario.get("output"), dict):
+        scenario["output"].pop("directory", None)
+    metrics = doc.get("metrics")
+    if isinstance(metrics, dict):
+        doc["metrics"] = {k: v for k, v in metrics.items() if not k.endswith(WALL_CLOCK_METRICS)}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
