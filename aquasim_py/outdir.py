@@ -103,7 +103,7 @@ def is_own_output(d: Path) -> bool:
 
 
 def _write_manifest(d: Path, files: list[str]) -> None:
-    from aquasim_py import __version__
+    from aquasim_py._version import __version__
 
     body = {"tool": "aquasim-py", "version": __version__, "files": sorted(files)}
     (d / MANIFEST).write_text(json.dumps(body, indent=2) + "\n")

@@ -27,12 +27,10 @@ run whose protocol raises gives a row with its ``error`` and no metrics; the oth
 
 from __future__ import annotations
 
-import csv
 import gc
 import hashlib
 import itertools
 import json
-import math
 import os
 import shutil
 import time
@@ -45,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from aquasim_py import scenario as _scenario
+from aquasim_py.rows import json_safe, rows_to_csv
 from aquasim_py.scenario import VARIANT_KEY
 
 __all__ = [
@@ -114,8 +113,6 @@ def run_key(base: dict[str, Any], point: Sequence[tuple[str, Any]], seed: int) -
     """A run's stable identity: the first 16 hex digits of the SHA-256 of the canonical JSON
     (sorted keys, no spaces) of its resolved scenario ``base`` (without ``[output]``: where
     results go does not change them), its swept values in grid order and its seed."""
-    from aquasim_py.runner import json_safe
-
     payload = {
         "scenario": {k: v for k, v in base.items() if k != "output"},
         "point": [[k, v] for k, v in point],
@@ -399,25 +396,6 @@ def columns(rows: Sequence[dict[str, Any]], jobs: Sequence[Job]) -> list[str]:
     fixed = set(grid) | {"run", "seed", "key", "error"}
     metric_names = sorted({k for r in rows for k in r if k not in fixed})
     return grid + ["run", "seed"] + extra + metric_names
-
-
-def _cell(v: Any) -> Any:
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else repr(float(v))  # repr round-trips exactly
-    if isinstance(v, (list, dict)):
-        return json.dumps(v)
-    return v
-
-
-def rows_to_csv(rows: Sequence[dict[str, Any]], cols: Sequence[str], path: str | Path) -> None:
-    """Write rows (missing metrics left empty) with exact float text."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(cols)
-        for r in rows:
-            w.writerow([_cell(r.get(c)) for c in cols])
 
 
 # --------------------------------------------------------------------------- the row journal

@@ -21,7 +21,8 @@ from typing import Any
 
 from aquasim_py import __version__
 from aquasim_py.cli import common
-from aquasim_py.runner import console, json_safe
+from aquasim_py.rows import json_safe
+from aquasim_py.runner import console
 
 EXAMPLES = """\
 examples:

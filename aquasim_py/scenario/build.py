@@ -30,7 +30,7 @@ from aquasim_py.scenario.schema import (
 )
 
 if TYPE_CHECKING:
-    from aquasim_py.scenario.load import Scenario
+    from aquasim_py.scenario.model import Scenario
 
 __all__ = [
     "DEPRECATED_MOBILITY",

@@ -31,7 +31,7 @@ from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_val
 from aquasim_py.scenario.schema import ExplicitPlacement, GridPlacement, NodeGroupSpec, UniformPlacement
 
 if TYPE_CHECKING:
-    from aquasim_py.scenario.load import Scenario
+    from aquasim_py.scenario.model import Scenario
 
 __all__ = [
     "LIMITS",
