@@ -23,6 +23,9 @@ order; ``sweep.csv`` is rewritten from the journal in plan order (:func:`finish`
 same whatever the interruption. :func:`read_journal` drops a partially written last line (a
 process killed mid-write), and a resumed sweep runs only the keys without a successful row. A
 run whose protocol raises gives a row with its ``error`` and no metrics; the others go on.
+A sweep that did not complete (``sweep.json`` missing, or not ``complete``) keeps its finished
+runs in the journal (:func:`saved_runs`): the CLI refuses to start another sweep over them
+without ``--resume`` (continue) or ``--overwrite`` (discard).
 """
 
 from __future__ import annotations
@@ -62,6 +65,7 @@ __all__ = [
     "run_jobs",
     "run_key",
     "run_seed",
+    "saved_runs",
 ]
 
 JOURNAL = "rows.jsonl"  # the append-only row journal inside a sweep's directory
@@ -464,6 +468,22 @@ def _atomic_write(path: Path, data: bytes) -> None:
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(tmp, path)
+
+
+def saved_runs(out: str | Path) -> int:
+    """How many finished runs (keys with a successful journal row) an interrupted sweep left
+    in ``out``; 0 when there are none or the sweep there completed (``sweep.json`` says
+    ``complete``). Interrupted means: no ``sweep.json`` (killed, or still running) or one
+    written on an interruption (``complete`` false)."""
+    out = Path(out)
+    done = done_keys(read_journal(out / JOURNAL)[0])
+    if not done:
+        return 0
+    try:
+        info = json.loads((out / "sweep.json").read_text())
+    except (OSError, ValueError):
+        return len(done)
+    return 0 if isinstance(info, dict) and info.get("complete") is True else len(done)
 
 
 def latest_rows(rows: Iterable[dict[str, Any]], jobs: Sequence[Job]) -> list[dict[str, Any]]:

@@ -39,7 +39,8 @@ the [output] directory with "-sweep" appended, else out/<scenario file stem>-swe
 finished run's row is appended to DIR/rows.jsonl at once; at the end DIR/sweep.csv holds one
 row per run (key, error, metrics) in plan order whatever the number of workers or
 interruptions, DIR/summary.csv the mean, std and 95 % CI per grid point. Exit status 1 when
-any run failed (its error is in the error column).
+any run failed (its error is in the error column). A DIR that holds an interrupted sweep is
+refused (exit 2) unless --resume (continue it) or --overwrite (discard its saved runs).
 """
 
 OUTPUTS = ("sweep.csv", "sweep.json", "summary.csv", "sweep.parquet")
@@ -57,6 +58,11 @@ def parser() -> argparse.ArgumentParser:
         if a.dest == "out":
             a.help = (
                 "output directory (default: the [output] directory + '-sweep', else out/<scenario file stem>-sweep)"
+            )
+        if a.dest == "overwrite":
+            a.help = (
+                f"{a.help}; also start afresh over an interrupted sweep in DIR, discarding its saved runs "
+                "(without it, or --resume, such a directory is refused)"
             )
     p.add_argument(
         "--resume",
@@ -94,6 +100,13 @@ def command(argv: Sequence[str]) -> int:
         except ImportError:
             raise common.UsageError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from None
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
+    if not args.resume and not args.overwrite and out.is_dir() and (saved := sweep.saved_runs(out)):
+        # a sweep that starts afresh empties the journal: never over finished runs unasked
+        runs = f"{saved} finished run{'s' * (saved != 1)}"
+        raise common.UsageError(
+            f"{out} holds an interrupted sweep ({runs} saved in {sweep.JOURNAL}): finish it with --resume, "
+            "or start again with --overwrite (discards them)"
+        )
     _prepare(out, sc.path, key, resume=args.resume, overwrite=args.overwrite)
     journal_path = out / sweep.JOURNAL
     before, dropped = sweep.read_journal(journal_path, repair=True) if args.resume else ([], 0)
@@ -155,7 +168,8 @@ def command(argv: Sequence[str]) -> int:
 
 def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite: bool = False) -> None:
     """Make the sweep's directory (before any run). Without ``resume``, a previous sweep's
-    outputs there are removed: the new sweep starts from an empty journal. A non-empty
+    outputs there are removed: the new sweep starts from an empty journal (the caller has
+    refused an interrupted sweep's saved runs unless ``overwrite``). A non-empty
     directory that is not an aquasim-py output is refused unless ``overwrite`` (then only the
     sweep's own files are written and removed there); the directory's manifest lists the
     sweep's files from the start, so an interrupted sweep's directory is its own."""
@@ -167,6 +181,9 @@ def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite:
     try:
         out.mkdir(parents=True, exist_ok=True)
         record_files(out, [JOURNAL, *OUTPUTS])
+        # written again when this sweep ends or is interrupted: until then the directory reads
+        # as an unfinished sweep (sweep.saved_runs), also if this one is killed
+        (out / "sweep.json").unlink(missing_ok=True)
         if not resume:
             for name in (JOURNAL, *OUTPUTS):
                 (out / name).unlink(missing_ok=True)
