@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from aquasim_py import plugins
 from aquasim_py import scenario as _scenario
 from aquasim_py.rows import json_safe, rows_to_csv
 from aquasim_py.scenario import VARIANT_KEY
@@ -183,7 +184,22 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
-def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None = None) -> dict[str, Any]:
+def plugin_sources(start: dict[str | None, dict[str, Any]], path: str | None, jobs: Sequence[Job]) -> dict[str, str]:
+    """The source text of every file plug-in (``protocol = "./x.py:Class"``) the jobs use, by
+    the path key a worker computes from the same ``path`` (:mod:`aquasim_py.plugins`): the
+    files travel with the jobs, so a worker without them (Dask, another machine) runs them."""
+    specs = {str(g.get("protocol")) for b in start.values() for g in (b.get("nodes") or [])}
+    specs |= {v for j in jobs for _, v in j.point if isinstance(v, str)}
+    return plugins.sources(sorted(specs), Path(path).parent if path is not None else None)
+
+
+def run_job(
+    base: dict[str, Any],
+    path: str | None,
+    job: Job,
+    traces: str | None = None,
+    sources: dict[str, str] | None = None,
+) -> dict[str, Any]:
     """Run one job (in any process) and return its row: swept values, run, seed, key, error,
     metrics.
 
@@ -191,8 +207,12 @@ def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None
     file names and messages). An exception inside the run is caught and recorded: the row then
     has its one-line ``error`` and no metrics (the other runs go on). ``traces``: a directory
     to keep this run's trace tables in, under ``traces/<key>/`` (complete or absent).
+    ``sources``: the file plug-ins' text (:func:`plugin_sources`), loaded from there.
     """
     from aquasim_py.runner import execute
+
+    if sources:
+        plugins.provide(sources)
 
     row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
@@ -245,6 +265,7 @@ def run_jobs(
     start = bases(sc, jobs)
     path = str(sc.path) if sc.path is not None else None
     tdir = str(traces) if traces is not None else None
+    sources = plugin_sources(start, path, jobs)
     total = len(jobs)
     results: list[dict[str, Any] | None] = [None] * total
     pos = {job.index: i for i, job in enumerate(jobs)}
@@ -260,7 +281,7 @@ def run_jobs(
             progress(done, total)
 
     if scheduler is not None:
-        _run_dask(scheduler, start, path, jobs, pos, _done, tdir)
+        _run_dask(scheduler, start, path, jobs, pos, _done, tdir, sources)
     else:
         n = workers if workers is not None else (os.cpu_count() or 1)
         n = max(1, min(int(n), total)) if total else 1
@@ -271,12 +292,12 @@ def run_jobs(
             # collection costs ~0.1 s with pandas and scipy loaded: one every 5 s at most.
             collected = time.monotonic()
             for i, job in enumerate(jobs):
-                _done(i, run_job(start[_variant_of(job)], path, job, tdir))
+                _done(i, run_job(start[_variant_of(job)], path, job, tdir, sources))
                 if time.monotonic() - collected > 5.0:
                     gc.collect()
                     collected = time.monotonic()
         else:
-            _run_local(n, start, path, jobs, _done, tdir)
+            _run_local(n, start, path, jobs, _done, tdir, sources)
     rows = [r for r in results if r is not None]
     fill_counts(rows)
     return rows
@@ -289,6 +310,7 @@ def _run_local(
     jobs: Sequence[Job],
     done: Callable[[int, dict[str, Any]], None],
     traces: str | None,
+    sources: dict[str, str],
 ) -> None:
     # Worker processes may be forked: the CLI's progress display runs no thread for that
     # reason (a lock held by another thread at fork time would stay held). At most 2n jobs
@@ -304,7 +326,7 @@ def _run_local(
                     if nxt is None:
                         break
                     i, job = nxt
-                    pending[pool.submit(run_job, start[_variant_of(job)], path, job, traces)] = i
+                    pending[pool.submit(run_job, start[_variant_of(job)], path, job, traces, sources)] = i
                 if not pending:
                     break
                 finished, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -362,6 +384,7 @@ def _run_dask(
     pos: dict[int, int],
     done: Callable[[int, dict[str, Any]], None],
     traces: str | None,
+    sources: dict[str, str],
 ) -> None:
     try:
         from dask.distributed import Client
@@ -370,7 +393,8 @@ def _run_dask(
         raise DaskMissingError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from e
     with Client(scheduler) as client:
         # traces: the workers write them, so DIR must be on a file system they share
-        futs = [client.submit(run_job, start[_variant_of(job)], path, job, traces, pure=False) for job in jobs]
+        # the file plug-ins' text (a few kB) travels with each task: no worker needs the files
+        futs = [client.submit(run_job, start[_variant_of(job)], path, job, traces, sources, pure=False) for job in jobs]
         index = {f.key: job.index for f, job in zip(futs, jobs)}
         try:
             for fut in dask_completed(futs):

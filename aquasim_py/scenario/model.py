@@ -75,7 +75,7 @@ class Scenario(_ScenarioModel):
         """The Node subclasses the groups use, in first-use order."""
         out: list[type] = []
         for g in self.nodes:
-            cls = registry.get(g.protocol)
+            cls = registry.get(g.protocol, base=self.base_dir)
             if cls not in out:
                 out.append(cls)
         return out
