@@ -43,6 +43,7 @@ __all__ = [
     "OutputRefused",
     "clean_stale",
     "is_own_output",
+    "listed_files",
     "record_files",
     "scratch_dir",
     "staged_output",
@@ -83,6 +84,11 @@ def _safe_relative(name: str) -> bool:
     return (
         bool(name) and not p.is_absolute() and "\\" not in name and all(part not in ("", ".", "..") for part in p.parts)
     )
+
+
+def listed_files(d: Path) -> list[str]:
+    """The files the manifest of ``d`` lists (relative paths); empty without one."""
+    return _read_manifest(Path(d)) or []
 
 
 def is_own_output(d: Path) -> bool:

@@ -45,9 +45,11 @@ if TYPE_CHECKING:
 __all__ = [
     "RunResult",
     "check_output_format",
+    "citations_of",
     "compare",
     "execute",
     "json_safe",
+    "paper_citations",
     "relocate_results",
     "run_scenario",
     "run_staged",
@@ -506,6 +508,26 @@ def paper_comparison(results: Mapping[str, RunResult]) -> pd.DataFrame | None:
             if df is not None and len(df):
                 frames.append(df)
     return pd.concat(frames, ignore_index=True) if frames else None
+
+
+def paper_citations(results: Mapping[str, RunResult]) -> list[str]:
+    """The papers :func:`paper_comparison` compares with (:func:`citations_of` the results'
+    protocols)."""
+    return citations_of([cls for res in results.values() for cls in res.scenario.protocols()])
+
+
+def citations_of(classes: Sequence[type]) -> list[str]:
+    """The ``citation`` (str) of each protocol class that gives a ``paper_comparison``, else
+    "the paper of protocol NAME", once each, in order."""
+    out: list[str] = []
+    for cls in classes:
+        if not callable(getattr(cls, "paper_comparison", None)):
+            continue
+        cite = getattr(cls, "citation", None)
+        text = cite if isinstance(cite, str) and cite else f"the paper of protocol {getattr(cls, 'name', '?')}"
+        if text not in out:
+            out.append(text)
+    return out
 
 
 def write_comparison(results: Mapping[str, RunResult], path: str | Path) -> None:

@@ -113,7 +113,7 @@ def test_sweep_prints_summary(scen, tmp_path, capsys):
     rc = cli.main(["sweep", str(scen), "--workers", "1", "--out", str(tmp_path / "o"), "--set", "sweep.runs=1"])
     out, err = capsys.readouterr()
     assert rc == 0 and err == ""
-    assert "4 runs" in out and "beacon.range_rmse_m" in out
+    assert "4 runs in" in out and "beacon.range_rmse (m)" in out and "n = 1 run per grid point" in out
 
 
 def test_swept_explicit_placement_sets_its_own_count(scen):

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import signal
@@ -80,6 +79,7 @@ def parser() -> argparse.ArgumentParser:
         help=f"local worker processes (default: the core count, here {os.cpu_count()})",
     )
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster at ADDRESS (needs 'aquasim-py[dask]')")
+    common.add_metrics(p)
     return p
 
 
@@ -149,13 +149,13 @@ def command(argv: Sequence[str]) -> int:
     _write_info(out, sc, args, workers, rows, cols, jobs, wall)
     if not args.quiet:
         con = console()
-        con.print(summary_table(rows, jobs, cols))
+        con.print(summary_table(out, sc.name, common.metric_patterns(args.metrics), width=con.width))
     reused = f" ({already} from the journal)" if already else ""
     print(f"{len(rows)} runs{reused} in {wall:.1f} s -> {out / 'sweep.csv'}")
     if args.report:
         from aquasim_py.cli.report import reports_for
 
-        for html in reports_for(out):
+        for html in reports_for(out, metrics=common.metric_patterns(args.metrics)):
             print(f"report: {html}")
     failed = sum(1 for r in rows if r.get("error"))
     if failed:
@@ -269,38 +269,20 @@ def _run_with_bar(
         )
 
 
-def summary_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: Sequence[str]) -> Any:
-    """Mean of every metric per grid point (at most 8 grid points shown)."""
-    import numpy as np
-    from rich.table import Table
+def summary_table(out: Path, name: str, patterns: Sequence[str] | None, width: int | None = None) -> Any:
+    """The sweep's metrics per grid point from ``out/sweep.csv``: centre, 95 % interval and n
+    (:func:`aquasim_py.tables.sweep_table`), the metrics ``patterns`` select (default all but
+    the packet counts)."""
+    from rich.text import Text
 
-    grid_keys = [k for k, _ in jobs[0].point] if jobs else []
-    points: dict[tuple, list[Mapping[str, Any]]] = {}
-    for row in rows:
-        if not row.get("error"):  # a failed run has no metrics
-            points.setdefault(tuple(json.dumps(row[k]) for k in grid_keys), []).append(row)
-    shown = list(points)[:8]
-    caption = f"columns: {', '.join(grid_keys)}" if grid_keys else None
-    if len(points) > len(shown):
-        caption = f"{caption} (first {len(shown)} of {len(points)} grid points)"
-    t = Table(title="sweep: mean over runs per grid point", caption=caption)
-    t.add_column("metric", no_wrap=True)
-    for p in shown:
-        t.add_column(", ".join(p) or "all runs", justify="right")
-    for c in cols:
-        if c in grid_keys or c in ("run", "seed", "key", "error"):
-            continue
-        cells = []
-        for p in shown:
-            vals = np.array([_num(r.get(c)) for r in points[p]], dtype=float)
-            vals = vals[np.isfinite(vals)]
-            cells.append(common.fmt(float(vals.mean())) if vals.size else "-")
-        t.add_row(c, *cells)
-    return t
+    from aquasim_py import report_sweep, tables
 
-
-def _num(v: Any) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):  # missing, or a non-numeric metric
-        return math.nan
+    data = report_sweep.load(out)
+    metrics = report_sweep.select(data.metrics, patterns)
+    if not metrics or data.runs.empty:
+        why = "no successful run" if data.runs.empty else f"no metric matches {', '.join(patterns or [])}"
+        return Text(f"{name} sweep: {why} (sweep.csv)")
+    table = tables.sweep_table(data, report_sweep.summary(data, metrics), metrics, f"{name} sweep: per grid point")
+    if not patterns:
+        table.notes.append("packet counts and any other metric: --metrics PATTERN (e.g. 'packets.*'); all: sweep.csv")
+    return table.rich(width)
