@@ -12,7 +12,9 @@ Run directory (``summary.json`` and the trace tables):
 - ``error_vs_time.png``: localization error of each node over time;
 - ``sync_vs_time.png``: clock error (estimated minus true time) of each node over time;
 - ``error_cdf.png``: empirical CDF of the localization error;
-- ``packets.png``: packet outcomes (received, and each drop reason) per time bin.
+- ``packets.png``: packet outcomes (received, and each drop reason) per time bin;
+- a tracker's tracks (MSWPF, SVL-PF, Ramezani tracking) scored by Stone Soup, OSPA and GOSPA
+  beside our RMSE (:mod:`aquasim_py.tracks`; the ``stonesoup`` extra).
 
 Variants run (``variants.csv`` and a run directory per variant): the variants side by side
 (:mod:`aquasim_py.report_variants`), each variant's own report in its directory.
@@ -190,7 +192,10 @@ def report_run(run_dir: str | Path, out: str | Path | None = None) -> list[Path]
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir
     out.mkdir(parents=True, exist_ok=True)
-    tables = trace.load(run_dir)
+    return _run_plots(trace.load(run_dir), out)
+
+
+def _run_plots(tables: Mapping[str, pd.DataFrame], out: Path) -> list[Path]:
     plots = (_plot_map, _plot_error_vs_time, _plot_sync, _plot_cdf, _plot_packets)
     return [p for f in plots if (p := f(tables, out)) is not None]
 
@@ -223,11 +228,16 @@ _CSS = (
 
 
 def _run_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tuple[str, str, list[Path]]:
+    from aquasim_py import tracks
+
     summary = json.loads((directory / "summary.json").read_text())
-    images = report_run(directory, out)
+    t = trace.load(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    images = _run_plots(t, out)
     title = f"aquasim-py run: {summary.get('scenario_file', directory.name)}"
     shown = sweep_report.pick(summary.get("metrics", {}), metrics, keep_all=True)
     body = "<h2>Metrics</h2>" + tables.metrics_table(shown, "metrics (units per row)").html()
+    body += tracks.report_section(t, summary.get("metrics", {}))
     body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
     scen = json.dumps(summary.get("scenario", {}), indent=2, sort_keys=True)
     body += f"<h2>Resolved scenario (seed {summary.get('seed')})</h2><pre>{html.escape(scen)}</pre>"

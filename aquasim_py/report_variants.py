@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py import tables, trace
+from aquasim_py import tables, trace, tracks
 from aquasim_py.plotting import plt, save_figure
 from aquasim_py.report_sweep import pick
 
@@ -76,6 +76,24 @@ def _citations(summaries: Mapping[str, dict[str, Any]]) -> tuple[list[str], str 
     return citations_of(classes), network
 
 
+def _track_scores(scored: Sequence[tuple[str, list[Any]]]) -> str:
+    """The trackers' tracks of every variant scored by Stone Soup (:func:`aquasim_py.tracks.scores`)."""
+    if not any(found for _, found in scored):
+        return ""
+    head = "<h2>Tracks scored by Stone Soup, every variant</h2>"
+    try:
+        frames = [tracks.scores(found).assign(variant=v) for v, found in scored if found]
+    except ImportError:
+        return head + "<p>OSPA and GOSPA need Stone Soup: <code>pip install 'aquasim-py[stonesoup]'</code>.</p>"
+    df = pd.concat(frames, ignore_index=True)
+    df = df[["variant", *(c for c in df.columns if c != "variant")]]
+    note = (
+        f"<p>Time means over every step of each track, c = {tracks.C_M:g} m, p = {tracks.P} "
+        "(each variant's own report has the details).</p>"
+    )
+    return head + df.to_html(index=False, float_format=lambda x: f"{x:.4g}") + note
+
+
 def body(directory: Path, out: Path, metrics: Sequence[str] | None, img: Callable[[Path], str]) -> tuple[str, str]:
     """The page title and HTML body of the cross-variant report; writes its plots into ``out``."""
     dirs = variant_dirs(directory)
@@ -93,8 +111,10 @@ def body(directory: Path, out: Path, metrics: Sequence[str] | None, img: Callabl
         parts.append(f"<h2>{html.escape(name)}, beside this run (paper.csv)</h2>" + paper.to_html(index=False))
     est = {}
     clk = {}
+    scored = []
     for v, d in dirs.items():
         t = trace.load(d)
+        scored.append((v, tracks.track_data(t)))
         if t.get("estimates") is not None and "error" in t["estimates"]:
             est[v] = t["estimates"]["error"].to_numpy(float)
         if t.get("clocks") is not None and "error" in t["clocks"]:
@@ -107,6 +127,7 @@ def body(directory: Path, out: Path, metrics: Sequence[str] | None, img: Callabl
         )
         if p is not None
     ]
+    parts.append(_track_scores(scored))
     parts.append("<h2>Plots</h2>" + "".join(img(p) for p in images))
     links = "".join(
         f'<li><a href="{html.escape(v)}/report.html">{html.escape(v)}</a></li>'
