@@ -150,7 +150,8 @@ def sweep_table(data: Any, summary: Any, metrics: Sequence[str], title: str, max
     idx = summary.set_index([*keys, "metric"])
     found: list[tuple[str, list[Any]]] = []
     for metric in metrics:
-        got = [idx.loc[(*p, metric)] if (*p, metric) in idx.index else None for p in shown]
+        at = [(*p, metric) if keys else metric for p in shown]  # (a one-level index takes the bare name)
+        got = [idx.loc[k] if k in idx.index else None for k in at]
         if any(g is not None for g in got):
             found.append((metric, got))
     ns = {int(g["n"]) for _, got in found for g in got if g is not None}
@@ -181,7 +182,7 @@ def sweep_table(data: Any, summary: Any, metrics: Sequence[str], title: str, max
         caption.append("each cell: geometric mean over runs [95 % CI, Student t on the log scale]")
     elif stats == {"mean"}:
         caption.append("each cell: mean over runs [95 % CI, Student t, cut at 0 for a metric never negative]")
-    else:
+    elif stats:
         caption.append(
             "each cell: the row's statistic over runs [95 % CI: geometric mean, Student t on the log scale; "
             "mean, Student t, cut at 0 for a metric never negative]"

@@ -1,4 +1,4 @@
-"""Sweep reports keep every comparison (issue 35 item 1); the cross-variant report."""
+"""Sweep reports keep every comparison (issue 35 item 1)."""
 
 from __future__ import annotations
 
@@ -94,15 +94,3 @@ def test_lines_follow_every_other_key(tmp_path):
     ]
     assert list(lines[0].center) == pytest.approx([4, 8, 16])
     assert report_sweep.plot(data, "nodes.1.count", "m", tmp_path / "m.png") is not None
-
-
-def test_a_variants_run_gets_a_cross_variant_report(tmp_path, capsys):
-    out = tmp_path / "itmtl"
-    argv = [str(ROOT / "scenarios" / "itmtl.toml"), "--out", str(out), "--quiet", "--set", "simulation.duration_s=120"]
-    assert cli.main([*argv, "--report"]) == 0
-    html = (out / "report.html").read_text()
-    assert "the variants side by side" in html and "&lt;protocol&gt;.loc_rmse (m)" in html
-    assert "10 nodes (4 anchors, 6 ordinary)" in html
-    for v in ("itmtl", "wsc", "tshl", "mu_sync", "mobi_sync"):
-        assert f'href="{v}/report.html"' in html and (out / v / "report.html").is_file()
-    assert (out / "variants_error_cdf.png").is_file() and (out / "variants_sync_cdf.png").is_file()

@@ -62,14 +62,15 @@ def test_families_that_cannot_be_aligned_are_shown_whole():
 
 @pytest.fixture(scope="module")
 def itmtl_out(tmp_path_factory):
-    """A short ITMTL variants run printed at 80 and at 120 columns."""
+    """A short ITMTL variants run printed at 120 and then at 80 columns (with its reports)."""
     d = tmp_path_factory.mktemp("itmtl")
     printed = {}
     mp = pytest.MonkeyPatch()
     try:
-        for width in (80, 120):
+        for width in (120, 80):
             mp.setenv("COLUMNS", str(width))
-            argv = [str(ROOT / "scenarios" / "itmtl.toml"), "--out", str(d / "o"), "--set", "simulation.duration_s=300"]
+            argv = [str(ROOT / "scenarios" / "itmtl.toml"), "--out", str(d / "o"), "--set", "simulation.duration_s=120"]
+            argv += ["--report"] if width == 80 else []
             buf = io.StringIO()
             with contextlib.redirect_stdout(buf):
                 assert cli.main(argv) == 0
@@ -83,7 +84,7 @@ def itmtl_out(tmp_path_factory):
 def test_the_variants_tables_fit_with_every_number_whole(itmtl_out, width):
     out, printed = itmtl_out
     text = printed[width]
-    body = text[: text.rindex("output: ")]  # the last line names paths, unbroken on purpose
+    body = text[: text.rindex("output: ")]  # the lines naming paths are unbroken on purpose
     metrics = {
         d.name: json.loads((d / "summary.json").read_text())["metrics"] for d in sorted(out.iterdir()) if d.is_dir()
     }
@@ -136,3 +137,22 @@ def test_a_sweep_table_has_n_and_the_interval_and_no_quoted_names(tmp_path):
     assert math.isclose(float(center), (30 * 40 * 50) ** (1 / 3), rel_tol=1e-3)
     for width in (80, 120):
         _check_whole(_render(t.rich(width), width), width, t)
+
+
+def test_a_sweep_without_grid_keys_has_one_column(tmp_path):
+    rows = [{"run": r, "seed": r, "key": str(r), "error": "", "x.rmse_m": 1.0 + r} for r in range(3)]
+    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    data = report_sweep.load(tmp_path)
+    t = tables.sweep_table(data, report_sweep.summary(data, ["x.rmse_m"]), ["x.rmse_m"], "s")
+    assert t.header == ["metric", "all runs"] and t.rows[0][0] == "x.rmse (m)"
+    assert t.rows[0][1].split("\n")[0] == "1.817"  # geometric mean of 1, 2, 3
+
+
+def test_a_variants_run_gets_a_cross_variant_report(itmtl_out):
+    out, _ = itmtl_out
+    html = (out / "report.html").read_text()
+    assert "the variants side by side" in html and "&lt;protocol&gt;.loc_rmse (m)" in html
+    assert "10 nodes (4 anchors, 6 ordinary)" in html
+    for v in ("itmtl", "wsc", "tshl", "mu_sync", "mobi_sync"):
+        assert f'href="{v}/report.html"' in html and (out / v / "report.html").is_file()
+    assert (out / "variants_error_cdf.png").is_file() and (out / "variants_sync_cdf.png").is_file()
