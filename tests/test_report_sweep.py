@@ -57,12 +57,15 @@ def test_the_report_draws_the_chosen_metrics_only(ramezani, capsys):
     ]
     html = (ramezani / "report.html").read_text()
     assert "n = 2 runs per grid point" in html and "model=assp<br>sigma_t=10 us" in html
-    # the default again: every metric but the packet counts, the earlier plots replaced
-    assert cli.main(["report", str(ramezani)]) == 0
+    # other metrics: the earlier plots are replaced, not left beside the new ones
+    assert cli.main(["report", str(ramezani), "--metrics", "packets.sent"]) == 0
     names = {p.name for p in ramezani.glob("sweep_*.png")}
-    assert f"sweep_localization.coverage__{SIGMA}.png" in names
-    assert not any(n.startswith("sweep_packets.") for n in names)
-    assert len(re.findall(r'src="data:image/png', (ramezani / "report.html").read_text())) == len(names)
+    assert names == {f"sweep_packets.sent__{SIGMA}.png"}
+    assert len(re.findall(r'src="data:image/png', (ramezani / "report.html").read_text())) == 1
+    # by default every metric but the packet counts
+    data = report_sweep.load(ramezani)
+    assert "localization.coverage" in report_sweep.select(data.metrics)
+    assert not any(m.startswith("packets.") for m in report_sweep.select(data.metrics))
 
 
 def test_lines_follow_every_other_key(tmp_path):

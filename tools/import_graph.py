@@ -112,8 +112,14 @@ def graph(sources: dict[Path, str] | None = None) -> nx.MultiDiGraph:
 
 
 def cycles(g: nx.MultiDiGraph, kinds: set[str]) -> list[list[str]]:
+    """The simple cycles among the edges of ``kinds``, each rotated to start at its smallest
+    module name (networkx's starting point depends on set order, so on the hash seed)."""
     sub = nx.DiGraph((u, v) for u, v, k in g.edges(data="kind") if k in kinds)
-    return sorted(nx.simple_cycles(sub))
+    rotated = []
+    for c in nx.simple_cycles(sub):
+        i = c.index(min(c))
+        rotated.append(c[i:] + c[:i])
+    return sorted(rotated)
 
 
 def main(argv: list[str] | None = None) -> int:
