@@ -42,6 +42,7 @@ lint: install-lint
 	$(BIN)/ruff check aquasim_py protocols tools tests
 	$(BIN)/ruff format --check aquasim_py protocols tools tests
 	$(BIN)/mypy
+	$(BIN)/python tools/import_graph.py
 
 lock:
 	$(COMPILE) -o $(LOCKS)/run.txt

@@ -7,13 +7,9 @@ Run a scenario from Python with :func:`run_scenario` (one run, optionally one of
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
-try:
-    __version__ = version("aquasim-py")
-except PackageNotFoundError:  # running from a source tree without installation
-    __version__ = "0.0.0+unknown"
+from aquasim_py._version import __version__
 
 if TYPE_CHECKING:
     from aquasim_py.runner import RunResult, run_scenario, run_variants

@@ -43,6 +43,7 @@ __all__ = [
     "OutputRefused",
     "clean_stale",
     "is_own_output",
+    "listed_files",
     "record_files",
     "scratch_dir",
     "staged_output",
@@ -85,6 +86,11 @@ def _safe_relative(name: str) -> bool:
     )
 
 
+def listed_files(d: Path) -> list[str]:
+    """The files the manifest of ``d`` lists (relative paths); empty without one."""
+    return _read_manifest(Path(d)) or []
+
+
 def is_own_output(d: Path) -> bool:
     """``d`` is empty, carries a manifest, or holds only such directories and our own staging
     leftovers."""
@@ -103,7 +109,7 @@ def is_own_output(d: Path) -> bool:
 
 
 def _write_manifest(d: Path, files: list[str]) -> None:
-    from aquasim_py import __version__
+    from aquasim_py._version import __version__
 
     body = {"tool": "aquasim-py", "version": __version__, "files": sorted(files)}
     (d / MANIFEST).write_text(json.dumps(body, indent=2) + "\n")

@@ -1,6 +1,6 @@
 """Protocol registry: a protocol name -> its :class:`~aquasim_py.node.Node` subclass.
 
-Two sources, loaded lazily on the first lookup:
+Three sources; the first two are loaded lazily on the first lookup:
 
 - built-ins: every family package of :mod:`aquasim_protocols` (the repository's top-level
   ``protocols/`` folder, installed under that name) is imported; its modules register their
@@ -11,6 +11,12 @@ Two sources, loaded lazily on the first lookup:
 
       [project.entry-points."aquasim_py.protocols"]
       my_mac = "my_package.my_module:MyMacNode"
+
+- plug-ins, nothing installed: a scenario names the class where it is,
+  ``protocol = "./myproto.py:MyNode"`` (a file, relative to the scenario file: ``base``) or
+  ``protocol = "mymodule:MyNode"`` (an importable module); see :mod:`aquasim_py.plugins`. A
+  loaded plug-in is also found by its class's ``name`` (what the trace tables record), unless
+  that name belongs to a registered protocol, which is an error.
 
 A protocol class declares ``name`` (str), ``Params`` (a pydantic model of its parameters, with
 types, defaults and units in the field descriptions), and optionally the classmethods
@@ -24,9 +30,12 @@ import importlib.metadata
 import pkgutil
 import sys
 import threading
+from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import BaseModel
+
+from aquasim_py import plugins
 
 __all__ = ["ProtocolDefinitionError", "UnknownProtocolError", "available", "get", "register"]
 
@@ -34,6 +43,7 @@ ENTRY_POINT_GROUP = "aquasim_py.protocols"
 BUILTIN_PACKAGE = "aquasim_protocols"
 
 _registry: dict[str, type] = {}
+_plugins: dict[str, type] = {}  # class name -> plug-in class loaded by spec (file or module)
 _load_errors: dict[str, str] = {}  # module or entry-point name -> why it did not load
 _loaded = False
 _lock = threading.RLock()
@@ -147,17 +157,61 @@ def available() -> list[str]:
     return sorted(_registry)
 
 
-def get(name: str) -> type:
-    """The Node subclass registered as ``name``; :class:`UnknownProtocolError` if none."""
+#: what an unknown protocol's error says about adding one
+HOW_TO_ADD = (
+    'to use your own, name its class: protocol = "./myproto.py:MyNode" (a file, relative to the scenario) '
+    'or "mymodule:MyNode" (an importable module); see docs/plugins.md'
+)
+
+
+def get(name: str, *, base: str | Path | None = None) -> type:
+    """The Node subclass ``name`` stands for: a registered name, or a plug-in spec
+    (``"./file.py:Class"``, ``"module:Class"``; a relative file from ``base``, the scenario
+    file's directory, default the current directory). :class:`UnknownProtocolError` if none."""
+    if plugins.is_spec(name):
+        return _plugin(name, base)
     _ensure_loaded()
-    cls = _registry.get(name)
+    cls = _registry.get(name) or _plugins.get(name)
     if cls is not None:
         return cls
     if name in _load_errors:
         raise UnknownProtocolError(name, f"protocol {name!r} is not available: {_load_errors[name]}")
     names = ", ".join(available()) or "none"
     why = f"; {_load_errors[BUILTIN_PACKAGE]}" if BUILTIN_PACKAGE in _load_errors else ""
-    raise UnknownProtocolError(name, f"unknown protocol {name!r} (available: {names}){why}")
+    raise UnknownProtocolError(name, f"unknown protocol {name!r} (available: {names}){why}; {HOW_TO_ADD}")
+
+
+def _plugin(spec: str, base: str | Path | None) -> type:
+    from aquasim_py.node import Node
+
+    try:
+        cls = plugins.load(spec, base)
+    except plugins.PluginError as e:
+        raise UnknownProtocolError(spec, str(e)) from None
+    if not issubclass(cls, Node):
+        raise UnknownProtocolError(
+            spec, f"protocol {spec!r}: {cls.__qualname__} is not a subclass of aquasim_py.node.Node"
+        )
+    try:
+        name = _check(cls)
+    except ProtocolDefinitionError as e:
+        raise UnknownProtocolError(spec, f"protocol {spec!r}: {e}") from None
+    if name == Node.name:
+        raise UnknownProtocolError(
+            spec,
+            f"protocol {spec!r}: {cls.__qualname__} needs a `name` of its own (its metrics and trace rows carry it)",
+        )
+    _ensure_loaded()
+    with _lock:
+        taken = _registry.get(name)
+        if taken is not None and taken is not cls:
+            raise UnknownProtocolError(
+                spec,
+                f"protocol {spec!r}: its name {name!r} is the registered {taken.__module__}.{taken.__qualname__}'s; "
+                "give the class another `name`",
+            )
+        _plugins[name] = cls
+    return cls
 
 
 def load_errors() -> dict[str, Any]:

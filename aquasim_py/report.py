@@ -1,8 +1,10 @@
-"""Reports: PNG plots and one self-contained ``report.html`` from a run's or a sweep's output.
+"""Reports: PNG plots and one self-contained ``report.html`` from a run's, a variants run's or
+a sweep's output.
 
-Everything is drawn from what the run wrote (trace tables, ``summary.json``, ``sweep.csv``), so
-the same call serves ``aquasim-py report DIR`` long after the run, ``--report`` at the end of
-one, and a notebook. matplotlib runs on its non-interactive Agg backend; nothing opens a window.
+Everything is drawn from what the run wrote (trace tables, ``summary.json``, ``variants.csv``,
+``sweep.csv``), so the same call serves ``aquasim-py report DIR`` long after the run,
+``--report`` at the end of one, and a notebook. matplotlib runs on its non-interactive Agg
+backend (:mod:`aquasim_py.plotting`); nothing opens a window.
 
 Run directory (``summary.json`` and the trace tables):
 
@@ -10,10 +12,16 @@ Run directory (``summary.json`` and the trace tables):
 - ``error_vs_time.png``: localization error of each node over time;
 - ``sync_vs_time.png``: clock error (estimated minus true time) of each node over time;
 - ``error_cdf.png``: empirical CDF of the localization error;
-- ``packets.png``: packet outcomes (received, and each drop reason) per time bin.
+- ``packets.png``: packet outcomes (received, and each drop reason) per time bin;
+- a tracker's tracks (MSWPF, SVL-PF, Ramezani tracking) scored by Stone Soup, OSPA and GOSPA
+  beside our RMSE (:mod:`aquasim_py.tracks`; the ``stonesoup`` extra).
 
-Sweep directory (``sweep.csv``): one plot per metric against each swept parameter, mean with
-its 95 % confidence interval (Student t over the runs of a grid point), one line per variant.
+Variants run (``variants.csv`` and a run directory per variant): the variants side by side
+(:mod:`aquasim_py.report_variants`), each variant's own report in its directory.
+
+Sweep directory (``sweep.csv``): each metric against each swept value, a line per
+combination of the other grid keys (:mod:`aquasim_py.report_sweep`), and the table per grid
+point with n and the interval.
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
 """
@@ -23,20 +31,16 @@ from __future__ import annotations
 import base64
 import html
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")  # reports are files: never a window, also on a machine without a display
-
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from . import trace
-from .metrics import summarize_runs
+from aquasim_py import report_sweep as sweep_report
+from aquasim_py import tables, trace
+from aquasim_py.plotting import plt, save_figure
 
 __all__ = ["ReportError", "report_run", "report_sweep", "write_report"]
 
@@ -47,18 +51,10 @@ _ROLE_STYLE = {
     "target": ("#ff7f0e", "*"),
     "sink": ("#9467bd", "D"),
 }
-_DPI = 110
 
 
 class ReportError(ValueError):
     """The directory holds neither a run's nor a sweep's output."""
-
-
-def _save(fig: Any, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
-    return path
 
 
 def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
@@ -104,7 +100,7 @@ def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     ax.set_title("Network map (start positions)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, out / "map.png")
+    return save_figure(fig, out / "map.png")
 
 
 def _per_node_lines(df: pd.DataFrame, y: pd.Series, ax: Any) -> None:
@@ -124,7 +120,7 @@ def _plot_error_vs_time(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None
     ax.set_ylabel("localization error (m)")
     ax.set_yscale("log" if (est["error"] > 0).all() and est["error"].max() > 50 * est["error"].min() else "linear")
     ax.set_title("Localization error per node")
-    return _save(fig, out / "error_vs_time.png")
+    return save_figure(fig, out / "error_vs_time.png")
 
 
 def _plot_sync(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
@@ -139,7 +135,7 @@ def _plot_sync(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     ax.set_xlabel("time (s)")
     ax.set_ylabel("|clock error| (us)")
     ax.set_title("Time-synchronization error per node")
-    return _save(fig, out / "sync_vs_time.png")
+    return save_figure(fig, out / "sync_vs_time.png")
 
 
 def _plot_cdf(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
@@ -160,7 +156,7 @@ def _plot_cdf(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     ax.set_ylabel("fraction of estimates")
     ax.set_ylim(0, 1.02)
     ax.set_title(f"Error CDF ({e.size} estimates)")
-    return _save(fig, out / "error_cdf.png")
+    return save_figure(fig, out / "error_cdf.png")
 
 
 def _plot_packets(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
@@ -188,7 +184,7 @@ def _plot_packets(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
         f"Packet outcomes ({int(edges[1] - edges[0])} s bins)" if edges[1] - edges[0] >= 1 else "Packet outcomes"
     )
     ax.legend(fontsize=8)
-    return _save(fig, out / "packets.png")
+    return save_figure(fig, out / "packets.png")
 
 
 def report_run(run_dir: str | Path, out: str | Path | None = None) -> list[Path]:
@@ -196,57 +192,25 @@ def report_run(run_dir: str | Path, out: str | Path | None = None) -> list[Path]
     run_dir = Path(run_dir)
     out = Path(out) if out is not None else run_dir
     out.mkdir(parents=True, exist_ok=True)
-    tables = trace.load(run_dir)
+    return _run_plots(trace.load(run_dir), out)
+
+
+def _run_plots(tables: Mapping[str, pd.DataFrame], out: Path) -> list[Path]:
     plots = (_plot_map, _plot_error_vs_time, _plot_sync, _plot_cdf, _plot_packets)
     return [p for f in plots if (p := f(tables, out)) is not None]
 
 
-def _sweep_params(df: pd.DataFrame) -> list[str]:
-    """Grid columns of a sweep table: those before ``run`` (sweep.csv writes grid keys first)."""
-    cols = list(df.columns)
-    return cols[: cols.index("run")] if "run" in cols else []
-
-
-def report_sweep(sweep_dir: str | Path, out: str | Path | None = None) -> list[Path]:
-    """One plot per (metric, swept parameter): mean and 95 % CI per grid point, a line per variant."""
+def report_sweep(
+    sweep_dir: str | Path, out: str | Path | None = None, metrics: Sequence[str] | None = None
+) -> list[Path]:
+    """The sweep plots of ``sweep_dir`` (:mod:`aquasim_py.report_sweep`) for the metrics the
+    shell ``metrics`` patterns select, written into ``out`` (default ``sweep_dir``)."""
     sweep_dir = Path(sweep_dir)
     out = Path(out) if out is not None else sweep_dir
     out.mkdir(parents=True, exist_ok=True)
-    df = pd.read_csv(sweep_dir / "sweep.csv")
-    if "error" in df.columns:  # failed runs are recorded, not plotted
-        df = df[df["error"].isna()]
-    params = _sweep_params(df)
-    metrics = [
-        c
-        for c in df.columns
-        if c not in {*params, "run", "seed", "error", "key"} and pd.api.types.is_numeric_dtype(df[c])
-    ]
-    paths: list[Path] = []
-    # x axes: each swept parameter; with only variants swept, the variants themselves
-    xs: list[str | None] = [p for p in params if p != "variant"] or [None]
-    for metric in metrics:
-        for x in xs:
-            by = [c for c in ("variant",) if c in params] + ([x] if x else [])
-            if not by:
-                continue
-            s = summarize_runs(df, by=by, metrics=[metric])
-            fig, ax = plt.subplots(figsize=(6.5, 4.0))
-            groups = s.groupby("variant") if "variant" in by else [(None, s)]
-            for name, g in groups:
-                g = g.sort_values(x) if x else g
-                xv = (
-                    g[x].astype(str) if x and not pd.api.types.is_numeric_dtype(g[x]) else (g[x] if x else g["variant"])
-                )
-                lo, hi, mean = g["ci95_low"], g["ci95_high"], g["mean"]
-                ax.errorbar(xv, mean, yerr=[mean - lo, hi - mean], marker="o", capsize=3, label=name)
-            ax.set_xlabel(x or "variant")
-            ax.set_ylabel(metric)
-            ax.set_title(f"{metric}: mean and 95 % CI over runs")
-            if "variant" in by:
-                ax.legend(fontsize=8)
-            safe = "".join(ch if ch.isalnum() or ch in "._-" else "_" for ch in f"{metric}__{x or 'variant'}")
-            paths.append(_save(fig, out / f"sweep_{safe}.png"))
-    return paths
+    data = sweep_report.load(sweep_dir)
+    chosen = sweep_report.select(data.metrics, metrics)
+    return sweep_report.plot_all(data, out, chosen)
 
 
 def _img(path: Path) -> str:
@@ -254,50 +218,94 @@ def _img(path: Path) -> str:
     return f'<figure><img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}"><figcaption>{html.escape(path.name)}</figcaption></figure>'
 
 
-def _metrics_table(metrics: Mapping[str, Any]) -> str:
-    rows = "".join(
-        f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(f'{v:.6g}' if isinstance(v, float) else str(v))}</td></tr>"
-        for k, v in metrics.items()
-    )
-    return f"<table><tr><th>metric</th><th>value</th></tr>{rows}</table>"
-
-
 _CSS = (
     "body{font-family:sans-serif;max-width:60em;margin:2em auto;color:#222}"
-    "img{max-width:100%}figure{margin:1em 0}table{border-collapse:collapse}"
-    "td,th{border:1px solid #ccc;padding:2px 8px;text-align:left}pre{background:#f6f6f6;padding:1em;overflow:auto}"
+    "img{max-width:100%}figure{margin:1em 0}table{border-collapse:collapse;margin:1em 0}"
+    "caption{text-align:left;font-weight:bold;padding:4px 0}"
+    "td,th{border:1px solid #ccc;padding:2px 8px;text-align:left;vertical-align:top}"
+    "pre{background:#f6f6f6;padding:1em;overflow:auto}"
 )
 
 
-def write_report(directory: str | Path, out: str | Path | None = None) -> Path:
-    """Plots and ``report.html`` (images embedded) for a run or a sweep directory; returns the HTML path.
+def _run_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tuple[str, str, list[Path]]:
+    from aquasim_py import tracks
 
-    Raises :class:`ReportError` when ``directory`` holds neither ``summary.json`` nor ``sweep.csv``.
+    summary = json.loads((directory / "summary.json").read_text())
+    t = trace.load(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    images = _run_plots(t, out)
+    title = f"aquasim-py run: {summary.get('scenario_file', directory.name)}"
+    shown = sweep_report.pick(summary.get("metrics", {}), metrics, keep_all=True)
+    body = "<h2>Metrics</h2>" + tables.metrics_table(shown, "metrics (units per row)").html()
+    body += tracks.report_section(t, summary.get("metrics", {}))
+    body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
+    scen = json.dumps(summary.get("scenario", {}), indent=2, sort_keys=True)
+    body += f"<h2>Resolved scenario (seed {summary.get('seed')})</h2><pre>{html.escape(scen)}</pre>"
+    return title, body, images
+
+
+def _sweep_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tuple[str, str, list[Path]]:
+    data = sweep_report.load(directory)
+    chosen = sweep_report.select(data.metrics, metrics)
+    summary = sweep_report.summary(data, chosen)
+    images = sweep_report.plot_all(data, out, chosen, summary)
+    title = f"aquasim-py sweep: {directory.name}"
+    failed = f", {data.failed} failed (left out)" if data.failed else ""
+    body = f"<p>{len(data.runs)} successful runs{failed}.</p>"
+    if chosen:
+        table = tables.sweep_table(data, summary, chosen, "per grid point", max_points=10**6)
+        body += "<h2>Per grid point</h2>" + table.html()
+    if not metrics:
+        body += "<p>Packet counts are left out: <code>aquasim-py report DIR --metrics 'packets.*'</code>.</p>"
+    body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
+    if (directory / "summary.csv").is_file():
+        body += (
+            "<details><summary>summary.csv: arithmetic mean, std and Student-t 95 % CI per grid point</summary>"
+            + pd.read_csv(directory / "summary.csv").to_html(index=False)
+            + "</details>"
+        )
+    return title, body, images
+
+
+def _forget_plots(out: Path, prefix: str) -> None:
+    """Remove the plots an earlier report wrote under ``out`` (listed in its manifest), so
+    that a report with other ``--metrics`` shows only its own."""
+    from aquasim_py.outdir import listed_files
+
+    for name in listed_files(out):
+        if name.startswith(prefix) and name.endswith(".png") and "/" not in name:
+            (out / name).unlink(missing_ok=True)
+
+
+def write_report(directory: str | Path, out: str | Path | None = None, metrics: Sequence[str] | None = None) -> Path:
+    """Plots and ``report.html`` (images embedded) for a run, a variants run or a sweep
+    directory; returns the HTML path. ``metrics``: shell patterns of the metrics to show
+    (default: all of a run's; for sweeps and variants all but the packet counts).
+
+    Raises :class:`ReportError` when ``directory`` holds none of ``summary.json``,
+    ``variants.csv`` or ``sweep.csv``.
     """
+    from aquasim_py import report_variants
+
     directory = Path(directory)
     out = Path(out) if out is not None else directory
+    out.mkdir(parents=True, exist_ok=True)
     if (directory / "summary.json").is_file():
-        summary = json.loads((directory / "summary.json").read_text())
-        images = report_run(directory, out)
-        title = f"aquasim-py run: {summary.get('scenario_file', directory.name)}"
-        body = "<h2>Metrics</h2>" + _metrics_table(summary.get("metrics", {}))
-        body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
-        scen = json.dumps(summary.get("scenario", {}), indent=2, sort_keys=True)
-        body += f"<h2>Resolved scenario (seed {summary.get('seed')})</h2><pre>{html.escape(scen)}</pre>"
+        title, body, _ = _run_body(directory, out, metrics)
     elif (directory / "sweep.csv").is_file():
-        images = report_sweep(directory, out)
-        df = pd.read_csv(directory / "sweep.csv")
-        title = f"aquasim-py sweep: {directory.name}"
-        body = f"<p>{len(df)} runs.</p><h2>Plots</h2>" + "".join(_img(p) for p in images)
-        if (directory / "summary.csv").is_file():
-            body += "<h2>Summary per grid point</h2>" + pd.read_csv(directory / "summary.csv").to_html(index=False)
+        _forget_plots(out, "sweep_")
+        title, body, _ = _sweep_body(directory, out, metrics)
+    elif (directory / "variants.csv").is_file():
+        title, body = report_variants.body(directory, out, metrics, _img)
     else:
-        raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
+        raise ReportError(
+            f"{directory}: neither a run (summary.json), a variants run (variants.csv) nor a sweep (sweep.csv) "
+            "output directory"
+        )
     page = (
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
         f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>{body}</body></html>\n"
     )
-    out.mkdir(parents=True, exist_ok=True)
     path = out / "report.html"
     path.write_text(page)
     return path

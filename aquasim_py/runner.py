@@ -32,9 +32,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from aquasim_py import __version__
 from aquasim_py import scenario as _scenario
+from aquasim_py._version import __version__
 from aquasim_py.outdir import staged_output
+from aquasim_py.rows import json_safe, rows_to_csv
 from aquasim_py.scenario import Scenario, ScenarioError
 from aquasim_py.scenario.load import Overrides, variant_error
 
@@ -44,9 +45,11 @@ if TYPE_CHECKING:
 __all__ = [
     "RunResult",
     "check_output_format",
+    "citations_of",
     "compare",
     "execute",
     "json_safe",
+    "paper_citations",
     "relocate_results",
     "run_scenario",
     "run_staged",
@@ -507,10 +510,28 @@ def paper_comparison(results: Mapping[str, RunResult]) -> pd.DataFrame | None:
     return pd.concat(frames, ignore_index=True) if frames else None
 
 
+def paper_citations(results: Mapping[str, RunResult]) -> list[str]:
+    """The papers :func:`paper_comparison` compares with (:func:`citations_of` the results'
+    protocols)."""
+    return citations_of([cls for res in results.values() for cls in res.scenario.protocols()])
+
+
+def citations_of(classes: Sequence[type]) -> list[str]:
+    """The ``citation`` (str) of each protocol class that gives a ``paper_comparison``, else
+    "the paper of protocol NAME", once each, in order."""
+    out: list[str] = []
+    for cls in classes:
+        if not callable(getattr(cls, "paper_comparison", None)):
+            continue
+        cite = getattr(cls, "citation", None)
+        text = cite if isinstance(cite, str) and cite else f"the paper of protocol {getattr(cls, 'name', '?')}"
+        if text not in out:
+            out.append(text)
+    return out
+
+
 def write_comparison(results: Mapping[str, RunResult], path: str | Path) -> None:
     """``variants.csv``: :func:`compare` with exact float text (as ``sweep.csv``)."""
-    from aquasim_py.sweep import rows_to_csv
-
     common, rest = comparison_columns(results)
     rows = [{"variant": name, **r.metrics} for name, r in results.items()]
     rows_to_csv(rows, ["variant", *common, *rest], path)
@@ -526,19 +547,6 @@ def check_output_format(sc: Scenario) -> None:
             raise ScenarioError(
                 sc.path, "trace.format", "parquet needs pyarrow (pip install 'aquasim-py[parquet]')"
             ) from None
-
-
-def json_safe(v: Any) -> Any:
-    """Plain JSON data: NaN / inf -> None (strict JSON has neither), numpy scalars -> Python."""
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: json_safe(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [json_safe(x) for x in v]
-    if hasattr(v, "item") and callable(v.item):  # numpy scalars
-        return json_safe(v.item())
-    return v
 
 
 def console(stderr: bool = False) -> Any:

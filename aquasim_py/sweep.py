@@ -23,16 +23,17 @@ order; ``sweep.csv`` is rewritten from the journal in plan order (:func:`finish`
 same whatever the interruption. :func:`read_journal` drops a partially written last line (a
 process killed mid-write), and a resumed sweep runs only the keys without a successful row. A
 run whose protocol raises gives a row with its ``error`` and no metrics; the others go on.
+A sweep that did not complete (``sweep.json`` missing, or not ``complete``) keeps its finished
+runs in the journal (:func:`saved_runs`): the CLI refuses to start another sweep over them
+without ``--resume`` (continue) or ``--overwrite`` (discard).
 """
 
 from __future__ import annotations
 
-import csv
 import gc
 import hashlib
 import itertools
 import json
-import math
 import os
 import shutil
 import time
@@ -44,7 +45,9 @@ from typing import Any
 
 import numpy as np
 
+from aquasim_py import plugins
 from aquasim_py import scenario as _scenario
+from aquasim_py.rows import json_safe, rows_to_csv
 from aquasim_py.scenario import VARIANT_KEY
 
 __all__ = [
@@ -63,6 +66,7 @@ __all__ = [
     "run_jobs",
     "run_key",
     "run_seed",
+    "saved_runs",
 ]
 
 JOURNAL = "rows.jsonl"  # the append-only row journal inside a sweep's directory
@@ -114,8 +118,6 @@ def run_key(base: dict[str, Any], point: Sequence[tuple[str, Any]], seed: int) -
     """A run's stable identity: the first 16 hex digits of the SHA-256 of the canonical JSON
     (sorted keys, no spaces) of its resolved scenario ``base`` (without ``[output]``: where
     results go does not change them), its swept values in grid order and its seed."""
-    from aquasim_py.runner import json_safe
-
     payload = {
         "scenario": {k: v for k, v in base.items() if k != "output"},
         "point": [[k, v] for k, v in point],
@@ -182,7 +184,22 @@ def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
-def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None = None) -> dict[str, Any]:
+def plugin_sources(start: dict[str | None, dict[str, Any]], path: str | None, jobs: Sequence[Job]) -> dict[str, str]:
+    """The source text of every file plug-in (``protocol = "./x.py:Class"``) the jobs use, by
+    the path key a worker computes from the same ``path`` (:mod:`aquasim_py.plugins`): the
+    files travel with the jobs, so a worker without them (Dask, another machine) runs them."""
+    specs = {str(g.get("protocol")) for b in start.values() for g in (b.get("nodes") or [])}
+    specs |= {v for j in jobs for _, v in j.point if isinstance(v, str)}
+    return plugins.sources(sorted(specs), Path(path).parent if path is not None else None)
+
+
+def run_job(
+    base: dict[str, Any],
+    path: str | None,
+    job: Job,
+    traces: str | None = None,
+    sources: dict[str, str] | None = None,
+) -> dict[str, Any]:
     """Run one job (in any process) and return its row: swept values, run, seed, key, error,
     metrics.
 
@@ -190,8 +207,12 @@ def run_job(base: dict[str, Any], path: str | None, job: Job, traces: str | None
     file names and messages). An exception inside the run is caught and recorded: the row then
     has its one-line ``error`` and no metrics (the other runs go on). ``traces``: a directory
     to keep this run's trace tables in, under ``traces/<key>/`` (complete or absent).
+    ``sources``: the file plug-ins' text (:func:`plugin_sources`), loaded from there.
     """
     from aquasim_py.runner import execute
+
+    if sources:
+        plugins.provide(sources)
 
     row: dict[str, Any] = dict(job.point)
     row["run"] = job.run
@@ -244,6 +265,7 @@ def run_jobs(
     start = bases(sc, jobs)
     path = str(sc.path) if sc.path is not None else None
     tdir = str(traces) if traces is not None else None
+    sources = plugin_sources(start, path, jobs)
     total = len(jobs)
     results: list[dict[str, Any] | None] = [None] * total
     pos = {job.index: i for i, job in enumerate(jobs)}
@@ -259,7 +281,7 @@ def run_jobs(
             progress(done, total)
 
     if scheduler is not None:
-        _run_dask(scheduler, start, path, jobs, pos, _done, tdir)
+        _run_dask(scheduler, start, path, jobs, pos, _done, tdir, sources)
     else:
         n = workers if workers is not None else (os.cpu_count() or 1)
         n = max(1, min(int(n), total)) if total else 1
@@ -270,12 +292,12 @@ def run_jobs(
             # collection costs ~0.1 s with pandas and scipy loaded: one every 5 s at most.
             collected = time.monotonic()
             for i, job in enumerate(jobs):
-                _done(i, run_job(start[_variant_of(job)], path, job, tdir))
+                _done(i, run_job(start[_variant_of(job)], path, job, tdir, sources))
                 if time.monotonic() - collected > 5.0:
                     gc.collect()
                     collected = time.monotonic()
         else:
-            _run_local(n, start, path, jobs, _done, tdir)
+            _run_local(n, start, path, jobs, _done, tdir, sources)
     rows = [r for r in results if r is not None]
     fill_counts(rows)
     return rows
@@ -288,6 +310,7 @@ def _run_local(
     jobs: Sequence[Job],
     done: Callable[[int, dict[str, Any]], None],
     traces: str | None,
+    sources: dict[str, str],
 ) -> None:
     # Worker processes may be forked: the CLI's progress display runs no thread for that
     # reason (a lock held by another thread at fork time would stay held). At most 2n jobs
@@ -303,7 +326,7 @@ def _run_local(
                     if nxt is None:
                         break
                     i, job = nxt
-                    pending[pool.submit(run_job, start[_variant_of(job)], path, job, traces)] = i
+                    pending[pool.submit(run_job, start[_variant_of(job)], path, job, traces, sources)] = i
                 if not pending:
                     break
                 finished, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -361,6 +384,7 @@ def _run_dask(
     pos: dict[int, int],
     done: Callable[[int, dict[str, Any]], None],
     traces: str | None,
+    sources: dict[str, str],
 ) -> None:
     try:
         from dask.distributed import Client
@@ -369,7 +393,8 @@ def _run_dask(
         raise DaskMissingError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from e
     with Client(scheduler) as client:
         # traces: the workers write them, so DIR must be on a file system they share
-        futs = [client.submit(run_job, start[_variant_of(job)], path, job, traces, pure=False) for job in jobs]
+        # the file plug-ins' text (a few kB) travels with each task: no worker needs the files
+        futs = [client.submit(run_job, start[_variant_of(job)], path, job, traces, sources, pure=False) for job in jobs]
         index = {f.key: job.index for f, job in zip(futs, jobs)}
         try:
             for fut in dask_completed(futs):
@@ -399,25 +424,6 @@ def columns(rows: Sequence[dict[str, Any]], jobs: Sequence[Job]) -> list[str]:
     fixed = set(grid) | {"run", "seed", "key", "error"}
     metric_names = sorted({k for r in rows for k in r if k not in fixed})
     return grid + ["run", "seed"] + extra + metric_names
-
-
-def _cell(v: Any) -> Any:
-    if v is None:
-        return ""
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else repr(float(v))  # repr round-trips exactly
-    if isinstance(v, (list, dict)):
-        return json.dumps(v)
-    return v
-
-
-def rows_to_csv(rows: Sequence[dict[str, Any]], cols: Sequence[str], path: str | Path) -> None:
-    """Write rows (missing metrics left empty) with exact float text."""
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh, lineterminator="\n")
-        w.writerow(cols)
-        for r in rows:
-            w.writerow([_cell(r.get(c)) for c in cols])
 
 
 # --------------------------------------------------------------------------- the row journal
@@ -486,6 +492,22 @@ def _atomic_write(path: Path, data: bytes) -> None:
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(tmp, path)
+
+
+def saved_runs(out: str | Path) -> int:
+    """How many finished runs (keys with a successful journal row) an interrupted sweep left
+    in ``out``; 0 when there are none or the sweep there completed (``sweep.json`` says
+    ``complete``). Interrupted means: no ``sweep.json`` (killed, or still running) or one
+    written on an interruption (``complete`` false)."""
+    out = Path(out)
+    done = done_keys(read_journal(out / JOURNAL)[0])
+    if not done:
+        return 0
+    try:
+        info = json.loads((out / "sweep.json").read_text())
+    except (OSError, ValueError):
+        return len(done)
+    return 0 if isinstance(info, dict) and info.get("complete") is True else len(done)
 
 
 def latest_rows(rows: Iterable[dict[str, Any]], jobs: Sequence[Job]) -> list[dict[str, Any]]:

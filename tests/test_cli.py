@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from aquasim_py import cli, metrics, trace
+from aquasim_py import cli, display, metrics, trace
 
 SCENARIO = """\
 [simulation]
@@ -241,10 +241,10 @@ def test_run_writes_trace_summary_and_prints_metrics(scen, tmp_path, capsys):
     assert sc["output"]["directory"] == str(out)
     m = summary["metrics"]
     assert m["packets.sent"] > 0 and m["beacon.ranges"] > 0
-    # every metric is in the printed table, as printed
+    # every metric is in the printed table, as printed: its name with the unit, its value in that unit
     for k, v in m.items():
-        assert k in stdout
-        assert cli._fmt(v if v is not None else math.nan) in stdout
+        shown, (cell,) = display.format_row(k, [v if v is not None else math.nan])
+        assert re.search(rf"│ {re.escape(shown)} +│ +{re.escape(cell)} │", stdout), (k, shown, cell)
     assert "range error per anchor" in stdout  # the protocol's report()
     # nothing but the output directory itself appears next to it
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res", "scen.toml"]
@@ -262,7 +262,8 @@ def test_csv_trace_reloaded_gives_the_printed_metrics(scen, tmp_path, capsys):
             assert math.isnan(again[k]), k
         else:
             assert again[k] == pytest.approx(v, rel=1e-12, abs=1e-12), k
-        assert cli._fmt(again[k]) in stdout
+        shown, (cell,) = display.format_row(k, [again[k]])
+        assert re.search(rf"│ {re.escape(shown)} +│ +{re.escape(cell)} │", stdout), (k, shown, cell)
 
 
 def test_same_seed_same_trace_bytes(scen, tmp_path, capsys):
@@ -352,7 +353,7 @@ def test_real_subprocess(scen, tmp_path):
         check=False,
     )
     assert good.returncode == 0, good.stderr
-    assert "beacon.range_rmse_m" in good.stdout and (tmp_path / "y" / "summary.json").exists()
+    assert "beacon.range_rmse (m)" in good.stdout and (tmp_path / "y" / "summary.json").exists()
 
 
 def test_progress_bar_follows_simulated_time(scen, tmp_path, capsys, monkeypatch):

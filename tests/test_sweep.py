@@ -113,7 +113,7 @@ def test_sweep_prints_summary(scen, tmp_path, capsys):
     rc = cli.main(["sweep", str(scen), "--workers", "1", "--out", str(tmp_path / "o"), "--set", "sweep.runs=1"])
     out, err = capsys.readouterr()
     assert rc == 0 and err == ""
-    assert "4 runs" in out and "beacon.range_rmse_m" in out
+    assert "4 runs in" in out and "beacon.range_rmse (m)" in out and "n = 1 run per grid point" in out
 
 
 def test_swept_explicit_placement_sets_its_own_count(scen):
@@ -418,3 +418,51 @@ def test_help_names_the_sweep_directory(capsys):
     assert cli.main(["sweep", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "out/<scenario file stem>-sweep" in text and "--resume" in text and "--keep-traces" in text
+
+
+def _interrupt_after(monkeypatch, n: int) -> None:
+    """The sweep is interrupted (as by Ctrl-C) right after its n-th row is journalled."""
+    append = sweep.Journal.append
+    count = 0
+
+    def append_then_stop(self, row):
+        nonlocal count
+        append(self, row)
+        count += 1
+        if count == n:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep.Journal, "append", append_then_stop)
+
+
+@pytest.mark.parametrize("killed", [False, True])
+def test_an_interrupted_sweep_is_refused_without_resume_and_kept(scen, tmp_path, monkeypatch, capsys, killed):
+    out = tmp_path / "o"
+    argv = ["sweep", str(scen), "--workers", "1", "--out", str(out), "--quiet", "--set", "sweep.runs=1"]
+    with monkeypatch.context() as m:
+        _interrupt_after(m, 3)
+        assert cli.main(argv) == 130
+    if killed:  # a SIGKILL writes no sweep.json
+        (out / "sweep.json").unlink()
+    saved = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    capsys.readouterr()
+    assert cli.main(argv) == 2
+    _, err = capsys.readouterr()
+    assert err == (
+        f"error: {out} holds an interrupted sweep (3 finished runs saved in rows.jsonl): finish it with --resume, "
+        "or start again with --overwrite (discards them)\n"
+    )
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == saved  # nothing touched
+    # --resume runs only the missing run; the journal keeps the 3 saved rows first
+    assert cli.main([*argv, "--resume"]) == 0
+    keys = [json.loads(x)["key"] for x in _journal_lines(out / sweep.JOURNAL)]
+    assert len(keys) == 4 and b"\n".join(_journal_lines(out / sweep.JOURNAL)).startswith(saved["rows.jsonl"].strip())
+    # a complete sweep there is no longer in the way; --overwrite discards an interrupted one
+    assert sweep.saved_runs(out) == 0
+    assert cli.main(argv) == 0
+    with monkeypatch.context() as m:
+        _interrupt_after(m, 1)
+        assert cli.main(argv) == 130
+    assert sweep.saved_runs(out) == 1
+    assert cli.main([*argv, "--overwrite"]) == 0
+    assert len(_journal_lines(out / sweep.JOURNAL)) == 4

@@ -1,9 +1,13 @@
-"""Import cycles inside aquasim_py, read from the source with ``ast`` (nothing is imported).
+"""Import cycles inside aquasim_py and aquasim_protocols, read from the source with ``ast``
+(nothing is imported).
 
-Every ``import`` / ``from ... import`` between two aquasim_py modules is an edge, tagged
-"top" (module level, run at import), "lazy" (inside a function) or "typing" (under
-``if TYPE_CHECKING``). Cycles are listed for the top-level edges and for all edges; the exit
-status is 1 if any cycle exists among all edges.
+Every ``import`` / ``from ... import`` between two of their modules is an edge, tagged "top"
+(module level, run at import), "lazy" (inside a function) or "typing" (under
+``if TYPE_CHECKING``). Compiled extension modules (a ``.pyi`` stub or a ``.c`` source beside
+the package's ``.py`` files) are modules too, without imports of their own, so that
+``from . import _ext`` is an edge to ``_ext``, not to the package. Cycles are counted and
+listed for the top-level edges and for all edges; the exit status is 1 if there is any cycle
+among all edges, lazy and typing-only ones included (``make lint`` runs this, and so CI).
 
     python tools/import_graph.py            # cycles (none expected)
     python tools/import_graph.py --edges    # also every edge
@@ -23,15 +27,17 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCES = {ROOT / "aquasim_py": "aquasim_py", ROOT / "protocols": "aquasim_protocols"}
 
 
-def modules() -> dict[str, Path]:
-    """Module name -> file, for every .py file of the package (packages as their __init__)."""
+def modules(sources: dict[Path, str] | None = None) -> dict[str, Path]:
+    """Module name -> file, for every .py file of the packages (packages as their __init__),
+    and every compiled extension (its ``.pyi`` stub or ``.c`` source) that has no .py file."""
     out: dict[str, Path] = {}
-    for folder, pkg in SOURCES.items():
-        for f in sorted(folder.rglob("*.py")):
-            parts = list(f.relative_to(folder).with_suffix("").parts)
-            if parts[-1] == "__init__":
-                parts = parts[:-1]
-            out[".".join([pkg, *parts])] = f
+    for folder, pkg in (SOURCES if sources is None else sources).items():
+        for pattern in ("*.py", "*.pyi", "*.c"):
+            for f in sorted(folder.rglob(pattern)):
+                parts = list(f.relative_to(folder).with_suffix("").parts)
+                if parts[-1] == "__init__":
+                    parts = parts[:-1]
+                out.setdefault(".".join([pkg, *parts]), f)
     return out
 
 
@@ -87,12 +93,16 @@ def imports(name: str, path: Path, known: set[str]) -> list[tuple[str, str]]:
         else:
             visit(node, kind)
 
+    if path.suffix != ".py":  # an extension module imports nothing of ours
+        return []
     visit(ast.parse(path.read_text(), str(path)), "top")
     return [(t, k) for t, k in found if t != name]
 
 
-def graph() -> nx.MultiDiGraph:
-    mods = modules()
+def graph(sources: dict[Path, str] | None = None) -> nx.MultiDiGraph:
+    """Every module of ``sources`` (folder -> package name; default this repository's) with an
+    edge per import between two of them, tagged with its kind."""
+    mods = modules(sources)
     g: nx.MultiDiGraph = nx.MultiDiGraph()
     g.add_nodes_from(mods)
     for name, path in mods.items():
@@ -102,8 +112,14 @@ def graph() -> nx.MultiDiGraph:
 
 
 def cycles(g: nx.MultiDiGraph, kinds: set[str]) -> list[list[str]]:
+    """The simple cycles among the edges of ``kinds``, each rotated to start at its smallest
+    module name (networkx's starting point depends on set order, so on the hash seed)."""
     sub = nx.DiGraph((u, v) for u, v, k in g.edges(data="kind") if k in kinds)
-    return sorted(nx.simple_cycles(sub))
+    rotated = []
+    for c in nx.simple_cycles(sub):
+        i = c.index(min(c))
+        rotated.append(c[i:] + c[:i])
+    return sorted(rotated)
 
 
 def main(argv: list[str] | None = None) -> int:

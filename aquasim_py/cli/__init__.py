@@ -24,7 +24,6 @@ from contextlib import contextmanager
 from typing import Any
 
 from aquasim_py.cli.common import EXIT_USAGE, Interrupted, UsageError
-from aquasim_py.cli.common import fmt as _fmt  # noqa: F401  (how the tables print a metric)
 from aquasim_py.scenario import ScenarioError
 
 __all__ = ["EXIT_USAGE", "UsageError", "main"]

@@ -4,11 +4,10 @@ common options, output directories, progress and table helpers."""
 from __future__ import annotations
 
 import argparse
-import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import NoReturn
 
 from aquasim_py.scenario import Scenario
 
@@ -35,7 +34,7 @@ def version_line() -> str:
     from importlib.metadata import version
     from importlib.util import find_spec
 
-    from aquasim_py import __version__
+    from aquasim_py._version import __version__
 
     fast = "compiled (aquasim_py._fastcsv)" if find_spec("aquasim_py._fastcsv") is not None else "pure Python"
     return (
@@ -87,6 +86,22 @@ def add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar and no tables")
 
 
+def add_metrics(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--metrics",
+        action="append",
+        metavar="PATTERN",
+        help="the metrics to tabulate and plot: shell patterns, comma-separated or repeated "
+        "(e.g. 'localization.*,*.rmse_m'); default every metric but the packet counts",
+        type=lambda text: [x.strip() for x in text.split(",") if x.strip()],
+    )
+
+
+def metric_patterns(given: Sequence[Sequence[str]] | None) -> list[str] | None:
+    """``--metrics`` as one list of patterns (None when not given)."""
+    return [x for group in given for x in group] if given else None
+
+
 def output_dir(sc: Scenario, out: str | None, suffix: str = "") -> tuple[Path, str]:
     """The output directory and the key an error about it names (``--out`` or the file's)."""
     if out:
@@ -98,25 +113,3 @@ def output_dir(sc: Scenario, out: str | None, suffix: str = "") -> tuple[Path, s
 
 def _progress_wanted(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty()
-
-
-def fmt(v: Any) -> str:
-    """A metric as the tables print it."""
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        return "-" if math.isnan(v) else f"{v:.6g}"
-    return str(v)
-
-
-def metrics_table(m: Mapping[str, Any], title: str) -> Any:
-    from rich.table import Table
-
-    t = Table(title=title)
-    t.add_column("metric")
-    t.add_column("value", justify="right")
-    for k, v in m.items():
-        t.add_row(k, fmt(v))
-    return t

@@ -9,9 +9,11 @@ from pathlib import Path
 from aquasim_py.cli import common
 
 EXAMPLES = """examples:
-  aquasim-py report out/itmtl                  # a run: map, errors, sync, CDF, packets
+  aquasim-py report out/beacon                 # a run: map, errors, sync, CDF, packets
+  aquasim-py report out/itmtl                  # every variant's report, and the variants side by side
   aquasim-py report out/itmtl/wsc              # one variant of a run with variants
-  aquasim-py report out/itmtl_sweep            # a sweep: each metric vs the swept values, 95 % CI
+  aquasim-py report out/ramezani_localization_sweep-sweep           # a sweep: a line per other grid value
+  aquasim-py report out/ramezani_localization_sweep-sweep --metrics '*.rmse_m,*.sqrt_mean_crb_m'
   aquasim-py report out/itmtl --out /tmp/rep   # write the report elsewhere
 """
 
@@ -20,31 +22,37 @@ def parser() -> argparse.ArgumentParser:
     p = common.Parser(
         prog="aquasim-py report",
         description="Draw PNG plots and one self-contained report.html (images embedded) from the "
-        "output directory of a run (summary.json + trace tables) or of a sweep (sweep.csv).",
+        "output directory of a run (summary.json + trace tables), of a run with variants (variants.csv) "
+        "or of a sweep (sweep.csv).",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("directory", metavar="DIR", help="a run's or a sweep's output directory")
     p.add_argument("--out", metavar="DIR", help="where to write the plots and report.html (default: DIR)")
+    common.add_metrics(p)
     return p
 
 
-def _report_into(directory: Path, out: Path) -> Path:
+def _report_into(directory: Path, out: Path, metrics: Sequence[str] | None = None) -> Path:
     """Write the report of ``directory`` into ``out`` and list its files in ``out``'s manifest."""
     from aquasim_py.outdir import record_files
     from aquasim_py.report import write_report
 
-    html = write_report(directory, out)
+    html = write_report(directory, out, metrics)
     record_files(out, sorted(p.name for p in out.iterdir() if p.suffix == ".png" or p == html))
     return html
 
 
-def reports_for(out: Path) -> list[Path]:
-    """Report every run under ``out``: the run itself, or each variant directory of a run with
-    variants (``out/NAME/summary.json``); returns the report.html paths."""
+def reports_for(out: Path, metrics: Sequence[str] | None = None) -> list[Path]:
+    """Report every run under ``out``: the run or sweep itself, or for a run with variants
+    each variant directory (``out/NAME/summary.json``) and then the cross-variant report of
+    ``out``; returns the report.html paths."""
     if (out / "summary.json").is_file() or (out / "sweep.csv").is_file():
-        return [_report_into(out, out)]
-    return [_report_into(d, d) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
+        return [_report_into(out, out, metrics)]
+    paths = [_report_into(d, d, metrics) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
+    if (out / "variants.csv").is_file():
+        paths.append(_report_into(out, out, metrics))
+    return paths
 
 
 def command(argv: Sequence[str]) -> int:
@@ -56,16 +64,20 @@ def command(argv: Sequence[str]) -> int:
     if not directory.is_dir():
         raise common.UsageError(f"{directory}: no such directory")
     try:
+        metrics = common.metric_patterns(args.metrics)
         if args.out is None:
-            paths = reports_for(directory)
+            paths = reports_for(directory, metrics)
             if not paths:
-                raise ReportError(f"{directory}: neither a run (summary.json) nor a sweep (sweep.csv) output directory")
+                raise ReportError(
+                    f"{directory}: neither a run (summary.json), a variants run (variants.csv) nor a sweep "
+                    "(sweep.csv) output directory"
+                )
         else:
             dest = Path(args.out)
             # never write over a user's files (the report has no --overwrite)
             refuse_foreign(dest, None, "--out", hint="give an empty or new directory")
             dest.mkdir(parents=True, exist_ok=True)
-            paths = [_report_into(directory, dest)]
+            paths = [_report_into(directory, dest, metrics)]
     except ReportError as e:
         raise common.UsageError(str(e)) from None
     for p in paths:

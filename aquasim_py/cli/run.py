@@ -9,12 +9,13 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from aquasim_py import tables
 from aquasim_py.cli import common
 from aquasim_py.runner import (
     RunResult,
     check_output_format,
-    comparison_columns,
     console,
+    paper_citations,
     paper_comparison,
     relocate_results,
     resolve_variants,
@@ -89,7 +90,7 @@ def command(argv: Sequence[str]) -> int:
         con = console()
         what = sc.name if sc.variant is None else f"{sc.name}/{sc.variant}"
         title = f"{what}: metrics (seed {sc.simulation.seed}, {sc.simulation.duration_s:g} s simulated)"
-        con.print(common.metrics_table(res.metrics, title))
+        con.print(tables.metrics_table(res.metrics, title).rich(con.width))
         for r in res.reports():
             con.print(r)
         con.print(f"output: {out}", soft_wrap=True)
@@ -112,7 +113,7 @@ def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> i
         con.print(comparison_table(results, base, width=con.width))
         paper = paper_comparison(results)
         if paper is not None:
-            con.print(paper_table(paper))
+            con.print(paper_table(paper, base, results, width=con.width))
         more = f", the papers' numbers: {out / 'paper.csv'}" if paper is not None else ""
         con.print(f"output: {out}/<variant>/, comparison: {out / 'variants.csv'}{more}", soft_wrap=True)
     _report(out, args)
@@ -131,49 +132,20 @@ def _report(out: Path, args: argparse.Namespace) -> None:
 
 
 def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:
-    """Rows = variants, columns = the metrics more than half of them report (all of them are
-    in variants.csv). When that many columns cannot fit ``width`` characters, the same table
-    is printed transposed (one row per metric) rather than folded into unreadable slivers."""
-    from rich.table import Table
-
-    cols, rest = comparison_columns(results)
-    cells = {name: [common.fmt(res.metrics.get(c, float("nan"))) for c in cols] for name, res in results.items()}
+    """The variants side by side: a row per metric (each unit shown), a column per variant, in
+    blocks of columns that fit ``width`` (:func:`aquasim_py.tables.comparison_table`)."""
     sim = base.simulation
     title = f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)"
-    caption = f"{len(rest)} more metrics in variants.csv" if rest else None
-    # a column needs its widest cell and room for a header folded to ~10 characters a line,
-    # plus 3 for borders and padding
-    need = 4 + max(len("variant"), *(len(n) for n in results))
-    for j in range(len(cols)):
-        need += 3 + max(10, *(len(v[j]) for v in cells.values()))
-    if width is None or need <= width:
-        t = Table(title=title, caption=caption)
-        t.add_column("variant", no_wrap=True)
-        for c in cols:
-            t.add_column(c, justify="right", overflow="fold")
-        for name, row in cells.items():
-            t.add_row(name, *row)
-        return t
-    t = Table(title=title, caption=(caption + "; " if caption else "") + "one row per metric to fit")
-    t.add_column("metric", no_wrap=True)
-    for name in results:
-        t.add_column(name, justify="right")
-    for j, c in enumerate(cols):
-        t.add_row(c, *(cells[name][j] for name in results))
-    return t
+    table = tables.comparison_table({name: res.metrics for name, res in results.items()}, title)
+    table.notes.append("every metric of every variant, exactly: variants.csv")
+    return table.rich(width)
 
 
-def paper_table(paper: Any) -> Any:
-    """The protocols' papers beside this run (:func:`aquasim_py.runner.paper_comparison`):
-    one row per claim, with what the paper's number is a statistic of."""
-    from rich.table import Table
-
-    t = Table(title="the paper beside this run (same statistic; paper.csv)")
-    for c in paper.columns:
-        t.add_column("ours (this run)" if c == "ours" else c, overflow="fold")
-    for row in paper.itertuples(index=False):
-        t.add_row(*("" if isinstance(v, float) and v != v else str(v) for v in row))
-    return t
+def paper_table(paper: Any, base: Scenario, results: Mapping[str, RunResult], width: int | None = None) -> Any:
+    """The protocols' papers beside this run (:func:`aquasim_py.runner.paper_comparison`): the
+    paper named (each protocol's ``citation``) and the network described in the title, one
+    row (or block) per claim with what the paper's number is a statistic of."""
+    return tables.paper_table(paper, tables.paper_title(base, paper_citations(results)), width)
 
 
 def _warn_missing(res: RunResult) -> None:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import signal
@@ -21,7 +20,8 @@ from typing import Any
 
 from aquasim_py import __version__
 from aquasim_py.cli import common
-from aquasim_py.runner import console, json_safe
+from aquasim_py.rows import json_safe
+from aquasim_py.runner import console
 
 EXAMPLES = """\
 examples:
@@ -38,7 +38,8 @@ the [output] directory with "-sweep" appended, else out/<scenario file stem>-swe
 finished run's row is appended to DIR/rows.jsonl at once; at the end DIR/sweep.csv holds one
 row per run (key, error, metrics) in plan order whatever the number of workers or
 interruptions, DIR/summary.csv the mean, std and 95 % CI per grid point. Exit status 1 when
-any run failed (its error is in the error column).
+any run failed (its error is in the error column). A DIR that holds an interrupted sweep is
+refused (exit 2) unless --resume (continue it) or --overwrite (discard its saved runs).
 """
 
 OUTPUTS = ("sweep.csv", "sweep.json", "summary.csv", "sweep.parquet")
@@ -57,6 +58,11 @@ def parser() -> argparse.ArgumentParser:
             a.help = (
                 "output directory (default: the [output] directory + '-sweep', else out/<scenario file stem>-sweep)"
             )
+        if a.dest == "overwrite":
+            a.help = (
+                f"{a.help}; also start afresh over an interrupted sweep in DIR, discarding its saved runs "
+                "(without it, or --resume, such a directory is refused)"
+            )
     p.add_argument(
         "--resume",
         action="store_true",
@@ -73,6 +79,7 @@ def parser() -> argparse.ArgumentParser:
         help=f"local worker processes (default: the core count, here {os.cpu_count()})",
     )
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster at ADDRESS (needs 'aquasim-py[dask]')")
+    common.add_metrics(p)
     return p
 
 
@@ -93,6 +100,13 @@ def command(argv: Sequence[str]) -> int:
         except ImportError:
             raise common.UsageError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from None
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
+    if not args.resume and not args.overwrite and out.is_dir() and (saved := sweep.saved_runs(out)):
+        # a sweep that starts afresh empties the journal: never over finished runs unasked
+        runs = f"{saved} finished run{'s' * (saved != 1)}"
+        raise common.UsageError(
+            f"{out} holds an interrupted sweep ({runs} saved in {sweep.JOURNAL}): finish it with --resume, "
+            "or start again with --overwrite (discards them)"
+        )
     _prepare(out, sc.path, key, resume=args.resume, overwrite=args.overwrite)
     journal_path = out / sweep.JOURNAL
     before, dropped = sweep.read_journal(journal_path, repair=True) if args.resume else ([], 0)
@@ -135,13 +149,13 @@ def command(argv: Sequence[str]) -> int:
     _write_info(out, sc, args, workers, rows, cols, jobs, wall)
     if not args.quiet:
         con = console()
-        con.print(summary_table(rows, jobs, cols))
+        con.print(summary_table(out, sc.name, common.metric_patterns(args.metrics), width=con.width))
     reused = f" ({already} from the journal)" if already else ""
     print(f"{len(rows)} runs{reused} in {wall:.1f} s -> {out / 'sweep.csv'}")
     if args.report:
         from aquasim_py.cli.report import reports_for
 
-        for html in reports_for(out):
+        for html in reports_for(out, metrics=common.metric_patterns(args.metrics)):
             print(f"report: {html}")
     failed = sum(1 for r in rows if r.get("error"))
     if failed:
@@ -154,7 +168,8 @@ def command(argv: Sequence[str]) -> int:
 
 def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite: bool = False) -> None:
     """Make the sweep's directory (before any run). Without ``resume``, a previous sweep's
-    outputs there are removed: the new sweep starts from an empty journal. A non-empty
+    outputs there are removed: the new sweep starts from an empty journal (the caller has
+    refused an interrupted sweep's saved runs unless ``overwrite``). A non-empty
     directory that is not an aquasim-py output is refused unless ``overwrite`` (then only the
     sweep's own files are written and removed there); the directory's manifest lists the
     sweep's files from the start, so an interrupted sweep's directory is its own."""
@@ -166,6 +181,9 @@ def _prepare(out: Path, file: Path | None, key: str, *, resume: bool, overwrite:
     try:
         out.mkdir(parents=True, exist_ok=True)
         record_files(out, [JOURNAL, *OUTPUTS])
+        # written again when this sweep ends or is interrupted: until then the directory reads
+        # as an unfinished sweep (sweep.saved_runs), also if this one is killed
+        (out / "sweep.json").unlink(missing_ok=True)
         if not resume:
             for name in (JOURNAL, *OUTPUTS):
                 (out / name).unlink(missing_ok=True)
@@ -251,38 +269,20 @@ def _run_with_bar(
         )
 
 
-def summary_table(rows: Sequence[Mapping[str, Any]], jobs: Sequence[Any], cols: Sequence[str]) -> Any:
-    """Mean of every metric per grid point (at most 8 grid points shown)."""
-    import numpy as np
-    from rich.table import Table
+def summary_table(out: Path, name: str, patterns: Sequence[str] | None, width: int | None = None) -> Any:
+    """The sweep's metrics per grid point from ``out/sweep.csv``: centre, 95 % interval and n
+    (:func:`aquasim_py.tables.sweep_table`), the metrics ``patterns`` select (default all but
+    the packet counts)."""
+    from rich.text import Text
 
-    grid_keys = [k for k, _ in jobs[0].point] if jobs else []
-    points: dict[tuple, list[Mapping[str, Any]]] = {}
-    for row in rows:
-        if not row.get("error"):  # a failed run has no metrics
-            points.setdefault(tuple(json.dumps(row[k]) for k in grid_keys), []).append(row)
-    shown = list(points)[:8]
-    caption = f"columns: {', '.join(grid_keys)}" if grid_keys else None
-    if len(points) > len(shown):
-        caption = f"{caption} (first {len(shown)} of {len(points)} grid points)"
-    t = Table(title="sweep: mean over runs per grid point", caption=caption)
-    t.add_column("metric", no_wrap=True)
-    for p in shown:
-        t.add_column(", ".join(p) or "all runs", justify="right")
-    for c in cols:
-        if c in grid_keys or c in ("run", "seed", "key", "error"):
-            continue
-        cells = []
-        for p in shown:
-            vals = np.array([_num(r.get(c)) for r in points[p]], dtype=float)
-            vals = vals[np.isfinite(vals)]
-            cells.append(common.fmt(float(vals.mean())) if vals.size else "-")
-        t.add_row(c, *cells)
-    return t
+    from aquasim_py import report_sweep, tables
 
-
-def _num(v: Any) -> float:
-    try:
-        return float(v)
-    except (TypeError, ValueError):  # missing, or a non-numeric metric
-        return math.nan
+    data = report_sweep.load(out)
+    metrics = report_sweep.select(data.metrics, patterns)
+    if not metrics or data.runs.empty:
+        why = "no successful run" if data.runs.empty else f"no metric matches {', '.join(patterns or [])}"
+        return Text(f"{name} sweep: {why} (sweep.csv)")
+    table = tables.sweep_table(data, report_sweep.summary(data, metrics), metrics, f"{name} sweep: per grid point")
+    if not patterns:
+        table.notes.append("packet counts and any other metric: --metrics PATTERN (e.g. 'packets.*'); all: sweep.csv")
+    return table.rich(width)

@@ -30,7 +30,7 @@ from aquasim_py.scenario.schema import (
 )
 
 if TYPE_CHECKING:
-    from aquasim_py.scenario.load import Scenario
+    from aquasim_py.scenario.model import Scenario
 
 __all__ = [
     "DEPRECATED_MOBILITY",
@@ -270,7 +270,7 @@ def build(sc: Scenario) -> Any:
     )
     for i, g in enumerate(sc.nodes):
         assert g.name is not None and g.count is not None
-        cls = registry.get(g.protocol)
+        cls = registry.get(g.protocol, base=sc.base_dir)
         pos = placement_positions(g, vol.lo, vol.hi, sim.rng("group", g.name, "placement"))
         try:
             mob_cls = mobility_class(g.mobility.model)

@@ -24,11 +24,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeAlias
 
-import numpy as np
-from pydantic import PrivateAttr, ValidationError
+from pydantic import ValidationError
 
-from aquasim_py import registry
 from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_validation, show, toml_type
+from aquasim_py.scenario.model import Loc, Scenario
 from aquasim_py.scenario.schema import Scenario as _ScenarioModel
 from aquasim_py.scenario.validate import check, check_sweep_size
 
@@ -48,65 +47,11 @@ __all__ = [
 #: the sweep grid key that selects a variant (``grid = { variant = ["a", "b"] }``)
 VARIANT_KEY = "variant"
 
-Loc: TypeAlias = list[str | int]
 #: an override: ``"key.path=value"`` (value read as TOML) or a ``(key path, value)`` pair
 Override: TypeAlias = "str | tuple[Sequence[str | int] | str, Any]"
 Overrides: TypeAlias = "Sequence[Override] | Mapping[str, Any]"
 
 _VARIANT_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]*")
-
-
-class Scenario(_ScenarioModel):
-    """A validated scenario; remembers the file it came from (relative paths resolve there),
-    the data and overrides it was resolved from, and the variant it is (if any)."""
-
-    _path: Path | None = PrivateAttr(default=None)
-    _ctd: tuple[np.ndarray, np.ndarray, np.ndarray] | None = PrivateAttr(default=None)
-    _source: dict[str, Any] | None = PrivateAttr(default=None)
-    _sets: list[tuple[Loc, Any]] = PrivateAttr(default_factory=list)
-    _seed: int | None = PrivateAttr(default=None)
-    _variant: str | None = PrivateAttr(default=None)
-
-    @property
-    def path(self) -> Path | None:
-        return self._path
-
-    @property
-    def name(self) -> str:
-        return self._path.stem if self._path is not None else "scenario"
-
-    @property
-    def variant(self) -> str | None:
-        """The variant this scenario is the resolution of; None for the file as written."""
-        return self._variant
-
-    @property
-    def variant_names(self) -> list[str]:
-        """The declared variants, in file order (empty when the file declares none)."""
-        return list(self.variants or {})
-
-    @property
-    def declared_variants(self) -> list[str]:
-        """The variants of the file this scenario was resolved from (also for a variant)."""
-        source = self._source if self._source is not None else self.to_dict()
-        table = source.get("variants")
-        return list(table) if isinstance(table, dict) else []
-
-    def to_dict(self) -> dict[str, Any]:
-        """The resolved scenario (defaults filled in) as plain JSON-able data; loads back as is."""
-        d = self.model_dump(mode="json", exclude_none=False)
-        if d.get("variants") is None:
-            d.pop("variants", None)  # a file without variants resolves exactly as before they existed
-        return d
-
-    def protocols(self) -> list[type]:
-        """The Node subclasses the groups use, in first-use order."""
-        out: list[type] = []
-        for g in self.nodes:
-            cls = registry.get(g.protocol)
-            if cls not in out:
-                out.append(cls)
-        return out
 
 
 # --------------------------------------------------------------------------- key paths

@@ -31,7 +31,7 @@ from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_val
 from aquasim_py.scenario.schema import ExplicitPlacement, GridPlacement, NodeGroupSpec, UniformPlacement
 
 if TYPE_CHECKING:
-    from aquasim_py.scenario.load import Scenario
+    from aquasim_py.scenario.model import Scenario
 
 __all__ = [
     "LIMITS",
@@ -187,7 +187,7 @@ def _has_str(v: Any) -> bool:
 
 def _check_protocol(g: NodeGroupSpec, i: int, file: Path | None) -> None:
     try:
-        cls = registry.get(g.protocol)
+        cls = registry.get(g.protocol, base=file.parent if file is not None else None)
     except registry.UnknownProtocolError as e:
         raise ScenarioError(file, f"nodes[{i}].protocol", e.message) from None
     _check_finite(g.params, ["nodes", i, "params"], file)
@@ -428,7 +428,7 @@ def _check_network(sc: Scenario, file: Path | None) -> None:
         net.roles.setdefault(g.role, []).extend(ids)
         net.n_nodes += g.count
     for i, g in enumerate(sc.nodes):
-        cls = registry.get(g.protocol)
+        cls = registry.get(g.protocol, base=file.parent if file is not None else None)
         Params: type[BaseModel] = cls.Params  # type: ignore[attr-defined]
         params = Params.model_validate(g.params)
         here = replace(net, group=i, group_role=g.role)

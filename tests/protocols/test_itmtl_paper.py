@@ -101,7 +101,9 @@ def test_main_job_prints_the_paper_beside_the_variants(tmp_path, capsys):
     rc = cli.main([str(SCEN), "--out", str(out), "--set", "simulation.duration_s=70"])
     assert rc == 0
     printed = capsys.readouterr().out
-    assert "the paper beside this run" in printed and "56.67 %" in printed and "about 25.8 %" in printed
+    assert (
+        "beside this run (same statistic; paper.csv)" in printed and "56.67 %" in printed and "about 25.8 %" in printed
+    )
     paper = pd.read_csv(out / "paper.csv")
     assert list(paper["figure"]) == ["Fig. 9", "Fig. 10", "Fig. 11", "Fig. 12"]
     assert "ITMTL-wsc" in paper.loc[0, "ours"] and "Mobi-Sync" in paper.loc[0, "ours"]
