@@ -182,12 +182,13 @@ class NodeCore:
                     rng = self.snr_rng = self.sim.rng("node", self.index, "snr_estimate")
                 noise.extend(rng.standard_normal(256)[::-1].tolist())
             snr_db = snr_db + self._snr_std * noise.pop()
-        kind = packet.kind
-        for i, (ev, kinds) in enumerate(self._waiters):
-            if kinds is None or kind in kinds:  # the first waiting recv that takes this kind
-                del self._waiters[i]
-                ev.succeed(_taken(packet, rx_local, snr_db, pressure))
-                return
+        if self._waiters:
+            kind = packet.kind
+            for i, (ev, kinds) in enumerate(self._waiters):
+                if kinds is None or kind in kinds:  # the first waiting recv that takes this kind
+                    del self._waiters[i]
+                    ev.succeed(_taken(packet, rx_local, snr_db, pressure))
+                    return
         self._inbox.append((packet, rx_local, snr_db, pressure))
 
     def pending(self) -> int:

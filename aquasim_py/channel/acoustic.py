@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,12 +50,13 @@ class _Deliveries:
     at - now: SimPy's now + (at - now) is ``at`` itself whenever any delay gives ``at`` (when
     none does, a rounding tie, an ulp from it; tests/channel/test_acoustic.py)."""
 
-    __slots__ = ("k", "sigs", "t0")
+    __slots__ = ("fire", "k", "sigs", "t0")
 
-    def __init__(self, sigs: list[Signal], t0: float) -> None:
+    def __init__(self, sigs: list[Signal], t0: float, deliver: Callable[[_Deliveries, object], None]) -> None:
         self.sigs = sigs
         self.t0 = t0
         self.k = 0
+        self.fire = partial(deliver, self)  # each delivery's timeout callback (one per transmission)
 
 
 class AcousticChannel:
@@ -90,6 +92,7 @@ class AcousticChannel:
         self._max_duration = 0.0  # the longest packet so far (s)
         # overlaps matter only with a collision model
         self._track = config.collision in ("destructive", "capture")
+        self._pressure_kind = config.pressure_kind
         self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
 
     @property
@@ -212,7 +215,7 @@ class AcousticChannel:
                 if intended:
                     sigs.append(sig)
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
-            self._schedule(_Deliveries(sigs, t0))
+            self._schedule(_Deliveries(sigs, t0, self._deliver))
         return tx_local
 
     # -- receive ----------------------------------------------------------------------------------
@@ -221,21 +224,24 @@ class AcousticChannel:
         """Queue the next delivery of ``d`` at its last bit's arrival (true s)."""
         env = self._env
         t0 = d.t0
-        ev = env.timeout((t0 + (d.sigs[d.k][1] - t0)) - env.now)
-        ev.callbacks.append(lambda _: self._deliver(d))
+        env.timeout((t0 + (d.sigs[d.k][1] - t0)) - env.now).callbacks.append(d.fire)
 
-    def _deliver(self, d: _Deliveries) -> None:
+    def _deliver(self, d: _Deliveries, _event: object = None) -> None:
         """The last bit of a packet has arrived at a receiver: decide, stamp, deliver, trace;
         then queue the transmission's next delivery (after the events this one made, as their
         sequence numbers order them)."""
         sig = d.sigs[d.k]
         arr, _end, snr, rid, pkt, tof, path, dst_code = sig
         rx = self._modems[rid]
-        c = self.config
-        reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
+        # no verdict to take where signals cannot collide and the receiver sent nothing lately
+        if self._track or rx.busy_until > arr:
+            c = self.config
+            reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
+        else:
+            reason = None
         if reason is None:
             rx_local = rx.clock_stamp(arr) if self._jitter_std <= 0.0 else self._stamp(rx, arr)
-            p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == c.pressure_kind else math.nan
+            p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self._pressure_kind else math.nan
             rx.deliver(pkt, rx_local, snr, p)
             self._row((arr, "rx", None, rid, pkt.src, dst_code, pkt.uid, pkt.kind, pkt.bits, tof, snr, path, rx_local))
         else:

@@ -54,6 +54,8 @@ class Table:
         # a table without one: every column, as its last complete row named them (append)
         self._buf_keys = self._schema
         self._buf: list[tuple[Any, ...]] = []
+        # _buf_keys while they name every column (a row of them can be buffered), else None
+        self._fast_keys: tuple[str, ...] | None = self._schema
         self._batch = self._BATCH  # rows buffered before they move into the columns
         self._sink: Sink | None = None
         self._chunk_rows = self._next_spill = 0
@@ -283,7 +285,7 @@ class Table:
         moved into the columns in batches (``push_many`` widens a column's type exactly as
         one value at a time would)."""
         keys = self._schema if columns is None else columns
-        if keys == self._buf_keys and len(keys) == len(self.columns):
+        if keys == self._fast_keys:
             buf = self._buf
             buf.append(values)
             if len(buf) >= self._batch:
@@ -305,6 +307,7 @@ class Table:
         self._n += 1
         if not self._schema and len(row) == len(cols):  # later rows like this one are buffered
             self._buf_keys = tuple(keys)
+        self._fast_keys = self._buf_keys if len(self._buf_keys) == len(cols) else None
         self._maybe_spill()
 
     def extend(self, **cols: np.ndarray) -> None:
@@ -325,6 +328,7 @@ class Table:
             if key not in cols:
                 col.fill_missing(m)
         self._n += m
+        self._fast_keys = self._buf_keys if len(self._buf_keys) == len(self.columns) else None
         self._maybe_spill()
 
     def frame(self) -> pd.DataFrame:
