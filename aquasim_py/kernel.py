@@ -16,6 +16,7 @@ from __future__ import annotations
 import gc
 import hashlib
 import math
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from types import GeneratorType
@@ -33,7 +34,12 @@ from .node import Node, Role, Sensors
 from .nodecore import Group, NodeCore
 from .trace import Trace, TraceConfig
 
-__all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig", "quiet_gc"]
+__all__ = ["ChannelConfig", "Group", "Simulation", "TraceConfig", "UnawaitedEventsWarning", "quiet_gc"]
+
+
+class UnawaitedEventsWarning(UserWarning):
+    """A protocol's nodes made ``sleep`` / ``recv`` / ``send`` / ``broadcast`` events that fired
+    with nobody waiting on them: almost always a missing ``yield``."""
 
 ClockSpec = Sequence[Any] | Callable[[int, np.random.Generator], Any] | None
 MobilitySpec = Any  # a Mobility object, or a callable rng -> Mobility
@@ -151,6 +157,10 @@ class Simulation:
         self._static_pos: np.ndarray | None = None
         self._sampler_started = False
         self._one_call_states = True  # every group's model a Mobility (states_at per group)
+        #: protocol -> {"sleep" | "recv" | "send" | "broadcast": events its nodes made that
+        #: fired with nobody waiting on them}
+        self.unawaited: dict[str, dict[str, int]] = {}
+        self._unawaited_told: dict[str, int] = {}
 
     # -- randomness -------------------------------------------------------------------------------
 
@@ -451,3 +461,23 @@ class Simulation:
             self.env.run(until=until)
         if progress is not None:
             progress(until, until)
+        self._warn_unawaited()
+
+    def note_unawaited(self, protocol: str, what: str) -> None:
+        """Count an event made by a node of ``protocol`` (its ``what`` call) that fired unawaited."""
+        counts = self.unawaited.setdefault(protocol, {})
+        counts[what] = counts.get(what, 0) + 1
+
+    def _warn_unawaited(self) -> None:
+        """One :class:`UnawaitedEventsWarning` per protocol with unawaited events not told yet."""
+        for protocol, counts in self.unawaited.items():
+            total = sum(counts.values())
+            if total > self._unawaited_told.get(protocol, 0):
+                self._unawaited_told[protocol] = total
+                what = ", ".join(f"{n} {kind}" for kind, n in sorted(counts.items()))
+                warnings.warn(
+                    f"protocol {protocol!r}: its nodes made events they never waited on ({what}); "
+                    "a call such as self.sleep(...) does nothing without `yield` before it",
+                    UnawaitedEventsWarning,
+                    stacklevel=2,
+                )

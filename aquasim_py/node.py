@@ -279,21 +279,21 @@ class Node:
 
     def sleep(self, dt_local: float) -> simpy.Timeout:
         """Event after ``dt_local`` seconds of the node's local clock."""
-        return self.env.timeout(dt_local)
+        return self.__k.watch(self.env.timeout(dt_local), "sleep")
 
     # -- modem ----------------------------------------------------------------------------------
 
     def broadcast(self, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
         """Transmit to everyone in range. The event fires when the last bit has left; its value
         is the local MAC transmit stamp (first bit). A busy modem queues the packet."""
-        return self.env.adopt(self.__k.transmit(None, kind, payload, bits))
+        return self.__k.watch(self.env.adopt(self.__k.transmit(None, kind, payload, bits)), "broadcast")
 
     def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
         """Transmit to node ``dst`` (others in range hear it, and it collides at them, but only
         ``dst`` delivers it). Event as for :meth:`broadcast`."""
         if dst is None:
             raise ValueError("send() needs a destination id; use broadcast() for everyone")
-        return self.env.adopt(self.__k.transmit(int(dst), kind, payload, bits))
+        return self.__k.watch(self.env.adopt(self.__k.transmit(int(dst), kind, payload, bits)), "send")
 
     def recv(self, timeout: float | None = None, kinds: str | Iterable[str] | None = None) -> simpy.Event:
         """Event whose value is the next :class:`~aquasim_py.packet.Reception` (of one of
@@ -302,7 +302,7 @@ class Node:
         The timeout is handled here, on the same event: do not build ``recv() | timeout`` yourself
         (a get that loses such a race stays queued and eats the next packet).
         """
-        return self.__k.recv(timeout, kinds, self.env)
+        return self.__k.watch(self.__k.recv(timeout, kinds, self.env), "recv")
 
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""

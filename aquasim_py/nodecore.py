@@ -25,6 +25,42 @@ from .trace import SCHEMAS
 __all__ = ["Group", "NodeCore"]
 
 
+class _WaitCheck:
+    """The first callback of an event a node's API made (``sleep``, ``recv``, ``send``,
+    ``broadcast``): when the event fires, whether anyone ever waited on it. ``waited`` is set
+    by the event's callback list (:class:`_Callbacks`) when a process that yields the event, a
+    condition over it (``a | b``), or anything else adds a callback; never set means the node
+    made the event and never waited on it (a missing ``yield``). Counted per protocol in
+    :attr:`aquasim_py.kernel.Simulation.unawaited`."""
+
+    __slots__ = ("core", "waited", "what")
+
+    def __init__(self, core: NodeCore, what: str) -> None:
+        self.core = core
+        self.what = what
+        self.waited = False
+
+    def __call__(self, _event: simpy.Event) -> None:
+        if not self.waited:
+            self.core.sim.note_unawaited(self.core.protocol, self.what)
+
+
+class _Callbacks(list[Any]):
+    """An API event's callback list (SimPy's public ``Event.callbacks``) that tells its
+    :class:`_WaitCheck` when someone adds a callback (a condition that later drops its own,
+    once another event won, still counts: the node waited)."""
+
+    __slots__ = ("check",)
+
+    def __init__(self, check: _WaitCheck, callbacks: list[Any]) -> None:
+        super().__init__([check, *callbacks])
+        self.check = check
+
+    def append(self, callback: Any) -> None:
+        self.check.waited = True
+        super().append(callback)
+
+
 @dataclass
 class Group:
     """Nodes added by one :meth:`Simulation.add_group` call (one mobility object)."""
@@ -190,6 +226,13 @@ class NodeCore:
                     ev.succeed(_taken(packet, rx_local, snr_db, pressure))
                     return
         self._inbox.append((packet, rx_local, snr_db, pressure))
+
+    def watch(self, event: simpy.Event, what: str) -> simpy.Event:
+        """``event``, made by the node's ``what`` call, its callbacks a :class:`_Callbacks`
+        list whose first is a :class:`_WaitCheck`."""
+        if event.callbacks is not None:  # not processed yet (always, for an event just made)
+            event.callbacks = _Callbacks(_WaitCheck(self, what), event.callbacks)
+        return event
 
     def pending(self) -> int:
         """Receptions buffered and not taken yet."""

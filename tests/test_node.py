@@ -444,3 +444,87 @@ def test_at_instant_end_runs_after_every_other_event_of_its_instant():
     sim.run(5.0)
     assert [k for k, _ in log] == ["a", "b", "c", "end", "d"]
     assert [t for _, t in log[:4]] == [1.0] * 4 and log[4][1] > 1.0
+
+
+# -- events made and never waited on (a missing `yield`) --------------------------------------------
+
+
+class _Forgetful(Node):
+    """Listens, and after each reception means to pause but forgets the ``yield``; also
+    broadcasts once without waiting for the send to finish."""
+
+    name = "forgetful"
+
+    def run(self):
+        if self.id == 0:
+            self.broadcast("hello", None, 10)  # not waited on
+            yield self.sleep(1e6)
+        while True:
+            rec = yield self.recv(timeout=5.0)
+            if rec is None:
+                return
+            self.sleep(0.5)  # the bug: no yield
+
+
+class _Careful(Node):
+    """Waits on everything it makes, also through conditions (the loser of ``a | b`` counts as
+    waited on: its condition dropped its callback when the other won)."""
+
+    name = "careful"
+
+    def run(self):
+        if self.id == 0:
+            for _ in range(3):
+                yield self.broadcast("hello", None, 10) | self.sleep(100.0)
+                yield self.sleep(1.0)
+            return
+        while True:
+            rec = yield self.recv(timeout=5.0)
+            if rec is None:
+                return
+            yield self.sleep(0.2) & self.sleep(0.1)
+
+
+def _unawaited_run(cls: type[Node]) -> tuple[Simulation, list[warnings.WarningMessage]]:
+    from aquasim_py.kernel import UnawaitedEventsWarning
+
+    sim = Simulation(0, ssp=C, channel=ChannelConfig(collision="none"))
+    sim.add_group(cls, 2, positions=[P0, P1])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim.run(20.0)
+    return sim, [w for w in caught if issubclass(w.category, UnawaitedEventsWarning)]
+
+
+def test_events_never_waited_on_are_counted_and_warned_once_per_protocol() -> None:
+    sim, caught = _unawaited_run(_Forgetful)
+    assert sim.unawaited == {"forgetful": {"broadcast": 1, "sleep": 1}}
+    assert len(caught) == 1
+    text = str(caught[0].message)
+    assert "'forgetful'" in text and "1 broadcast, 1 sleep" in text and "yield" in text
+
+
+def test_events_waited_on_directly_or_through_conditions_are_not_reported() -> None:
+    sim, caught = _unawaited_run(_Careful)
+    assert sim.unawaited == {} and caught == []
+    rows = sim.trace.frames()["packets"]
+    assert (rows["event"] == "rx").sum() == 3  # the run did what it was meant to
+
+
+def test_the_cli_prints_one_warning_line_for_a_protocol_that_forgets_yield(tmp_path, capsys, monkeypatch) -> None:
+    from aquasim_py import registry
+    from aquasim_py.cli import main
+
+    registry.available()  # loaded, so that the test's protocol is added to a complete registry
+    monkeypatch.setitem(registry._registry, "forgetful", _Forgetful)
+    (tmp_path / "s.toml").write_text(
+        'description = "t"\n[simulation]\nduration_s = 20.0\n'
+        "[environment]\nvolume = { lo = [-5000.0, -5000.0, 0.0], hi = [5000.0, 5000.0, 500.0] }\n"
+        'sound_speed = { model = "constant", speed_mps = 1500.0 }\n[channel]\ncollision = "none"\n'
+        '[[nodes]]\nname = "n"\nrole = "ordinary"\ncount = 2\nprotocol = "forgetful"\n'
+        'placement = { kind = "explicit", positions = [[0.0, 0.0, 20.0], [1500.0, 0.0, 20.0]] }\n'
+    )
+    assert main([str(tmp_path / "s.toml"), "--quiet", "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if "never waited on" in line]
+    assert len(lines) == 1 and lines[0].startswith("warning: protocol 'forgetful'"), err
