@@ -5,8 +5,9 @@ the model and the public API; this module is imported lazily on the first range-
 The section of one link: column ranges ``rr`` (J,) from 0 (the source) to R (the receiver),
 depth nodes ``zz`` (K,) from 0, speeds ``cc`` (J, K), sea-floor depths ``bb`` (J,) at the
 columns (a polyline between them). Each grid rectangle is one cell where its four speeds lie on
-a plane (always so for a depth-only profile) and two triangles (cut along the diagonal from
-(r_j, z_k) to (r_j+1, z_k+1)) otherwise; c is linear on every cell, so inside a cell a ray is an
+a plane (always so for a depth-only profile) and two triangles otherwise, cut along the diagonal
+whose end speeds differ least (so that the section of a link reversed is the mirror image: the
+medium does not depend on which end transmits); c is linear on every cell, so inside a cell a ray is an
 exact arc of a circle (Snell's law in the frame of the cell's gradient; the isogradient case
 rotated) and every crossing, reflection point, travel time and arc length is closed form.
 
@@ -26,8 +27,9 @@ _jit = njit(cache=True, error_model="numpy")
 
 # edge codes of a cell
 E_TOP, E_RIGHT, E_BOTTOM, E_LEFT, E_DIAG, E_FLOOR, E_NONE = 0, 1, 2, 3, 4, 5, -1
-# cell parts
-P_WHOLE, P_UPPER, P_LOWER = 0, 1, 2
+# cell parts: the whole (planar) rectangle; the two triangles of the diagonal (r_j, z_k) -
+# (r_j+1, z_k+1) above / below it; the two of the other diagonal above-left / below-right
+P_WHOLE, P_UPPER, P_LOWER, P_UL, P_LR = 0, 1, 2, 3, 4
 # ray status
 S_REACHED, S_LOST = 1, 0
 MAX_STEPS = 200000
@@ -83,16 +85,28 @@ def _planar(cc, j, k) -> bool:
 
 
 @_jit
-def _gradient(rr, zz, cc, j, k, part):
-    """(dc/dr, dc/dz) of a cell (1/s)."""
+def _anti(cc, j, k) -> bool:
+    """A non-planar rectangle is cut along the diagonal whose end speeds differ least (a rule
+    that does not depend on the direction of the link, so the section of d -> s is the mirror
+    image of that of s -> d); on a tie along (r_j, z_k) - (r_j+1, z_k+1)."""
+    return abs(cc[j + 1, k] - cc[j, k + 1]) < abs(cc[j, k] - cc[j + 1, k + 1])
+
+
+@_jit
+def _plane(rr, zz, cc, j, k, part):
+    """(c at (r_j, z_k) on the cell's plane, dc/dr, dc/dz) of a cell (m/s, 1/s, 1/s)."""
     dr = rr[j + 1] - rr[j]
     dz = zz[k + 1] - zz[k]
     c00, c10, c01, c11 = cc[j, k], cc[j + 1, k], cc[j, k + 1], cc[j + 1, k + 1]
     if part == P_WHOLE:
-        return (c10 - c00) / dr, (c01 - c00) / dz
+        return c00, (c10 - c00) / dr, (c01 - c00) / dz
     if part == P_UPPER:
-        return (c10 - c00) / dr, (c11 - c10) / dz
-    return (c11 - c01) / dr, (c01 - c00) / dz
+        return c00, (c10 - c00) / dr, (c11 - c10) / dz
+    if part == P_LOWER:
+        return c00, (c11 - c01) / dr, (c01 - c00) / dz
+    if part == P_UL:
+        return c00, (c10 - c00) / dr, (c01 - c00) / dz
+    return c01 + c10 - c11, (c11 - c01) / dr, (c11 - c10) / dz
 
 
 @_jit
@@ -100,9 +114,9 @@ def _part_entering(cc, j, k, edge):
     """The part of rectangle (j, k) that a ray entering through ``edge`` is in."""
     if _planar(cc, j, k):
         return P_WHOLE
-    if edge == E_TOP or edge == E_RIGHT:
-        return P_UPPER
-    return P_LOWER
+    if _anti(cc, j, k):
+        return P_UL if edge in (E_TOP, E_LEFT) else P_LR
+    return P_UPPER if edge in (E_TOP, E_RIGHT) else P_LOWER
 
 
 @_jit
@@ -111,6 +125,8 @@ def _part_at(rr, zz, cc, j, k, r, z):
         return P_WHOLE
     u = (r - rr[j]) / (rr[j + 1] - rr[j])
     v = (z - zz[k]) / (zz[k + 1] - zz[k])
+    if _anti(cc, j, k):
+        return P_UL if u + v <= 1.0 else P_LR
     return P_UPPER if v <= u else P_LOWER
 
 
@@ -214,8 +230,8 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
     for _ in range(MAX_STEPS):
         dr = rr[j + 1] - rr[j]
         dz = zz[k + 1] - zz[k]
-        gr, gz = _gradient(rr, zz, cc, j, k, part)
-        c1 = cc[j, k] + gr * (r - rr[j]) + gz * (z - zz[k])
+        c0, gr, gz = _plane(rr, zz, cc, j, k, part)
+        c1 = c0 + gr * (r - rr[j]) + gz * (z - zz[k])
         kap = -(tr * gz - tz * gr) / c1
         mr, mz = -tz, tr
         best = math.inf
@@ -223,29 +239,35 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
         # candidate lines: (code, normal, point)
         for ed in range(6):
             if ed == E_TOP:
-                if part == P_LOWER:
+                if part == P_LOWER or part == P_LR:
                     continue
                 nr, nz, pr, pz = 0.0, -1.0, rr[j], zz[k]
             elif ed == E_RIGHT:
-                if part == P_LOWER:
+                if part == P_LOWER or part == P_UL:
                     continue
                 nr, nz, pr, pz = 1.0, 0.0, rr[j + 1], zz[k]
             elif ed == E_BOTTOM:
-                if part == P_UPPER:
+                if part == P_UPPER or part == P_UL:
                     continue
                 nr, nz, pr, pz = 0.0, 1.0, rr[j], zz[k + 1]
             elif ed == E_LEFT:
-                if part == P_UPPER:
+                if part == P_UPPER or part == P_LR:
                     continue
                 nr, nz, pr, pz = -1.0, 0.0, rr[j], zz[k]
             elif ed == E_DIAG:
                 if part == P_WHOLE:
                     continue
                 dn = math.hypot(dr, dz)
-                nr, nz = -dz / dn, dr / dn
-                if part == P_LOWER:
-                    nr, nz = -nr, -nz
-                pr, pz = rr[j], zz[k]
+                if part == P_UPPER or part == P_LOWER:
+                    nr, nz = -dz / dn, dr / dn  # out of the upper triangle
+                    if part == P_LOWER:
+                        nr, nz = -nr, -nz
+                    pr, pz = rr[j], zz[k]
+                else:
+                    nr, nz = dz / dn, dr / dn  # out of the upper-left triangle
+                    if part == P_LR:
+                        nr, nz = -nr, -nz
+                    pr, pz = rr[j], zz[k + 1]
             else:
                 db = bb[j + 1] - bb[j]
                 dn = math.hypot(dr, db)
@@ -287,7 +309,7 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
             dn = math.hypot(dr, db)
             nr, nz = -db / dn, dr / dn
             a_n = tr * nr + tz * nz
-            cw = cc[j, k] + gr * (r - rr[j]) + gz * (z - zz[k])
+            cw = c0 + gr * (r - rr[j]) + gz * (z - zz[k])
             rc = rayleigh(math.asin(min(abs(a_n), 1.0)), cw, bottom_par[0], bottom_par[1], bottom_par[2])
             loss += -20.0 * math.log10(max(abs(rc), 1e-300))
             tr, tz = tr - 2.0 * a_n * nr, tz - 2.0 * a_n * nz
@@ -330,7 +352,10 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
             part = _part_entering(cc, j, k, E_RIGHT)
             entry = E_RIGHT
         else:  # diagonal
-            part = P_LOWER if part == P_UPPER else P_UPPER
+            if part == P_UPPER or part == P_LOWER:
+                part = P_LOWER if part == P_UPPER else P_UPPER
+            else:
+                part = P_LR if part == P_UL else P_UL
             entry = E_DIAG
         if ns + nb > maxb:
             return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
@@ -343,6 +368,18 @@ NF = 11  # fields of one arrival row, see search()
 F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS = range(NF)
 _BISECT_LEVELS = 8  # towards a family's edge
 _NONLIN_LEVELS = 6  # inside a family, where the miss is far from linear
+_EDGE_LEVELS = 40  # towards an edge where the miss heads for zero
+
+
+@_jit
+def _heading(f_end, f_prev, code):
+    """The miss of family ``code`` heads for zero at the edge: it shrank from f_prev to f_end
+    (same sign) and a few more such steps would reach zero."""
+    if code < 0 or not math.isfinite(f_prev) or not math.isfinite(f_end):
+        return False
+    if (f_end > 0.0) != (f_prev > 0.0):
+        return False
+    return abs(f_end) < abs(f_prev) and abs(f_end) < 8.0 * (abs(f_prev) - abs(f_end))
 _STACK = 96
 _MAXIT = 100
 
@@ -446,22 +483,32 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
     br = np.empty((nbmax, 4))  # brackets (a, fa, b, fb) and their family
     bc = np.empty(nbmax, np.int64)
     nbr = 0
-    stack = np.empty((_STACK, 6))
+    # interval stack: a, f(a), code(a), b, f(b), code(b), and the previous miss of a's family
+    # beyond a and of b's family beyond b (NaN if unknown): is the miss heading for zero at an edge?
+    stack = np.empty((_STACK, 8))
     lev = np.zeros(_STACK, np.int64)
     for i in range(nfan - 1):
         stack[0, 0], stack[0, 1], stack[0, 2] = th[i], f[i], cd[i]
         stack[0, 3], stack[0, 4], stack[0, 5] = th[i + 1], f[i + 1], cd[i + 1]
+        stack[0, 6] = f[i - 1] if i > 0 and cd[i - 1] == cd[i] else math.nan
+        stack[0, 7] = f[i + 2] if i + 2 < nfan and cd[i + 2] == cd[i + 1] else math.nan
         lev[0] = 0
         top = 1
         while top > 0:
             top -= 1
             a, fa, b, fb = stack[top, 0], stack[top, 1], stack[top, 3], stack[top, 4]
             ca, cb = int(stack[top, 2]), int(stack[top, 5])
+            pa, pb = stack[top, 6], stack[top, 7]
             lv = lev[top]
             if ca == cb and ca < 0:
                 continue  # both rays lost
             same = ca == cb
-            if lv >= (_NONLIN_LEVELS if same else _BISECT_LEVELS) or top + 2 > _STACK:
+            stop = lv >= (_NONLIN_LEVELS if same else _BISECT_LEVELS) or top + 2 > _STACK
+            if stop and not same and top + 2 <= _STACK and lv < _EDGE_LEVELS and abs(b - a) > 1e-13:
+                # near a family's edge the miss may race to zero (a ray grazing a boundary):
+                # keep bisecting while it heads there
+                stop = not (_heading(fa, pa, ca) or _heading(fb, pb, cb))
+            if stop:
                 if same and ((fa > 0.0) != (fb > 0.0) or fa == 0.0) and nbr < nbmax:
                     br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, b, fb
                     bc[nbr] = ca
@@ -478,9 +525,11 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
             if split:
                 stack[top, 0], stack[top, 1], stack[top, 2] = a, fa, ca
                 stack[top, 3], stack[top, 4], stack[top, 5] = m, fm, cm
+                stack[top, 6], stack[top, 7] = pa, (fb if cm == cb else math.nan)
                 lev[top] = lv + 1
                 stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = m, fm, cm
                 stack[top + 1, 3], stack[top + 1, 4], stack[top + 1, 5] = b, fb, cb
+                stack[top + 1, 6], stack[top + 1, 7] = (fa if cm == ca else math.nan), pb
                 lev[top + 1] = lv + 1
                 top += 2
                 continue

@@ -6,7 +6,8 @@ horizontal interpolation or its sea floor has a kink (:meth:`.fields.SoundSpeedF
 :meth:`.bathymetry.Bathymetry.section_ranges`) and at both ends: columns of the field's
 profile on its depth nodes, and floor depths. In the (range, depth) plane the speed is linear
 on each cell of that grid (a rectangle whose four speeds are coplanar, else its two triangles
-cut along the diagonal), continuous everywhere; the floor is the polyline through the column
+cut along the diagonal whose end speeds differ least, a rule that makes the reversed link's
+section the mirror image), continuous everywhere; the floor is the polyline through the column
 depths; the surface is z = 0. Range-independent media are the special case of one profile
 column (every rectangle planar): the cells are the layers of :mod:`.layered`, which this
 solver reproduces to 1e-12 s (tests/channel/test_rangedep.py).

@@ -46,10 +46,12 @@ def run(
     beams: int = 4001,
     angles_deg: tuple[float, float] = (-89.0, 89.0),
     frequency_hz: float = 1000.0,
+    step_m: float = 0.0,
 ) -> BellhopArrivals:
     """Arrivals at (R = r[-1], zr) from a source at (0, zs): section columns at ranges r (m)
     with floor depths floor_z (m), depth-only speeds c (m/s) on depths z (m); ``bottom`` =
-    (speed m/s, density, attenuation dB per wavelength)."""
+    (speed m/s, density, attenuation dB per wavelength); ``step_m`` BELLHOP's ray step (0: its
+    default, a tenth of the depth)."""
     import pelagic as pg
 
     zmax = float(np.max(floor_z))
@@ -82,7 +84,7 @@ def run(
             "'A'",
             f"{beams}",
             f"{angles_deg[0]} {angles_deg[1]} /",
-            f"0.0 {zmax * 1.01 + 1.0} {R * 1.01 / 1000.0 + 0.01}",
+            f"{float(step_m)!r} {zmax * 1.01 + 1.0} {R * 1.01 / 1000.0 + 0.01}",
         ]
         base.with_suffix(".env").write_text("\n".join(lines) + "\n")
         # bathymetry: linear between points, ranges in km (extended a little past both ends)
