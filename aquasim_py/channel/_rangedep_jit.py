@@ -382,6 +382,7 @@ def _heading(f_end, f_prev, code):
     return abs(f_end) < abs(f_prev) and abs(f_end) < 8.0 * (abs(f_prev) - abs(f_end))
 _STACK = 96
 _MAXIT = 100
+_ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
 
 
 @_jit
@@ -430,7 +431,9 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol,
                 fa *= 0.5
             b, fb = m, fm
     st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np = trace(rr, zz, cc, bb, floor, zs, m, maxb, bpar, False, dummy)
-    if st != S_REACHED or cd != code:
+    if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
+        # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
+        # reflects off one slope or the other), not a root
         return False
     # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
     cR = _speed_at(zz, cc[rr.size - 1], zr)
