@@ -26,7 +26,7 @@ from numba import njit
 _jit = njit(cache=True, error_model="numpy")
 
 # edge codes of a cell
-E_TOP, E_RIGHT, E_BOTTOM, E_LEFT, E_DIAG, E_FLOOR, E_NONE = 0, 1, 2, 3, 4, 5, -1
+E_TOP, E_RIGHT, E_BOTTOM, E_LEFT, E_DIAG, E_FLOOR, E_TARGET, E_NONE = 0, 1, 2, 3, 4, 5, 6, -1
 # cell parts: the whole (planar) rectangle; the two triangles of the diagonal (r_j, z_k) -
 # (r_j+1, z_k+1) above / below it; the two of the other diagonal above-left / below-right
 P_WHOLE, P_UPPER, P_LOWER, P_UL, P_LR = 0, 1, 2, 3, 4
@@ -194,27 +194,31 @@ def _arc_time(tr, tz, s, kap, gr, gz, c1, dxr, dxz):
 
 
 @_jit
-def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
-    """Trace one ray from (0, z0) at launch angle theta0 until it reaches r = rr[-1].
+def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, path):
+    """Trace one ray from (0, z0) at launch angle theta0 until it reaches r = R (rr[0] <= 0,
+    rr[-1] >= R: both ends lie inside the section).
 
     Returns (status, z_end, time, theta_end, arc, n_surface, n_bottom, code, bottom_loss_db,
-    n_turns, n_path). ``code`` encodes the bounce sequence (base 3: 1 surface, 2 bottom, first
+    n_turns, n_path, c_end). ``code`` encodes the bounce sequence (base 3: 1 surface, 2 bottom, first
     bounce least significant); ``bottom_par`` = (cb, rho, delta) of the sediment; ``floor``:
     a sea floor reflects (False: the bottom of the grid absorbs). With ``want_path`` the
     vertices (r, z, t) of the walk go to ``path`` (n, 3)."""
     J = rr.size
     K = zz.size
-    R = rr[J - 1]
     tr, tz = math.cos(theta0), math.sin(theta0)
     r, z = 0.0, z0
     # starting cell: nudge along the ray to pick the side of a node line the ray enters
     zn = z0 + 1e-9 * tz * max(1.0, abs(z0))
+    rn = 1e-9 * tr * max(1.0, R)
     k = 0
     while k < K - 2 and zz[k + 1] <= zn:
         k += 1
     j = 0
-    part = _part_at(rr, zz, cc, j, k, 1e-9 * tr * max(1.0, R), zn)
-    entry = E_LEFT
+    while j < J - 2 and rr[j + 1] <= rn:
+        j += 1
+    part = _part_at(rr, zz, cc, j, k, rn, zn)
+    entry = E_NONE
+    c_end = math.nan
     t = 0.0
     arc = 0.0
     ns = 0
@@ -237,8 +241,12 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
         best = math.inf
         which = E_NONE
         # candidate lines: (code, normal, point)
-        for ed in range(6):
-            if ed == E_TOP:
+        for ed in range(7):
+            if ed == E_TARGET:
+                if not (rr[j] < R <= rr[j + 1]):
+                    continue
+                nr, nz, pr, pz = 1.0, 0.0, R, zz[k]
+            elif ed == E_TOP:
                 if part == P_LOWER or part == P_LR:
                     continue
                 nr, nz, pr, pz = 0.0, -1.0, rr[j], zz[k]
@@ -277,11 +285,11 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
             A = nr * tr + nz * tz
             B = nr * mr + nz * mz
             s = _exit_s(e, A, B, kap, ed == entry)
-            if s < best:
+            if s < best or (ed == E_TARGET and s == best):
                 best = s
                 which = ed
         if which == E_NONE or not math.isfinite(best):
-            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
         # advance along the arc
         s = best
         h = 0.5 * kap * s
@@ -302,9 +310,12 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
             path[npath, 0], path[npath, 1], path[npath, 2] = r, z, t
             npath += 1
         # cross or reflect
+        if which == E_TARGET:
+            c_end = c0 + gr * (R - rr[j]) + gz * (z - zz[k])
+            return S_REACHED, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
         if which == E_FLOOR:
             if not floor:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
             db = bb[j + 1] - bb[j]
             dn = math.hypot(dr, db)
             nr, nz = -db / dn, dr / dn
@@ -333,21 +344,21 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
         elif which == E_BOTTOM:
             z = zz[k + 1]
             if k + 1 >= K - 1:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
             k += 1
             part = _part_entering(cc, j, k, E_TOP)
             entry = E_TOP
         elif which == E_RIGHT:
             r = rr[j + 1]
             if j + 1 >= J - 1:
-                return S_REACHED, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
             j += 1
             part = _part_entering(cc, j, k, E_LEFT)
             entry = E_LEFT
         elif which == E_LEFT:
             r = rr[j]
             if j == 0:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
             j -= 1
             part = _part_entering(cc, j, k, E_RIGHT)
             entry = E_RIGHT
@@ -358,14 +369,14 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, maxb, bottom_par, want_path, path):
                 part = P_LR if part == P_UL else P_UL
             entry = E_DIAG
         if ns + nb > maxb:
-            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
-    return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath
+            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+    return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
 
 
 # --------------------------------------------------------------------------- eigenray search
 
-NF = 11  # fields of one arrival row, see search()
-F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS = range(NF)
+NF = 13  # fields of one arrival row, see search()
+F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR = range(NF)
 _BISECT_LEVELS = 8  # towards a family's edge
 _NONLIN_LEVELS = 6  # inside a family, where the miss is far from linear
 _EDGE_LEVELS = 40  # towards an edge where the miss heads for zero
@@ -386,24 +397,30 @@ _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the recei
 
 
 @_jit
-def _speed_at(zz, col, z):
-    K = zz.size
+def _speed_src(rr, zz, cc, zs, R):
+    """c at the source (0, zs) on the cell that holds it."""
+    J, K = rr.size, zz.size
     k = 0
-    while k < K - 2 and zz[k + 1] <= z:
+    while k < K - 2 and zz[k + 1] <= zs:
         k += 1
-    return col[k] + (col[k + 1] - col[k]) * ((z - zz[k]) / (zz[k + 1] - zz[k]))
+    j = 0
+    while j < J - 2 and rr[j + 1] <= 0.0:
+        j += 1
+    part = _part_at(rr, zz, cc, j, k, 0.0, zs)
+    c0, gr, gz = _plane(rr, zz, cc, j, k, part)
+    return c0 + gr * (0.0 - rr[j]) + gz * (zs - zz[k])
 
 
 @_jit
-def _miss(rr, zz, cc, bb, floor, zs, zr, th, maxb, bpar, dummy):
-    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np = trace(rr, zz, cc, bb, floor, zs, th, maxb, bpar, False, dummy)
+def _miss(rr, zz, cc, bb, floor, zs, zr, R, th, maxb, bpar, dummy):
+    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c = trace(rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy)
     if st != S_REACHED:
         return math.nan, -1
     return ze - zr, code
 
 
 @_jit
-def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol, out, row, dummy):
+def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, ztol, out, row, dummy):
     """Illinois regula falsi on the depth miss at r = R inside one bounce family [a, b]; the
     converged ray's fields go to out[row]. Returns False if the family is not contiguous."""
     m = a
@@ -417,10 +434,10 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol,
             m = b - fb * (b - a) / (fb - fa)
             if not (min(a, b) < m < max(a, b)):
                 m = 0.5 * (a + b)
-            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, m, maxb, bpar, dummy)
+            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
             if cm != code:
                 m = 0.5 * (a + b)
-                fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, m, maxb, bpar, dummy)
+                fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
                 if cm != code:
                     return False
             if abs(fm) <= ztol or abs(b - a) <= 4e-16 * (1.0 + abs(m)):
@@ -430,13 +447,12 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol,
             else:
                 fa *= 0.5
             b, fb = m, fm
-    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np = trace(rr, zz, cc, bb, floor, zs, m, maxb, bpar, False, dummy)
+    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
     if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
         # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
         # reflects off one slope or the other), not a root
         return False
     # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
-    cR = _speed_at(zz, cc[rr.size - 1], zr)
     out[row, F_TIME] = t + (zr - ze) * math.sin(thr) / cR
     out[row, F_THETA0] = m
     out[row, F_THETAR] = thr
@@ -447,10 +463,12 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol,
     out[row, F_LOSS] = loss
     out[row, F_NTURN] = nturn
     out[row, F_ZMISS] = ze - zr
+    out[row, F_CR] = cR
+    out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
     # ray-tube width: d z_end / d theta0 by a small central difference inside the family
     h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
-    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, m + h, maxb, bpar, dummy)
-    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, m - h, maxb, bpar, dummy)
+    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
+    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
     if cp == code and cq == code:
         out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
     elif cp == code:
@@ -463,7 +481,7 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, a, fa, b, fb, code, ztol,
 
 
 @_jit
-def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
+def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
     """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces. A fan of
     ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of
     a waveguide of depth H lie about 2 apart in w), then adaptive bisection of each fan
@@ -471,7 +489,6 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
     family's edge), and where the depth miss at the receiver's range is not nearly linear
     between them (a fold of the family may hide two roots); regula falsi inside each family
     where the miss changes sign. Returns the number of arrival rows written to ``out``."""
-    R = rr[rr.size - 1]
     dummy = np.empty((1, 3))
     th = np.empty(nfan)
     f = np.empty(nfan)
@@ -479,7 +496,7 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
     for i in range(nfan):
         w = -wmax + 2.0 * wmax * (i + 0.5) / nfan
         th[i] = math.atan(w * H / R)
-        f[i], cd[i] = _miss(rr, zz, cc, bb, floor, zs, zr, th[i], maxb, bpar, dummy)
+        f[i], cd[i] = _miss(rr, zz, cc, bb, floor, zs, zr, R, th[i], maxb, bpar, dummy)
     n = 0
     cap = out.shape[0]
     nbmax = 8 * nfan + 256
@@ -518,7 +535,7 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
                     nbr += 1
                 continue
             m = 0.5 * (a + b)
-            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, m, maxb, bpar, dummy)
+            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
             split = True
             if same and cm == ca:
                 # a fold may hide two roots where the miss bends by more than a quarter of its
@@ -552,6 +569,7 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
             floor,
             zs,
             zr,
+            R,
             maxb,
             bpar,
             br[q, 0],
@@ -576,7 +594,7 @@ def search(rr, zz, cc, bb, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, out):
 
 
 @_jit
-def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, maxb, bpar, wmax, nfan, H, ztol, cap):
+def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, cap):
     """:func:`search` for every link l: its section rows starts[l]:ends[l] of rr_all (J,),
     cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped). Returns (rows (L, cap, NF),
     counts (L,))."""
@@ -595,6 +613,7 @@ def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, maxb, 
             floor,
             zs[l],
             zr[l],
+            R[l],
             maxb,
             bpar,
             wmax[l],
@@ -607,7 +626,7 @@ def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, maxb, 
 
 
 @_jit
-def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, theta0, maxb, bpar, npts):
+def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bpar, npts):
     """The walk of one ray per link (launch angle theta0[l]): vertices (L, npts, 3) of (r, z, t)
     and their counts, for plots and for the reference checks."""
     L = zs.size
@@ -616,7 +635,7 @@ def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, theta0, maxb, bpar,
     for l in range(L):
         o0, o1 = offs[l], offs[l + 1]
         res = trace(
-            rr_all[o0:o1], zz, cc_all[o0:o1], bb_all[o0:o1], floor, zs[l], theta0[l], maxb, bpar, True, paths[l]
+            rr_all[o0:o1], zz, cc_all[o0:o1], bb_all[o0:o1], floor, zs[l], theta0[l], R[l], maxb, bpar, True, paths[l]
         )
         cnt[l] = res[10]
     return paths, cnt

@@ -68,6 +68,8 @@ class Arrivals:
     length: FloatArray  #: arc length, m
     bottom_loss_db: FloatArray  #: summed Rayleigh loss of the bottom bounces, dB
     bounce_code: NDArray[np.int64]  #: bounce sequence, base 3 (1 surface, 2 bottom; first bounce lowest)
+    source_speed: FloatArray  #: c at the source, m/s (the traced section's)
+    receiver_speed: FloatArray  #: c at the receiver, m/s
 
     _FIELDS = (
         "link",
@@ -81,6 +83,8 @@ class Arrivals:
         "length",
         "bottom_loss_db",
         "bounce_code",
+        "source_speed",
+        "receiver_speed",
     )
 
     @property
@@ -174,11 +178,7 @@ def arrivals(
     th0, thr = flat[:, jit.F_THETA0], flat[:, jit.F_THETAR]
     arc = flat[:, jit.F_ARC]
     R = sec.R[link]
-    # end speeds from the section's first and last columns
-    first_col = sec.c[sec.offs[:-1]][link]
-    last_col = sec.c[sec.offs[1:] - 1][link]
-    cs = _column_speed(sec.z, first_col, sec.zs[link])
-    cr = _column_speed(sec.z, last_col, sec.zr[link])
+    cs, cr = flat[:, jit.F_CS], flat[:, jit.F_CR]
     spherical = 20.0 * np.log10(np.maximum(arc, 1.0))
     if spreading == "ray":
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -208,14 +208,9 @@ def arrivals(
         length=arc,
         bottom_loss_db=bloss,
         bounce_code=flat[:, jit.F_CODE].astype(np.int64),
+        source_speed=cs,
+        receiver_speed=cr,
     )
-
-
-def _column_speed(z: FloatArray, cols: FloatArray, zq: FloatArray) -> FloatArray:
-    k = np.clip(np.searchsorted(z, zq, side="right") - 1, 0, z.size - 2)
-    i = np.arange(zq.size)
-    c0, c1 = cols[i, k], cols[i, k + 1]
-    return c0 + (c1 - c0) * (zq - z[k]) / (z[k + 1] - z[k])
 
 
 def detection_snr_db(arr: Arrivals, source_level_db: float, noise_db: float) -> FloatArray:

@@ -43,13 +43,13 @@ def _positive(name: str, v: float) -> float:
 
 
 def line_crossings(grid: FloatArray, start: FloatArray, step: FloatArray, length: FloatArray) -> FloatArray:
-    """Distances (n, len(grid)) along lines ``start + r * step`` (one axis; ``step`` the unit
-    direction's component) at which the coordinate crosses each value of ``grid``, NaN where
-    that is not strictly inside (0, length)."""
+    """Signed distances (n, len(grid)) along the lines ``start + r * step`` (one axis; ``step``
+    the unit direction's component) at which the coordinate crosses each value of ``grid``,
+    NaN where the line runs parallel to the axis (``length`` is unused: crossings anywhere on
+    the line count)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         r = (grid[None, :] - start[:, None]) / step[:, None]
-    ok = (r > 0.0) & (r < length[:, None]) & np.isfinite(r)
-    return np.where(ok, r, np.nan)
+    return np.where(np.isfinite(r), r, np.nan)
 
 
 class Bathymetry:
@@ -65,8 +65,10 @@ class Bathymetry:
     def section_ranges(
         self, x0: FloatArray, y0: FloatArray, ux: FloatArray, uy: FloatArray, length: FloatArray
     ) -> FloatArray:
-        """Interior kinks (n, m) of the depth along the lines (x0, y0) + r (ux, uy), 0 < r <
-        length, NaN-padded; an empty second axis when the depth is linear along every line."""
+        """Kinks (n, m) of the depth along the lines (x0, y0) + r (ux, uy), at signed distances
+        r anywhere on the line (at least those near [0, length]), NaN-padded; an empty second
+        axis when the depth is linear along every line. They are geographic points: moving an
+        end along its line does not move them (the traced section then changes smoothly)."""
         return np.empty((np.size(x0), 0))
 
     @property
@@ -135,8 +137,7 @@ class Plane(Bathymetry):
         d0 = self.depth_m + self.slope_x * (x0 - self.x0) + self.slope_y * (y0 - self.y0)
         with np.errstate(divide="ignore", invalid="ignore"):
             r = np.stack([-d0 / g, (self.max_depth_m - d0) / g], axis=1)
-        ok = (r > 0.0) & (r < length[:, None]) & np.isfinite(r)
-        return np.where(ok, r, np.nan)
+        return np.where(np.isfinite(r), r, np.nan)
 
 
 @dataclass(frozen=True)
@@ -169,13 +170,17 @@ class Seamount(Bathymetry):
         return self.base_m
 
     def section_ranges(self, x0, y0, ux, uy, length) -> FloatArray:
-        # samples only where the mount is felt (within 5 widths of its centre)
-        n = int(np.ceil(np.max(length, initial=0.0) / self.resolution_m))
-        r = (np.arange(1, n + 1) * self.resolution_m)[None, :] * np.ones((np.size(x0), 1))
+        # samples at fixed points of the line (multiples of the resolution from the foot of the
+        # mount's centre on it), near [0, length] and where the mount is felt (5 widths)
+        res = self.resolution_m
+        foot = (self.x0 - x0) * ux + (self.y0 - y0) * uy  # signed distance of the centre's foot
+        kmin = np.floor((-res - foot) / res)
+        m = int(np.ceil(np.max(length, initial=0.0) / res)) + 3
+        r = foot[:, None] + (kmin[:, None] + np.arange(m)[None, :]) * res
         px = x0[:, None] + r * ux[:, None] - self.x0
         py = y0[:, None] + r * uy[:, None] - self.y0
         near = px**2 + py**2 < (5.0 * self.width_m) ** 2
-        return np.where((r < length[:, None]) & near, r, np.nan)
+        return np.where((r <= length[:, None] + res) & near, r, np.nan)
 
 
 @dataclass(frozen=True, eq=False)

@@ -68,8 +68,8 @@ class SoundSpeedField:
     def section_ranges(
         self, x0: FloatArray, y0: FloatArray, ux: FloatArray, uy: FloatArray, length: FloatArray
     ) -> FloatArray:
-        """Distances (n, m) along the lines (x0, y0) + r (ux, uy), 0 < r < length, at which the
-        field's horizontal interpolation has a kink; NaN-padded."""
+        """Signed distances (n, m) along the lines (x0, y0) + r (ux, uy) at which the field's
+        horizontal interpolation has a kink (anywhere on the line); NaN-padded."""
         return np.empty((np.size(x0), 0))
 
     @property

@@ -54,7 +54,7 @@ class Sections:
     """The (range, depth) sections of n links, rows of each link at offs[l]:offs[l+1]."""
 
     offs: NDArray[np.int64]
-    r: FloatArray  #: (rows,) column ranges, m (0 ... R per link)
+    r: FloatArray  #: (rows,) column ranges, m (from <= 0 to >= R per link)
     c: FloatArray  #: (rows, K) speeds on ``z``
     floor_z: FloatArray  #: (rows,) floor depth at each column, m
     z: FloatArray  #: (K,) depth nodes, m
@@ -94,18 +94,27 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
         uy = np.where(short, 0.0, dy / R)
     R = np.where(short, MIN_RANGE_M, R)
     x0, y0 = s[:, 0], s[:, 1]
-    parts = [np.zeros((n, 1)), R[:, None], env.field.section_ranges(x0, y0, ux, uy, R)]
+    # the kinks of the field and the floor along the link's line (geographic points), the
+    # last one at or before the source and the first one at or after the receiver: the ends
+    # lie inside the end cells, so moving an end along the line leaves the medium unchanged
+    parts = [env.field.section_ranges(x0, y0, ux, uy, R)]
     if env.bathymetry is not None:
         parts.append(env.bathymetry.section_ranges(x0, y0, ux, uy, R))
-    rs = np.sort(np.concatenate(parts, axis=1), axis=1)  # NaN last
+    kinks = np.concatenate([np.empty((n, 0))] + parts, axis=1)
+    Rc = R[:, None]
+    left = np.max(np.where(kinks <= 0.0, kinks, -np.inf), axis=1, initial=-np.inf)
+    right = np.min(np.where(kinks >= Rc, kinks, np.inf), axis=1, initial=np.inf)
+    left = np.where(np.isfinite(left), left, 0.0)
+    right = np.where(np.isfinite(right), right, R)
+    inner = np.where((kinks > 0.0) & (kinks < Rc), kinks, np.nan)
+    rs = np.sort(np.concatenate([left[:, None], inner, right[:, None]], axis=1), axis=1)  # NaN last
     # drop columns closer than a nanometre to the previous one
     close = np.zeros(rs.shape, bool)
-    close[:, 1:] = np.diff(rs, axis=1) <= 1e-9 * np.maximum(1.0, R[:, None])
-    # keep R itself (the last finite entry) rather than an interior point just before it
-    rs = np.where(close, np.nan, rs)
-    rs = np.sort(rs, axis=1)
+    close[:, 1:] = np.diff(rs, axis=1) <= 1e-9 * np.maximum(1.0, Rc)
+    rs = np.sort(np.where(close, np.nan, rs), axis=1)
     cnt = np.isfinite(rs).sum(axis=1)
-    rs[np.arange(n), cnt - 1] = R  # the receiver's column sits exactly at R
+    # the right end column must stay (it may have been dropped as "close" to an inner kink)
+    rs[np.arange(n), cnt - 1] = np.maximum(rs[np.arange(n), cnt - 1], right)
     keep = np.isfinite(rs)
     px = x0[:, None] + rs * ux[:, None]
     py = y0[:, None] + rs * uy[:, None]
@@ -128,9 +137,9 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
         depths = np.concatenate([depths, [zmax]])
     offs = np.zeros(n + 1, np.int64)
     offs[1:] = np.cumsum(cnt)
-    # floor depth under each end (the first and last column of each link)
-    fz_s = fz[offs[:-1]]
-    fz_r = fz[offs[1:] - 1]
+    # floor depth under each end: the polyline between the columns that bracket it
+    fz_s = _polyline_at(rs, fz, offs, np.zeros(n))
+    fz_r = _polyline_at(rs, fz, offs, R)
     valid = (
         np.isfinite(s).all(axis=1)
         & np.isfinite(d).all(axis=1)
@@ -145,6 +154,17 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
     if np.any(cols <= 0.0):
         raise ValueError("sound speed not positive inside the sections (check the field's depth extrapolation)")
     return Sections(offs, rs[keep], cols, fz, depths, floor, zs, zr, R, H, ux, uy, valid)
+
+
+def _polyline_at(rs: FloatArray, fz: FloatArray, offs: NDArray[np.int64], q: FloatArray) -> FloatArray:
+    """The floor polyline (columns rs (n, m) NaN-padded, depths fz flat) at distance q (n,)."""
+    n = q.size
+    cnt = np.diff(offs)
+    r = np.where(np.isfinite(rs), rs, np.inf)
+    j = np.clip((r <= q[:, None]).sum(axis=1) - 1, 0, cnt - 2)
+    r0, r1 = rs[np.arange(n), j], rs[np.arange(n), j + 1]
+    f0, f1 = fz[offs[:-1] + j], fz[offs[:-1] + j + 1]
+    return f0 + (f1 - f0) * (q - r0) / (r1 - r0)
 
 
 def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray, NDArray[np.int64]]:
@@ -172,6 +192,7 @@ def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray
         sec.floor,
         zs,
         zr,
+        sec.R,
         mb,
         bpar,
         wmax,
@@ -201,6 +222,7 @@ def trace_rays(
         sec.floor_z,
         sec.floor,
         sec.zs,
+        sec.R,
         th,
         int(max_bounces),
         bpar,

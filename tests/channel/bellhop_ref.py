@@ -47,8 +47,9 @@ def run(
     angles_deg: tuple[float, float] = (-89.0, 89.0),
     frequency_hz: float = 1000.0,
     step_m: float = 0.0,
+    R: float | None = None,
 ) -> BellhopArrivals:
-    """Arrivals at (R = r[-1], zr) from a source at (0, zs): section columns at ranges r (m)
+    """Arrivals at (R (default r[-1]), zr) from a source at (0, zs): section columns at ranges r (m)
     with floor depths floor_z (m), depth-only speeds c (m/s) on depths z (m); ``bottom`` =
     (speed m/s, density, attenuation dB per wavelength); ``step_m`` BELLHOP's ray step (0: its
     default, a tenth of the depth)."""
@@ -59,7 +60,7 @@ def run(
     keep = z < zmax
     zz = np.concatenate([z[keep], [zmax]])
     cz = np.interp(zz, z, c) if zmax <= z[-1] else np.concatenate([c[keep], [c[-1] + (c[-1] - c[-2]) / (z[-1] - z[-2]) * (zmax - z[-1])]])
-    R = float(r[-1])
+    R = float(r[-1] if R is None else R)
     bottom = tuple(float(v) for v in bottom)
     with tempfile.TemporaryDirectory(prefix="aquasim-bellhop-") as tmp:
         base = Path(tmp) / "case"
@@ -88,7 +89,7 @@ def run(
         ]
         base.with_suffix(".env").write_text("\n".join(lines) + "\n")
         # bathymetry: linear between points, ranges in km (extended a little past both ends)
-        rb = np.concatenate([[-0.01 * R - 1.0], r, [R * 1.02 + 10.0]]) / 1000.0
+        rb = np.concatenate([[min(r[0], 0.0) - 0.01 * R - 1.0], r, [max(r[-1], R) * 1.02 + 10.0]]) / 1000.0
         zb = np.concatenate([[floor_z[0]], floor_z, [floor_z[-1]]])
         bty = ["'L'", str(rb.size)] + [f"{float(a)!r} {float(b)!r}" for a, b in zip(rb, zb)]
         base.with_suffix(".bty").write_text("\n".join(bty) + "\n")

@@ -83,9 +83,10 @@ class OdeRay:
     time_bound: float
 
 
-def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10) -> OdeRay:
-    """Integrate one ray from (0, z0) at launch angle th0 to r = m.r[-1]."""
-    R = float(m.r[-1])
+def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10, R: float | None = None) -> OdeRay:
+    """Integrate one ray from (0, z0) at launch angle th0 to r = R (default m.r[-1]; the
+    section's columns span [m.r[0] <= 0, m.r[-1] >= R])."""
+    R = float(m.r[-1]) if R is None else float(R)
     y = np.array([0.0, float(z0), float(th0), 0.0])
     s = 0.0
     ns = nb = code = 0
@@ -130,7 +131,11 @@ def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10) -> OdeRay:
         def ev_floor(_s, yy, rj=rj, dr=dr, fa=fa, fb=fb):
             return yy[1] - (fa + (fb - fa) * (yy[0] - rj) / dr)
 
-        events = [ev_left, ev_right, ev_top, ev_bot, ev_floor] + ([ev_diag] if part else [])
+        def ev_target(_s, yy, R=R):
+            return yy[0] - R
+
+        events = [ev_left, ev_right, ev_top, ev_bot, ev_floor] + ([ev_diag] if part else []) + [ev_target]
+        ev_target.direction = 1.0
         for e in events:
             e.terminal = True
         # leave the cell: crossing each line outwards (the floor downwards)
@@ -186,8 +191,10 @@ def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10) -> OdeRay:
         err.add(np.append(sol.t, s_ev), np.column_stack([sol.y, y]), lambda _z: cmin)
         s = s_ev
         name = events[i].__name__
-        if name == "ev_right" and j + 1 == m.r.size - 1:
+        if name == "ev_target":
             return OdeRay(y[3], y[1], y[2], ns, nb, code, True, err.bounds(s)["time_bound"])
+        if name == "ev_right" and j + 1 == m.r.size - 1:
+            return OdeRay(math.nan, y[1], y[2], ns, nb, code, False, math.inf)
         if name == "ev_left" and j == 0:
             return OdeRay(math.nan, y[1], y[2], ns, nb, code, False, math.inf)
         if name == "ev_top" and k == 0:
@@ -209,20 +216,22 @@ def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10) -> OdeRay:
     raise RuntimeError("trace: too many cells")
 
 
-def shoot(m: Medium, z0: float, zr: float, th_guess: float, code: int, max_bounces: int = 10) -> tuple[OdeRay, float]:
+def shoot(
+    m: Medium, z0: float, zr: float, th_guess: float, code: int, max_bounces: int = 10, R: float | None = None
+) -> tuple[OdeRay, float]:
     """The eigenray of bounce sequence ``code`` nearest launch angle ``th_guess``: bracket the
     depth miss by stepping out from the guess (rays of other sequences are not used), then
     brentq to machine precision. Returns (ray, launch angle)."""
 
     def miss(th: float) -> float:
-        ray = trace(m, z0, th, max_bounces)
+        ray = trace(m, z0, th, max_bounces, R)
         if not ray.reached or ray.code != code:
             return math.nan
         return ray.z_end - zr
 
     f0 = miss(th_guess)
     if f0 == 0.0:
-        return trace(m, z0, th_guess, max_bounces), th_guess
+        return trace(m, z0, th_guess, max_bounces, R), th_guess
     step = 1e-7
     for _ in range(40):
         for sgn in (1.0, -1.0):
@@ -231,6 +240,6 @@ def shoot(m: Medium, z0: float, zr: float, th_guess: float, code: int, max_bounc
             if math.isfinite(f1) and math.isfinite(f0) and (f1 > 0.0) != (f0 > 0.0):
                 lo, hi = sorted((th_guess, th))
                 t = brentq(miss, lo, hi, xtol=1e-16, rtol=8.9e-16, maxiter=200)
-                return trace(m, z0, t, max_bounces), t
+                return trace(m, z0, t, max_bounces, R), t
         step *= 2.0
     raise RuntimeError("shoot: no bracket")

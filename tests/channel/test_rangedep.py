@@ -104,7 +104,7 @@ def test_front_over_slope_matches_ode(src, dst) -> None:
     r, c, fz = sec.link(0)
     med = ray_ode_rd.Medium(r, sec.z, c, fz)
     for i in range(a.delay.size):
-        ray, th = ray_ode_rd.shoot(med, src[2], dst[2], a.launch_angle[i], int(a.bounce_code[i]), 3)
+        ray, th = ray_ode_rd.shoot(med, src[2], dst[2], a.launch_angle[i], int(a.bounce_code[i]), 3, sec.R[0])
         assert abs(ray.time - a.delay[i]) <= ray.time_bound + ROUNDING_S
         assert abs(ray.time - a.delay[i]) <= 1e-9
         assert abs(th - a.launch_angle[i]) < 1e-9
@@ -120,7 +120,7 @@ def test_front_over_slope_finds_every_ode_arrival() -> None:
     r, c, fz = sec.link(0)
     med = ray_ode_rd.Medium(r, sec.z, c, fz)
     ths = np.linspace(-0.6, 0.6, 301)
-    rays = [ray_ode_rd.trace(med, src[2], th, 2) for th in ths]
+    rays = [ray_ode_rd.trace(med, src[2], th, 2, sec.R[0]) for th in ths]
     found = 0
     for r0, r1, t0 in zip(rays[:-1], rays[1:], ths[:-1]):
         if r0.reached and r1.reached and r0.code == r1.code and (r0.z_end > dst[2]) != (r1.z_end > dst[2]):
@@ -209,9 +209,9 @@ def _bellhop_check(env: Environment, src, dst, max_bounces: int) -> tuple[int, f
     sec = sections(env, src, dst)
     r, c, fz = sec.link(0)
     bottom = (env.bottom.sound_speed_mps, env.bottom.density, env.bottom.attenuation_db_per_wavelength)
-    b1 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=BELLHOP_STEP_M)
-    b2 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=2.0 * BELLHOP_STEP_M)
-    b3 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=4001, step_m=BELLHOP_STEP_M)
+    b1 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=BELLHOP_STEP_M, R=sec.R[0])
+    b2 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=2.0 * BELLHOP_STEP_M, R=sec.R[0])
+    b3 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=4001, step_m=BELLHOP_STEP_M, R=sec.R[0])
     matched, worst = 0, 0.0
     for i in range(a.delay.size):
         m1 = (b1.surface == a.surface_bounces[i]) & (b1.bottom == a.bottom_bounces[i])
