@@ -228,7 +228,7 @@ class GriddedBathymetry(Bathymetry):
 
         xx, yy = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         pts = np.stack([np.clip(xx, self.x[0], self.x[-1]), np.clip(yy, self.y[0], self.y[-1])], axis=-1)
-        return RegularGridInterpolator((self.x, self.y), self.depths)(pts)
+        return RegularGridInterpolator((self.x, self.y), self.depths)(pts.reshape(-1, 2)).reshape(xx.shape)
 
     def max_depth(self) -> float:
         return float(self.depths.max())
