@@ -199,7 +199,8 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
     rr[-1] >= R: both ends lie inside the section).
 
     Returns (status, z_end, time, theta_end, arc, n_surface, n_bottom, code, bottom_loss_db,
-    n_turns, n_path, c_end). ``code`` encodes the bounce sequence (base 3: 1 surface, 2 bottom, first
+    n_turns, n_path, c_end, kink): ``kink`` the distance in range from the nearest bottom
+    reflection point to a kink of the floor polyline (inf without a bottom bounce). ``code`` encodes the bounce sequence (base 3: 1 surface, 2 bottom, first
     bounce least significant); ``bottom_par`` = (cb, rho, delta) of the sediment; ``floor``:
     a sea floor reflects (False: the bottom of the grid absorbs). With ``want_path`` the
     vertices (r, z, t) of the walk go to ``path`` (n, 3)."""
@@ -219,6 +220,7 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
     part = _part_at(rr, zz, cc, j, k, rn, zn)
     entry = E_NONE
     c_end = math.nan
+    kink = math.inf
     t = 0.0
     arc = 0.0
     ns = 0
@@ -289,7 +291,7 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
                 best = s
                 which = ed
         if which == E_NONE or not math.isfinite(best):
-            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
         # advance along the arc
         s = best
         h = 0.5 * kap * s
@@ -312,16 +314,22 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
         # cross or reflect
         if which == E_TARGET:
             c_end = c0 + gr * (R - rr[j]) + gz * (z - zz[k])
-            return S_REACHED, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+            return S_REACHED, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
         if which == E_FLOOR:
             if not floor:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
             db = bb[j + 1] - bb[j]
             dn = math.hypot(dr, db)
             nr, nz = -db / dn, dr / dn
             a_n = tr * nr + tz * nz
             cw = c0 + gr * (r - rr[j]) + gz * (z - zz[k])
             rc = rayleigh(math.asin(min(abs(a_n), 1.0)), cw, bottom_par[0], bottom_par[1], bottom_par[2])
+            for jv in (j, j + 1):
+                if 0 < jv < J - 1:
+                    sl = (bb[jv] - bb[jv - 1]) / (rr[jv] - rr[jv - 1])
+                    sr = (bb[jv + 1] - bb[jv]) / (rr[jv + 1] - rr[jv])
+                    if sl != sr:
+                        kink = min(kink, abs(r - rr[jv]))
             loss += -20.0 * math.log10(max(abs(rc), 1e-300))
             tr, tz = tr - 2.0 * a_n * nr, tz - 2.0 * a_n * nz
             nb += 1
@@ -344,21 +352,21 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
         elif which == E_BOTTOM:
             z = zz[k + 1]
             if k + 1 >= K - 1:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
             k += 1
             part = _part_entering(cc, j, k, E_TOP)
             entry = E_TOP
         elif which == E_RIGHT:
             r = rr[j + 1]
             if j + 1 >= J - 1:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
             j += 1
             part = _part_entering(cc, j, k, E_LEFT)
             entry = E_LEFT
         elif which == E_LEFT:
             r = rr[j]
             if j == 0:
-                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+                return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
             j -= 1
             part = _part_entering(cc, j, k, E_RIGHT)
             entry = E_RIGHT
@@ -369,14 +377,14 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
                 part = P_LR if part == P_UL else P_UL
             entry = E_DIAG
         if ns + nb > maxb:
-            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
-    return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end
+            return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
+    return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink
 
 
 # --------------------------------------------------------------------------- eigenray search
 
-NF = 13  # fields of one arrival row, see search()
-F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR = range(NF)
+NF = 14  # fields of one arrival row, see search()
+F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR, F_KINK = range(NF)
 _BISECT_LEVELS = 8  # towards a family's edge
 _NONLIN_LEVELS = 6  # inside a family, where the miss is far from linear
 _EDGE_LEVELS = 40  # towards an edge where the miss heads for zero
@@ -413,7 +421,7 @@ def _speed_src(rr, zz, cc, zs, R):
 
 @_jit
 def _miss(rr, zz, cc, bb, floor, zs, zr, R, th, maxb, bpar, dummy):
-    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c = trace(rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy)
+    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c, _k = trace(rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy)
     if st != S_REACHED:
         return math.nan, -1
     return ze - zr, code
@@ -447,7 +455,7 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
             else:
                 fa *= 0.5
             b, fb = m, fm
-    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
+    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
     if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
         # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
         # reflects off one slope or the other), not a root
@@ -464,6 +472,7 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
     out[row, F_NTURN] = nturn
     out[row, F_ZMISS] = ze - zr
     out[row, F_CR] = cR
+    out[row, F_KINK] = kink
     out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
     # ray-tube width: d z_end / d theta0 by a small central difference inside the family
     h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
@@ -639,3 +648,51 @@ def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bp
         )
         cnt[l] = res[10]
     return paths, cnt
+
+
+@_jit
+def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
+    """Follow known eigenrays to slightly moved end points: for each link l and each of its
+    arrivals q (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope
+    d z_R / d theta0 slope[l, q]), secant iterations from the old launch angle in the new
+    section, keeping the bounce sequence. Returns the corrected delays (L, Q), NaN where the
+    arrival could not be followed (its sequence changed, or no convergence in 12 steps)."""
+    L, Q = theta0.shape
+    out = np.full((L, Q), np.nan)
+    dummy = np.empty((1, 3))
+    for l in range(L):
+        o0, o1 = starts[l], ends[l]
+        if o1 - o0 < 2:
+            continue
+        rr, cc, bb = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1]
+        for q in range(Q):
+            cd = code[l, q]
+            if cd < 0 or not math.isfinite(theta0[l, q]):
+                continue
+            a = theta0[l, q]
+            fa, ca = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy)
+            if ca != cd:
+                continue
+            s = slope[l, q]
+            if not (math.isfinite(s) and s != 0.0):
+                continue
+            ok = abs(fa) <= ztol
+            for _ in range(12):
+                if ok:
+                    break
+                b = a - fa / s
+                fb, cb = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy)
+                if cb != cd:
+                    break
+                if fb != fa and b != a:
+                    s = (fb - fa) / (b - a)
+                a, fa = b, fb
+                ok = abs(fa) <= ztol
+            if not ok:
+                continue
+            st, ze, t, thr, _arc, _ns, _nb, c2, _lo, _nt, _np, cR, _k = trace(
+                rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy
+            )
+            if st == S_REACHED and c2 == cd:
+                out[l, q] = t + (zr[l] - ze) * math.sin(thr) / cR
+    return out

@@ -10,7 +10,8 @@ g_s, g_d are the exact gradients of the link's N x 2-D travel time: in the link'
 plane the slowness vectors at the ends (Fermat: -(cos th_S u, sin th_S) / c_S at the source,
 (cos th_R u, sin th_R) / c_R at the receiver, u the horizontal unit vector of the link);
 across the plane (moving an end sideways turns the plane, which then samples another part of a
-front or a flank) a central difference of the delays solved with that end moved by +-h.
+front or a flank) a central difference of the delays with that end moved by +-h = 0.5 m, each
+eigenray followed there from its launch angle by a few secant steps (:func:`.rangedep.track`).
 
 Error bound. The Taylor remainder is at most 1/2 |H| |delta|^2, |delta|^2 = |s - s0|^2 +
 |d - d0|^2, |H| the largest curvature of t over the move. For a straight ray |H| = 2 / (c L)
@@ -21,10 +22,12 @@ measured on multi-bounce arrivals, tests/channel/test_arrival_cache.py), and twi
 curvatures seen by the central differences; plus 1e-12 s for the solver's own accuracy. A link
 is served while 1/2 kappa |delta|^2 + 1e-12 s <= tol_s (default 1e-7 s), else solved again.
 
-Arrival-set changes. The sideways solves double as a guard: a link whose arrival set (bounce
-sequences) differs between its reference and the +-h solves is near a path appearing or
-vanishing (a grazing ray, a blocked direct path) and is never served from the cache. Within the
-radius of a cached link, paths that appear or vanish at a distance below h are not detected.
+Arrival-set changes. The sideways steps double as a guard: a link with an eigenray that cannot
+be followed to +-h (its bounce sequence changes: a grazing ray, a direct path about to be
+blocked), or with two eigenrays of one bounce sequence (a fold, where following one may land on
+the other), or with a bottom reflection point within twice the served radius of a kink of the
+floor polyline (where the delay's gradient jumps), is never served from the cache. Not detected: a path that appears (a new eigenray)
+within the radius of a cached link, or one that vanishes closer than h in another direction.
 
 Levels and angles are served unchanged (they vary on scales of metres, not of the delay's 1e-7
 s). Vectorized: links are integer ids into fixed-size arrays, no Python loop over links.
@@ -37,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import rangedep
 from .arrivals import Arrivals, arrivals
 from .environment import Environment
 
@@ -138,54 +142,44 @@ class ArrivalCache:
         ux = np.where(hor > 0, ux / np.where(hor > 0, hor, 1.0), 1.0)
         uy = np.where(hor > 0, uy / np.where(hor > 0, hor, 1.0), 0.0)
         side = np.stack([-uy, ux, np.zeros(n)], axis=1) * h
-        # base, then d + side, d - side, s + side, s - side, in one batch
-        S = np.concatenate([s, s, s, s + side, s - side])
-        D = np.concatenate([d, d + side, d - side, d, d])
-        arr = self._solve(S, D)
+        arr = self._solve(s, d)
         cnt = np.diff(arr.offsets)
         k = np.arange(A)
-        # padded (5n, A) tables of delay, bounce code, angles, speeds
         valid = k[None, :] < np.minimum(cnt, A)[:, None]
+
         def padded(x: NDArray, fill: float) -> NDArray:
-            out = np.full((5 * n, A), fill, dtype=float)
-            rows = np.repeat(np.arange(5 * n), cnt)
+            out = np.full((n, A), fill, dtype=float)
+            rows = np.repeat(np.arange(n), cnt)
             pos = np.arange(arr.delay.size) - arr.offsets[:-1][rows]
             keep = pos < A
             out[rows[keep], pos[keep]] = x[keep]
             return out
 
-        t = padded(arr.delay, np.nan)
-        code = padded(arr.bounce_code.astype(float), -1.0)
-        th_s = padded(arr.launch_angle, np.nan)
-        th_r = padded(arr.arrival_angle, np.nan)
-        cs = padded(arr.source_speed, np.nan)[:n]
-        cr = padded(arr.receiver_speed, np.nan)[:n]
-        base = slice(0, n)
-        tb, cb = t[base], code[base]
-        # sideways delays of the same bounce sequence (must be unique per link, else no cache)
-        def same_code(block: int) -> NDArray:
-            tt, cc = t[block * n : (block + 1) * n], code[block * n : (block + 1) * n]
-            eq = (cc[:, None, :] == cb[:, :, None]) & (cb[:, :, None] >= 0)
-            nmatch = eq.sum(axis=2)
-            val = np.where(eq, tt[:, None, :], 0.0).sum(axis=2)
-            return np.where(nmatch == 1, val, np.nan)
-
-        side_t = np.stack([same_code(b) for b in (1, 2, 3, 4)])  # (4, n, A)
-        # unstable: an arrival count or a sequence that differs sideways, a sequence twice,
-        # or more arrivals than the table holds
-        dup = (cb[:, :, None] == cb[:, None, :]).sum(axis=2) > 1
-        counts = np.minimum(cnt, A).reshape(5, n)
-        stable = (
-            np.all(counts == counts[0], axis=0)
-            & ~np.any(valid[base] & (dup | np.isnan(side_t).any(axis=0)), axis=1)
-            & (cnt[base] <= A)
+        tb = padded(arr.delay, np.nan)
+        cb = padded(arr.bounce_code.astype(float), -1.0).astype(np.int64)
+        ths = padded(arr.launch_angle, np.nan)
+        thr = padded(arr.arrival_angle, np.nan)
+        cs = padded(arr.source_speed, np.nan)
+        cr = padded(arr.receiver_speed, np.nan)
+        slope = padded(arr.dz_dlaunch, np.nan)
+        kink = padded(arr.floor_kink_distance, np.inf)
+        # the same eigenrays followed to d + side, d - side, s + side, s - side (one batch)
+        S = np.concatenate([s, s, s + side, s - side])
+        D = np.concatenate([d + side, d - side, d, d])
+        four = rangedep.track(
+            self.env, S, D, self.max_bounces, np.tile(ths, (4, 1)), np.tile(slope, (4, 1)), np.tile(cb, (4, 1))
         )
+        side_t = four.reshape(4, n, A)
+        # unstable: an arrival that cannot be followed sideways (a path about to vanish), or
+        # more arrivals than the table holds
+        # or two eigenrays of one bounce sequence (a fold: following one may land on the other)
+        dup = valid & (((cb[:, :, None] == cb[:, None, :]) & valid[:, None, :]).sum(axis=2) > 1)
+        stable = ~np.any(valid & (np.isnan(side_t).any(axis=0) | dup), axis=1) & (cnt <= A)
         # gradients: Fermat in the plane, central differences across it
         uxa, uya = ux[:, None], uy[:, None]
         gd_side = (side_t[0] - side_t[1]) / (2.0 * h)
         gs_side = (side_t[2] - side_t[3]) / (2.0 * h)
         vx, vy = -uya, uxa
-        ths, thr = th_s[base], th_r[base]
         g = np.zeros((n, A, 6))
         g[:, :, 0] = -np.cos(ths) * uxa / cs + gs_side * vx
         g[:, :, 1] = -np.cos(ths) * uya / cs + gs_side * vy
@@ -195,10 +189,10 @@ class ArrivalCache:
         g[:, :, 5] = np.sin(thr) / cr
         # curvature: twice the straight-ray value over the chord, twice the sideways ones
         dist = np.linalg.norm(d - s, axis=1)
-        cmin = np.nanmin(np.where(valid[base], np.minimum(cs, cr), np.inf), axis=1, initial=np.inf)
+        cmin = np.nanmin(np.where(valid, np.minimum(cs, cr), np.inf), axis=1, initial=np.inf)
         k_side = np.nanmax(
             np.where(
-                valid[base],
+                valid,
                 np.maximum(np.abs(side_t[0] - 2 * tb + side_t[1]), np.abs(side_t[2] - 2 * tb + side_t[3])) / h**2,
                 0.0,
             ),
@@ -208,18 +202,24 @@ class ArrivalCache:
         with np.errstate(divide="ignore"):
             kappa = np.maximum(_SAFETY * 2.0 / (cmin * dist), 2.0 * k_side)
         # a link without arrivals is solved every time (a path may appear anywhere)
-        kappa = np.where(stable & np.isfinite(kappa) & (cnt[base] > 0), kappa, np.inf)
+        # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
+        # reflection point crosses it, so no Taylor bound holds across it; the reflection point
+        # moves less than the ends do, so the served radius must stay below that distance
+        radius = np.sqrt(2.0 * self.tol_s / kappa)
+        near_kink = np.any(valid & (kink <= 2.0 * radius[:, None]), axis=1)
+        stable &= ~near_kink
+        kappa = np.where(stable & np.isfinite(kappa) & (cnt > 0), kappa, np.inf)
         self.stats.uncacheable += int((~stable).sum())
         self._s0[ids], self._d0[ids] = s, d
         self._kappa[ids] = kappa
-        self._n[ids] = np.minimum(cnt[base], A)
+        self._n[ids] = np.minimum(cnt, A)
         self._t[ids] = tb
         self._g[ids] = np.nan_to_num(g)
         # the other fields of the base solution, padded
-        for name in ("level_db", "launch_angle", "arrival_angle", "length", "bottom_loss_db", "source_speed", "receiver_speed"):
-            self._table(name, float, np.nan)[ids] = padded(getattr(arr, name), np.nan)[base]
+        for name in ("level_db", "launch_angle", "arrival_angle", "length", "bottom_loss_db", "source_speed", "receiver_speed", "dz_dlaunch", "floor_kink_distance"):
+            self._table(name, float, np.nan)[ids] = padded(getattr(arr, name), np.nan)
         for name in ("surface_bounces", "bottom_bounces", "path_class", "bounce_code"):
-            self._table(name, np.int64, -1)[ids] = padded(getattr(arr, name).astype(float), -1.0)[base].astype(np.int64)
+            self._table(name, np.int64, -1)[ids] = padded(getattr(arr, name).astype(float), -1.0).astype(np.int64)
 
     def _table(self, name: str, dtype: type, fill: float) -> NDArray:
         if name not in self._rows:
@@ -258,4 +258,6 @@ class ArrivalCache:
             bounce_code=take(rows["bounce_code"][ids]),
             source_speed=take(rows["source_speed"][ids]),
             receiver_speed=take(rows["receiver_speed"][ids]),
+            dz_dlaunch=take(rows["dz_dlaunch"][ids]),
+            floor_kink_distance=take(rows["floor_kink_distance"][ids]),
         )

@@ -68,6 +68,8 @@ class Arrivals:
     length: FloatArray  #: arc length, m
     bottom_loss_db: FloatArray  #: summed Rayleigh loss of the bottom bounces, dB
     bounce_code: NDArray[np.int64]  #: bounce sequence, base 3 (1 surface, 2 bottom; first bounce lowest)
+    dz_dlaunch: FloatArray  #: d (depth at the receiver's range) / d launch angle, m/rad (ray-tube width)
+    floor_kink_distance: FloatArray  #: m from the nearest bottom reflection point to a kink of the floor (inf: none)
     source_speed: FloatArray  #: c at the source, m/s (the traced section's)
     receiver_speed: FloatArray  #: c at the receiver, m/s
 
@@ -83,6 +85,8 @@ class Arrivals:
         "length",
         "bottom_loss_db",
         "bounce_code",
+        "dz_dlaunch",
+        "floor_kink_distance",
         "source_speed",
         "receiver_speed",
     )
@@ -208,6 +212,8 @@ def arrivals(
         length=arc,
         bottom_loss_db=bloss,
         bounce_code=flat[:, jit.F_CODE].astype(np.int64),
+        dz_dlaunch=flat[:, jit.F_DZDTH],
+        floor_kink_distance=flat[:, jit.F_KINK],
         source_speed=cs,
         receiver_speed=cr,
     )

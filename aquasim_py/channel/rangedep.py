@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .environment import Environment
 
-__all__ = ["MIN_RANGE_M", "Sections", "sections", "solve", "trace_rays"]
+__all__ = ["MIN_RANGE_M", "Sections", "sections", "solve", "trace_rays", "track"]
 
 FloatArray = NDArray[np.float64]
 
@@ -229,3 +229,41 @@ def trace_rays(
         int(npts),
     )
     return paths, cnt, sec
+
+
+def track(
+    env: Environment,
+    src: ArrayLike,
+    dst: ArrayLike,
+    max_bounces: int,
+    theta0: FloatArray,
+    slope: FloatArray,
+    code: NDArray[np.int64],
+) -> FloatArray:
+    """Delays (n, Q) of known eigenrays (launch angles theta0 (n, Q), depth-miss slopes, bounce
+    sequences; code < 0 = none) followed to the links src -> dst (secant steps from the old
+    angle, a few rays each instead of a search); NaN where one could not be followed."""
+    from . import _rangedep_jit as jit
+
+    sec = sections(env, src, dst)
+    bpar = np.array(env.bottom.params, dtype=float)
+    starts = sec.offs[:-1]
+    ends = np.where(sec.valid, sec.offs[1:], starts)
+    return jit.track_links(
+        starts,
+        ends,
+        sec.r,
+        sec.z,
+        np.ascontiguousarray(sec.c),
+        sec.floor_z,
+        sec.floor,
+        np.where(sec.valid, sec.zs, 0.0),
+        np.where(sec.valid, sec.zr, 0.0),
+        sec.R,
+        int(max_bounces),
+        bpar,
+        np.ascontiguousarray(theta0, dtype=float),
+        np.ascontiguousarray(slope, dtype=float),
+        np.ascontiguousarray(code, dtype=np.int64),
+        _ZTOL_M,
+    )

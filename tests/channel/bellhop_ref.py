@@ -50,7 +50,8 @@ def run(
     R: float | None = None,
 ) -> BellhopArrivals:
     """Arrivals at (R (default r[-1]), zr) from a source at (0, zs): section columns at ranges r (m)
-    with floor depths floor_z (m), depth-only speeds c (m/s) on depths z (m); ``bottom`` =
+    with floor depths floor_z (m), speeds c (m/s) on depths z (m), either one profile (K,) or
+    one per column (J, K) (BELLHOP then interpolates bilinearly, option 'Q'); ``bottom`` =
     (speed m/s, density, attenuation dB per wavelength); ``step_m`` BELLHOP's ray step (0: its
     default, a tenth of the depth)."""
     import pelagic as pg
@@ -59,7 +60,16 @@ def run(
     zs, zr = float(zs), float(zr)
     keep = z < zmax
     zz = np.concatenate([z[keep], [zmax]])
-    cz = np.interp(zz, z, c) if zmax <= z[-1] else np.concatenate([c[keep], [c[-1] + (c[-1] - c[-2]) / (z[-1] - z[-2]) * (zmax - z[-1])]])
+    c2 = np.atleast_2d(np.asarray(c, float))  # (profiles, depths): one profile, or one per column r
+
+    def on_zz(col: np.ndarray) -> np.ndarray:
+        if zmax <= z[-1]:
+            return np.interp(zz, z, col)
+        return np.concatenate([col[keep], [col[-1] + (col[-1] - col[-2]) / (z[-1] - z[-2]) * (zmax - z[-1])]])
+
+    cq = np.array([on_zz(col) for col in c2])
+    cz = cq[0]
+    quad = cq.shape[0] > 1  # range-dependent: BELLHOP's 'Q' (bilinear between profiles at r)
     R = float(r[-1] if R is None else R)
     bottom = tuple(float(v) for v in bottom)
     with tempfile.TemporaryDirectory(prefix="aquasim-bellhop-") as tmp:
@@ -68,7 +78,7 @@ def run(
             "'aquasim section'",
             f"{frequency_hz}",
             "1",
-            "'CVW'",
+            "'QVW'" if quad else "'CVW'",
             f"0 0.0 {zmax}",
         ]
         lines += [f"{float(zi)!r} {float(ci)!r} /" for zi, ci in zip(zz, cz)]
@@ -88,6 +98,10 @@ def run(
             f"{float(step_m)!r} {zmax * 1.01 + 1.0} {R * 1.01 / 1000.0 + 0.01}",
         ]
         base.with_suffix(".env").write_text("\n".join(lines) + "\n")
+        if quad:
+            ssp = [str(len(r)), " ".join(f"{float(v) / 1000.0!r}" for v in r)]
+            ssp += [" ".join(f"{float(v)!r}" for v in cq[:, i]) for i in range(zz.size)]
+            base.with_suffix(".ssp").write_text("\n".join(ssp) + "\n")
         # bathymetry: linear between points, ranges in km (extended a little past both ends)
         rb = np.concatenate([[min(r[0], 0.0) - 0.01 * R - 1.0], r, [max(r[-1], R) * 1.02 + 10.0]]) / 1000.0
         zb = np.concatenate([[floor_z[0]], floor_z, [floor_z[-1]]])
