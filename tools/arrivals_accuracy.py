@@ -18,8 +18,8 @@ sys.path.insert(0, str(ROOT / "tests" / "channel"))
 
 
 def main() -> None:
-    import bellhop_ref
-    import ray_ode_rd
+    import bellhop_ref  # type: ignore[import-not-found]
+    import ray_ode_rd  # type: ignore[import-not-found]
 
     from aquasim_py.channel import eigenray, ssp
     from aquasim_py.channel.arrivals import arrivals
@@ -37,6 +37,7 @@ def main() -> None:
         ("Munk, 100 layers, 5000 m", ssp.Munk(bottom=5000.0, n_layers=100)),
     ):
         n = 200
+        assert prof.bottom is not None
         D = float(prof.bottom)
         s = np.c_[rng.uniform(0, 5000, n), rng.uniform(0, 5000, n), rng.uniform(0, D, n)]
         d = np.c_[rng.uniform(0, 5000, n), rng.uniform(0, 5000, n), rng.uniform(0, D, n)]
@@ -46,13 +47,19 @@ def main() -> None:
 
     depths = [0, 30, 80, 200, 600]
     speeds = [[1500, 1498, 1485, 1482, 1484], [1510, 1506, 1492, 1486, 1485], [1525, 1520, 1500, 1490, 1486]]
-    front = Environment(RangeProfiles([0, 3000, 6000], depths, speeds), Plane(150.0, slope_x=0.06), FluidBottom(1650, 1.9, 0.8))
+    front = Environment(
+        RangeProfiles([0, 3000, 6000], depths, speeds), Plane(150.0, slope_x=0.06), FluidBottom(1650, 1.9, 0.8)
+    )
     wedge = Environment(DepthProfile(ssp.Constant(1500.0)), Plane(200.0, slope_x=-0.05), FluidBottom(1700.0, 1.5, 0.5))
     munk_slope = Environment(
-        DepthProfile(ssp.Munk(bottom=None, n_layers=100)), Plane(5000.0, slope_x=-0.1, max_depth_m=5000.0), FluidBottom()
+        DepthProfile(ssp.Munk(bottom=None, n_layers=100)),
+        Plane(5000.0, slope_x=-0.1, max_depth_m=5000.0),
+        FluidBottom(),
     )
     seamount = Environment(
-        DepthProfile(ssp.Munk(bottom=None, n_layers=60)), Seamount(3000.0, 2000.0, 3000.0, x0=8000.0, resolution_m=250.0), FluidBottom()
+        DepthProfile(ssp.Munk(bottom=None, n_layers=60)),
+        Seamount(3000.0, 2000.0, 3000.0, x0=8000.0, resolution_m=250.0),
+        FluidBottom(),
     )
     print()
     print("| case | arrivals | max abs difference vs ODE, s | ODE's own error bound (largest), s |")
@@ -76,7 +83,9 @@ def main() -> None:
         print(f"| {name} | {a.delay.size} | {max(diffs):.1e} | {max(bounds):.1e} |")
 
     print()
-    print("| case | arrivals | BELLHOP default step: max / median abs difference, s | BELLHOP 10 m step: max / median, s |")
+    print(
+        "| case | arrivals | BELLHOP default step: max / median abs difference, s | BELLHOP 10 m step: max / median, s |"
+    )
     print("|---|---|---|---|")
     for name, env, src, dst, mb in (
         ("ASA wedge, 1 km", wedge, [0.0, 0.0, 100.0], [1000.0, 0.0, 30.0], 4),

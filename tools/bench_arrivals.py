@@ -124,7 +124,7 @@ def main() -> None:
     res["drift_mps"], res["step_s"], res["steps"] = args.speed, args.step, args.steps
 
     try:
-        import bellhop_ref
+        import bellhop_ref  # type: ignore[import-not-found]
 
         ok, why = bellhop_ref.available()
     except ImportError as e:  # pragma: no cover
@@ -159,8 +159,8 @@ def main() -> None:
     else:
         res["bellhop"] = f"skipped: {why}"
 
-    for k, v in res.items():
-        print(f"{k:34s} {v:.4g}" if isinstance(v, float) else f"{k:34s} {v}")
+    for key, v in res.items():
+        print(f"{key:34s} {v:.4g}" if isinstance(v, float) else f"{key:34s} {v}")
     if args.json:
         args.json.write_text(json.dumps(res, indent=2) + "\n")
 

@@ -41,7 +41,9 @@ import numpy as np
 OUT = Path(__file__).resolve().parents[1] / "aquasim_py" / "channel" / "data" / "shelfbreak.nc"
 
 # (depth m, temperature deg C, salinity PSU)
-SHELF = np.array([[0, 22.0, 32.6], [15, 21.5, 32.6], [30, 9.5, 32.9], [60, 9.0, 33.1], [100, 9.0, 33.2], [2000, 9.0, 33.2]])
+SHELF = np.array(
+    [[0, 22.0, 32.6], [15, 21.5, 32.6], [30, 9.5, 32.9], [60, 9.0, 33.1], [100, 9.0, 33.2], [2000, 9.0, 33.2]]
+)
 SLOPE = np.array(
     [
         [0, 23.0, 34.2],

@@ -249,26 +249,26 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
                     continue
                 nr, nz, pr, pz = 1.0, 0.0, R, zz[k]
             elif ed == E_TOP:
-                if part == P_LOWER or part == P_LR:
+                if part in (P_LOWER, P_LR):
                     continue
                 nr, nz, pr, pz = 0.0, -1.0, rr[j], zz[k]
             elif ed == E_RIGHT:
-                if part == P_LOWER or part == P_UL:
+                if part in (P_LOWER, P_UL):
                     continue
                 nr, nz, pr, pz = 1.0, 0.0, rr[j + 1], zz[k]
             elif ed == E_BOTTOM:
-                if part == P_UPPER or part == P_UL:
+                if part in (P_UPPER, P_UL):
                     continue
                 nr, nz, pr, pz = 0.0, 1.0, rr[j], zz[k + 1]
             elif ed == E_LEFT:
-                if part == P_UPPER or part == P_LR:
+                if part in (P_UPPER, P_LR):
                     continue
                 nr, nz, pr, pz = -1.0, 0.0, rr[j], zz[k]
             elif ed == E_DIAG:
                 if part == P_WHOLE:
                     continue
                 dn = math.hypot(dr, dz)
-                if part == P_UPPER or part == P_LOWER:
+                if part in (P_UPPER, P_LOWER):
                     nr, nz = -dz / dn, dr / dn  # out of the upper triangle
                     if part == P_LOWER:
                         nr, nz = -nr, -nz
@@ -371,7 +371,7 @@ def trace(rr, zz, cc, bb, floor, z0, theta0, R, maxb, bottom_par, want_path, pat
             part = _part_entering(cc, j, k, E_RIGHT)
             entry = E_RIGHT
         else:  # diagonal
-            if part == P_UPPER or part == P_LOWER:
+            if part in (P_UPPER, P_LOWER):
                 part = P_LOWER if part == P_UPPER else P_UPPER
             else:
                 part = P_LR if part == P_UL else P_UL
@@ -399,6 +399,8 @@ def _heading(f_end, f_prev, code):
     if (f_end > 0.0) != (f_prev > 0.0):
         return False
     return abs(f_end) < abs(f_prev) and abs(f_end) < 8.0 * (abs(f_prev) - abs(f_end))
+
+
 _STACK = 96
 _MAXIT = 100
 _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
@@ -421,7 +423,9 @@ def _speed_src(rr, zz, cc, zs, R):
 
 @_jit
 def _miss(rr, zz, cc, bb, floor, zs, zr, R, th, maxb, bpar, dummy):
-    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c, _k = trace(rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy)
+    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c, _k = trace(
+        rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy
+    )
     if st != S_REACHED:
         return math.nan, -1
     return ze - zr, code
@@ -455,7 +459,9 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
             else:
                 fa *= 0.5
             b, fb = m, fm
-    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
+    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(
+        rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy
+    )
     if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
         # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
         # reflects off one slope or the other), not a root

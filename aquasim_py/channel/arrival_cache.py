@@ -205,7 +205,8 @@ class ArrivalCache:
         # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
         # reflection point crosses it, so no Taylor bound holds across it; the reflection point
         # moves less than the ends do, so the served radius must stay below that distance
-        radius = np.sqrt(2.0 * self.tol_s / kappa)
+        with np.errstate(divide="ignore"):
+            radius = np.sqrt(2.0 * self.tol_s / kappa)
         near_kink = np.any(valid & (kink <= 2.0 * radius[:, None]), axis=1)
         stable &= ~near_kink
         kappa = np.where(stable & np.isfinite(kappa) & (cnt > 0), kappa, np.inf)
@@ -216,7 +217,17 @@ class ArrivalCache:
         self._t[ids] = tb
         self._g[ids] = np.nan_to_num(g)
         # the other fields of the base solution, padded
-        for name in ("level_db", "launch_angle", "arrival_angle", "length", "bottom_loss_db", "source_speed", "receiver_speed", "dz_dlaunch", "floor_kink_distance"):
+        for name in (
+            "level_db",
+            "launch_angle",
+            "arrival_angle",
+            "length",
+            "bottom_loss_db",
+            "source_speed",
+            "receiver_speed",
+            "dz_dlaunch",
+            "floor_kink_distance",
+        ):
             self._table(name, float, np.nan)[ids] = padded(getattr(arr, name), np.nan)
         for name in ("surface_bounces", "bottom_bounces", "path_class", "bounce_code"):
             self._table(name, np.int64, -1)[ids] = padded(getattr(arr, name).astype(float), -1.0).astype(np.int64)

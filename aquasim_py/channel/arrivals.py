@@ -122,23 +122,21 @@ class Arrivals:
 
     def records(self) -> list[dict[str, Any]]:
         """One plain dict per arrival (JSON-ready; angles in degrees)."""
-        out = []
-        for i in range(self.delay.size):
-            out.append(
-                {
-                    "link": int(self.link[i]),
-                    "delay_s": float(self.delay[i]),
-                    "level_db": float(self.level_db[i]),
-                    "launch_angle_deg": float(np.degrees(self.launch_angle[i])),
-                    "arrival_angle_deg": float(np.degrees(self.arrival_angle[i])),
-                    "surface_bounces": int(self.surface_bounces[i]),
-                    "bottom_bounces": int(self.bottom_bounces[i]),
-                    "path": ArrivalClass(int(self.path_class[i])).label,
-                    "length_m": float(self.length[i]),
-                    "bottom_loss_db": float(self.bottom_loss_db[i]),
-                }
-            )
-        return out
+        return [
+            {
+                "link": int(self.link[i]),
+                "delay_s": float(self.delay[i]),
+                "level_db": float(self.level_db[i]),
+                "launch_angle_deg": float(np.degrees(self.launch_angle[i])),
+                "arrival_angle_deg": float(np.degrees(self.arrival_angle[i])),
+                "surface_bounces": int(self.surface_bounces[i]),
+                "bottom_bounces": int(self.bottom_bounces[i]),
+                "path": ArrivalClass(int(self.path_class[i])).label,
+                "length_m": float(self.length[i]),
+                "bottom_loss_db": float(self.bottom_loss_db[i]),
+            }
+            for i in range(self.delay.size)
+        ]
 
 
 def _classify(ns: NDArray[np.int64], nb: NDArray[np.int64], nturn: NDArray[np.int64]) -> NDArray[np.int8]:

@@ -12,7 +12,7 @@ A range-independent environment (one profile, flat or no floor) is :attr:`range_
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,7 +30,7 @@ class Environment:
 
     field: SoundSpeedField
     bathymetry: Bathymetry | None = None
-    bottom: FluidBottom = field(default_factory=lambda: SEDIMENTS["sand"])
+    bottom: FluidBottom = SEDIMENTS["sand"]
 
     def __post_init__(self) -> None:
         if not isinstance(self.field, SoundSpeedField):

@@ -26,7 +26,7 @@ def _point(text: str) -> tuple[float, float, float]:
         raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
     if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
         raise argparse.ArgumentTypeError(f"expected three finite numbers X,Y,Z (m), got {text!r}")
-    return vals  # type: ignore[return-value]
+    return vals[0], vals[1], vals[2]
 
 
 def _bounces(text: str) -> int:
@@ -81,7 +81,9 @@ def command(argv: Sequence[str]) -> int:
     for name, pt in (("--from", args.src), ("--to", args.dst)):
         floor = float(env.depth(pt[0], pt[1]))
         if not 0.0 <= pt[2] <= floor:
-            raise common.UsageError(f"{name} {pt[0]:g},{pt[1]:g},{pt[2]:g}: depth outside the water (0 to {floor:g} m there)")
+            raise common.UsageError(
+                f"{name} {pt[0]:g},{pt[1]:g},{pt[2]:g}: depth outside the water (0 to {floor:g} m there)"
+            )
     ch = sc.channel
     arr = arrivals(env, args.src, args.dst, max_bounces=args.max_bounces, frequency_khz=ch.frequency_khz)
     rows = arr.records()

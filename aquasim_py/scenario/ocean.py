@@ -42,6 +42,7 @@ from aquasim_py.scenario.ocean_schema import (
 
 __all__ = ["centre_profile", "make_environment", "range_dependent"]
 
+
 def range_dependent(sc: Any) -> bool:
     """The scenario's environment has a section / grid sound speed or a bathymetry."""
     env = sc.environment
@@ -73,11 +74,19 @@ def _field(sc: Any, profile: Any) -> Any:
     key = "environment.sound_speed"
     try:
         if isinstance(spec, SectionSSP):
-            return fields.RangeProfiles(spec.ranges_m, spec.depths_m, spec.speeds_mps, tuple(spec.origin_m), spec.azimuth_deg)
+            return fields.RangeProfiles(
+                spec.ranges_m, spec.depths_m, spec.speeds_mps, (spec.origin_m[0], spec.origin_m[1]), spec.azimuth_deg
+            )
         if isinstance(spec, GridSSP):
             path = _data_path(sc, f"{key}.file", spec.file)
             return fields.GriddedField.from_netcdf(
-                path, x=spec.x, y=spec.y, depth=spec.depth, speed=spec.speed, temperature=spec.temperature, salinity=spec.salinity
+                path,
+                x=spec.x,
+                y=spec.y,
+                depth=spec.depth,
+                speed=spec.speed,
+                temperature=spec.temperature,
+                salinity=spec.salinity,
             )
     except (ValueError, KeyError, OSError) as e:
         raise ScenarioError(sc.path, key, str(e)) from None

@@ -47,7 +47,9 @@ class SectionSSP(Strict):
     @model_validator(mode="after")
     def _shape(self) -> SectionSSP:
         if len(self.speeds_mps) != len(self.ranges_m):
-            raise ValueError(f"speeds_mps needs one profile per range ({len(self.ranges_m)}), got {len(self.speeds_mps)}")
+            raise ValueError(
+                f"speeds_mps needs one profile per range ({len(self.ranges_m)}), got {len(self.speeds_mps)}"
+            )
         for i, row in enumerate(self.speeds_mps):
             if len(row) != len(self.depths_m):
                 raise ValueError(f"speeds_mps[{i}] has {len(row)} values for {len(self.depths_m)} depths_m")
@@ -117,9 +119,9 @@ class SedimentSpec(Strict):
     def _one_way(self) -> SedimentSpec:
         vals = (self.sound_speed_mps, self.density, self.attenuation_db_per_wavelength)
         if self.name is None and any(v is None for v in vals):
-            raise ValueError("give name (clay, silt, sand, gravel) or all of sound_speed_mps, density, attenuation_db_per_wavelength")
+            raise ValueError(
+                "give name (clay, silt, sand, gravel) or all of sound_speed_mps, density, attenuation_db_per_wavelength"
+            )
         if self.name is not None and any(v is not None for v in vals):
             raise ValueError("give either name or the three values, not both")
         return self
-
-

@@ -134,7 +134,8 @@ def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10, R: float | No
         def ev_target(_s, yy, R=R):
             return yy[0] - R
 
-        events = [ev_left, ev_right, ev_top, ev_bot, ev_floor] + ([ev_diag] if part else []) + [ev_target]
+        # the target first: where it coincides with a column line, reaching it wins the tie
+        events = [ev_target, ev_left, ev_right, ev_top, ev_bot, ev_floor] + ([ev_diag] if part else [])
         ev_target.direction = 1.0
         for e in events:
             e.terminal = True
@@ -162,7 +163,7 @@ def trace(m: Medium, z0: float, th0: float, max_bounces: int = 10, R: float | No
                 rhs, (s, s + 1e7), y, method="DOP853", rtol=RTOL, atol=ATOL, events=events + turns, max_step=max_step
             )
             bad = False
-            for te, ye in zip(sol.t_events[n_stop:], sol.y_events[n_stop:]):
+            for _te, ye in zip(sol.t_events[n_stop:], sol.y_events[n_stop:]):
                 for yy in ye:
                     u = (yy[0] - rj) / dr
                     v = (yy[1] - z1) / (z2 - z1)

@@ -66,7 +66,9 @@ def test_shelfbreak_link_across_the_slope(tmp_path, capsys) -> None:
     at least one bottom-reflected one, in increasing delay."""
     f = tmp_path / "slope.toml"
     f.write_text(SLOPE)
-    rc, out, _ = _run(capsys, ["arrivals", str(f), "--from", "-1500,0,40", "--to", "2500,0,150", "--json", "--max-bounces", "4"])
+    rc, out, _ = _run(
+        capsys, ["arrivals", str(f), "--from", "-1500,0,40", "--to", "2500,0,150", "--json", "--max-bounces", "4"]
+    )
     assert rc == 0
     doc = json.loads(out)
     assert doc["range_independent"] is False

@@ -26,7 +26,7 @@ def test_range_independent_runs_do_not_import_the_ocean_extras() -> None:
         f"aquasim_py.run_scenario({str(ROOT / 'scenarios' / 'beacon.toml')!r}, out=None)\n"
         "print(sorted(m for m in ('gsw', 'xarray', 'pelagic') if m in sys.modules))\n"
     )
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip().splitlines()[-1] == "[]"
 
@@ -41,7 +41,9 @@ def test_from_profile_is_range_independent() -> None:
 
 
 def test_range_profiles_interpolate_along_their_line() -> None:
-    f = RangeProfiles([0.0, 1000.0], [0.0, 100.0], [[1500.0, 1490.0], [1510.0, 1480.0]], origin=(100.0, 0.0), azimuth_deg=90.0)
+    f = RangeProfiles(
+        [0.0, 1000.0], [0.0, 100.0], [[1500.0, 1490.0], [1510.0, 1480.0]], origin=(100.0, 0.0), azimuth_deg=90.0
+    )
     # along the line (+y from x = 100): halfway, the mean profile; across it, the same
     np.testing.assert_allclose(f.speed([100.0, -400.0], [500.0, 500.0], [0.0, 100.0]), [1505.0, 1485.0])
     np.testing.assert_allclose(f.speed(0.0, -50.0, 0.0), 1500.0)  # clamped before the first profile

@@ -85,7 +85,9 @@ def test_first_arrival_equals_travel_time() -> None:
 def _front_env() -> Environment:
     depths = [0, 30, 80, 200, 600]
     speeds = [[1500, 1498, 1485, 1482, 1484], [1510, 1506, 1492, 1486, 1485], [1525, 1520, 1500, 1490, 1486]]
-    return Environment(RangeProfiles([0, 3000, 6000], depths, speeds), Plane(150.0, slope_x=0.06), FluidBottom(1650, 1.9, 0.8))
+    return Environment(
+        RangeProfiles([0, 3000, 6000], depths, speeds), Plane(150.0, slope_x=0.06), FluidBottom(1650, 1.9, 0.8)
+    )
 
 
 @pytest.mark.parametrize(
@@ -210,7 +212,9 @@ def _bellhop_check(env: Environment, src, dst, max_bounces: int) -> tuple[int, f
     r, c, fz = sec.link(0)
     bottom = (env.bottom.sound_speed_mps, env.bottom.density, env.bottom.attenuation_db_per_wavelength)
     b1 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=BELLHOP_STEP_M, R=sec.R[0])
-    b2 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=2.0 * BELLHOP_STEP_M, R=sec.R[0])
+    b2 = bellhop_ref.run(
+        r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=2001, step_m=2.0 * BELLHOP_STEP_M, R=sec.R[0]
+    )
     b3 = bellhop_ref.run(r, fz, sec.z, c[0], src[2], dst[2], bottom, beams=4001, step_m=BELLHOP_STEP_M, R=sec.R[0])
     matched, worst = 0, 0.0
     for i in range(a.delay.size):
@@ -241,7 +245,11 @@ def test_bellhop_asa_wedge() -> None:
 @needs_bellhop
 def test_bellhop_munk_over_slope() -> None:
     """A Munk profile over a slope rising from 5000 m to 2000 m over 30 km."""
-    env = Environment(DepthProfile(ssp.Munk(bottom=None, n_layers=100)), Plane(5000.0, slope_x=-0.1, max_depth_m=5000.0), FluidBottom())
+    env = Environment(
+        DepthProfile(ssp.Munk(bottom=None, n_layers=100)),
+        Plane(5000.0, slope_x=-0.1, max_depth_m=5000.0),
+        FluidBottom(),
+    )
     assert _bellhop_check(env, [0.0, 0.0, 1000.0], [20000.0, 0.0, 800.0], 2)[0] >= 3
 
 
