@@ -32,6 +32,7 @@ solved as if the receiver were 1 mm away along +x (a time error below 1e-12 s).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -167,6 +168,25 @@ def _polyline_at(rs: FloatArray, fz: FloatArray, offs: NDArray[np.int64], q: Flo
     return f0 + (f1 - f0) * (q - r0) / (r1 - r0)
 
 
+def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
+    """(starts, ends, r, z, c, floor_z, floor, zs, zr, R) as the search / track kernels take them;
+    links with an end outside the water get an empty section."""
+    starts = sec.offs[:-1]
+    ends = np.where(sec.valid, sec.offs[1:], starts)
+    return [
+        starts,
+        ends,
+        sec.r,
+        sec.z,
+        np.ascontiguousarray(sec.c),
+        sec.floor_z,
+        sec.floor,
+        np.where(sec.valid, sec.zs, 0.0),
+        np.where(sec.valid, sec.zr, 0.0),
+        sec.R,
+    ]
+
+
 def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray, NDArray[np.int64]]:
     """Raw eigenray rows (n, cap, NF) (see _rangedep_jit.F_*) and counts (n,) of the sections."""
     from . import _rangedep_jit as jit
@@ -177,29 +197,10 @@ def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray
     n = sec.zs.size
     wmax = np.full(n, 2.0 * (mb + 1) + 1.0) * 1.5
     nfan = np.ceil(2.0 * wmax / _FAN_DW).astype(np.int64)
+    starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
     bpar = np.array(env.bottom.params, dtype=float)
-    zs = np.where(sec.valid, sec.zs, 0.0)
-    zr = np.where(sec.valid, sec.zr, 0.0)
-    starts = sec.offs[:-1]
-    ends = np.where(sec.valid, sec.offs[1:], starts)  # links outside the water: no section
     rows, cnt = jit.search_links(
-        starts,
-        ends,
-        sec.r,
-        sec.z,
-        np.ascontiguousarray(sec.c),
-        sec.floor_z,
-        sec.floor,
-        zs,
-        zr,
-        sec.R,
-        mb,
-        bpar,
-        wmax,
-        nfan,
-        sec.H,
-        _ZTOL_M,
-        _MAX_ARRIVALS,
+        starts, ends, r, z, c, fz, floor, zs, zr, R, mb, bpar, wmax, nfan, sec.H, _ZTOL_M, _MAX_ARRIVALS
     )
     return rows, cnt
 
@@ -246,22 +247,20 @@ def track(
     from . import _rangedep_jit as jit
 
     sec = sections(env, src, dst)
-    bpar = np.array(env.bottom.params, dtype=float)
-    starts = sec.offs[:-1]
-    ends = np.where(sec.valid, sec.offs[1:], starts)
+    starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
     return jit.track_links(
         starts,
         ends,
-        sec.r,
-        sec.z,
-        np.ascontiguousarray(sec.c),
-        sec.floor_z,
-        sec.floor,
-        np.where(sec.valid, sec.zs, 0.0),
-        np.where(sec.valid, sec.zr, 0.0),
-        sec.R,
+        r,
+        z,
+        c,
+        fz,
+        floor,
+        zs,
+        zr,
+        R,
         int(max_bounces),
-        bpar,
+        np.array(env.bottom.params, dtype=float),
         np.ascontiguousarray(theta0, dtype=float),
         np.ascontiguousarray(slope, dtype=float),
         np.ascontiguousarray(code, dtype=np.int64),

@@ -265,6 +265,12 @@ def from_ctd(
     The cast's shallowest sample is extended to the surface with the same speed when it
     does not start at z = 0 (a cast usually starts a metre or two down).
     """
+    d, T, S = _cast(depth, temperature, salinity)
+    return _from_surface(d, mackenzie(d, T, S), bottom)
+
+
+def _cast(depth: ArrayLike, temperature: ArrayLike, salinity: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    """The checked columns of a cast (depth m, temperature deg C, salinity)."""
     d = np.asarray(depth, dtype=float).ravel()
     T = np.asarray(temperature, dtype=float).ravel()
     S = np.asarray(salinity, dtype=float).ravel()
@@ -276,7 +282,11 @@ def from_ctd(
         raise ValueError("CTD cast: values must be finite (no NaN)")
     if d[0] < 0.0 or np.any(np.diff(d) <= 0.0):
         raise ValueError("CTD cast: depths must be non-negative and increase strictly")
-    c = mackenzie(d, T, S)
+    return d, T, S
+
+
+def _from_surface(d: NDArray[np.float64], c: NDArray[np.float64], bottom: float | None) -> Layered:
+    """The cast's speeds as a Layered profile, its shallowest sample extended to the surface."""
     if d[0] > 0.0:
         d = np.concatenate([[0.0], d])
         c = np.concatenate([[c[0]], c])
@@ -321,17 +331,8 @@ def from_ts(
         return from_ctd(depth, temperature, salinity, bottom=bottom)
     if equation != "teos10":
         raise ValueError(f"equation must be 'teos10' or 'mackenzie', got {equation!r}")
-    d = np.asarray(depth, dtype=float).ravel()
-    T = np.asarray(temperature, dtype=float).ravel()
-    S = np.asarray(salinity, dtype=float).ravel()
-    if not (d.size == T.size == S.size) or d.size < 2:
-        raise ValueError("T/S cast: depth, temperature and salinity need the same length, at least 2")
-    if d[0] < 0.0 or np.any(np.diff(d) <= 0.0):
-        raise ValueError("T/S cast: depths must be non-negative and increase strictly")
+    d, T, S = _cast(depth, temperature, salinity)
     c = teos10_speed(d, T, S, latitude, longitude)
     if not np.all(np.isfinite(c)):
         raise ValueError("T/S cast: TEOS-10 gives no sound speed for some samples (values out of range?)")
-    if d[0] > 0.0:
-        d = np.concatenate([[0.0], d])
-        c = np.concatenate([[c[0]], c])
-    return Layered(d, c, bottom=bottom)
+    return _from_surface(d, c, bottom)
