@@ -170,9 +170,9 @@ class ArrivalCache:
             self.env, S, D, self.max_bounces, np.tile(ths, (4, 1)), np.tile(slope, (4, 1)), np.tile(cb, (4, 1))
         )
         side_t = four.reshape(4, n, A)
-        # unstable: an arrival that cannot be followed sideways (a path about to vanish), or
+        # unstable: an arrival that cannot be followed sideways (a path about to vanish), two
+        # eigenrays of one bounce sequence (a fold: following one may land on the other), or
         # more arrivals than the table holds
-        # or two eigenrays of one bounce sequence (a fold: following one may land on the other)
         dup = valid & (((cb[:, :, None] == cb[:, None, :]) & valid[:, None, :]).sum(axis=2) > 1)
         stable = ~np.any(valid & (np.isnan(side_t).any(axis=0) | dup), axis=1) & (cnt <= A)
         # gradients: Fermat in the plane, central differences across it
@@ -201,7 +201,6 @@ class ArrivalCache:
         )
         with np.errstate(divide="ignore"):
             kappa = np.maximum(_SAFETY * 2.0 / (cmin * dist), 2.0 * k_side)
-        # a link without arrivals is solved every time (a path may appear anywhere)
         # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
         # reflection point crosses it, so no Taylor bound holds across it; the reflection point
         # moves less than the ends do, so the served radius must stay below that distance
@@ -209,6 +208,7 @@ class ArrivalCache:
             radius = np.sqrt(2.0 * self.tol_s / kappa)
         near_kink = np.any(valid & (kink <= 2.0 * radius[:, None]), axis=1)
         stable &= ~near_kink
+        # a link without arrivals is solved every time (a path may appear anywhere)
         kappa = np.where(stable & np.isfinite(kappa) & (cnt > 0), kappa, np.inf)
         self.stats.uncacheable += int((~stable).sum())
         self._s0[ids], self._d0[ids] = s, d
