@@ -99,8 +99,11 @@ def run(
         ]
         base.with_suffix(".env").write_text("\n".join(lines) + "\n")
         if quad:
-            ssp = [str(len(r)), " ".join(f"{float(v) / 1000.0!r}" for v in r)]
-            ssp += [" ".join(f"{float(v)!r}" for v in cq[:, i]) for i in range(zz.size)]
+            # the end profiles repeated far beyond both ends: BELLHOP needs c wherever a ray goes
+            rq = np.concatenate([[min(r[0], 0.0) - 1e5], r, [max(r[-1], R) + 1e5]])
+            cqx = np.concatenate([cq[:1], cq, cq[-1:]])
+            ssp = [str(rq.size), " ".join(f"{float(v) / 1000.0!r}" for v in rq)]
+            ssp += [" ".join(f"{float(v)!r}" for v in cqx[:, i]) for i in range(zz.size)]
             base.with_suffix(".ssp").write_text("\n".join(ssp) + "\n")
         # bathymetry: linear between points, ranges in km (extended a little past both ends)
         rb = np.concatenate([[min(r[0], 0.0) - 0.01 * R - 1.0], r, [max(r[-1], R) * 1.02 + 10.0]]) / 1000.0
