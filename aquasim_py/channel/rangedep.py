@@ -1,15 +1,17 @@
 """Eigenrays in range-dependent media: every arrival of a link up to a number of boundary bounces.
 
 Model (N x 2-D). Each link is solved in the vertical plane through its two end points. Along
-the line from source to receiver, the environment is sampled at the distances where its
-horizontal interpolation or its sea floor has a kink (:meth:`.fields.SoundSpeedField.section_ranges`,
-:meth:`.bathymetry.Bathymetry.section_ranges`) and at both ends: columns of the field's
-profile on its depth nodes, and floor depths. In the (range, depth) plane the speed is linear
+its line the environment is sampled at the geographic points where its horizontal
+interpolation or its sea floor has a kink (:meth:`.fields.SoundSpeedField.section_ranges`,
+:meth:`.bathymetry.Bathymetry.section_ranges`), from the last one at or before the source to
+the first one at or after the receiver (the ends lie inside the end cells, so sliding an end
+along the line does not change the medium): columns of the field's profile on its depth nodes,
+and floor depths. In the (range, depth) plane the speed is linear
 on each cell of that grid (a rectangle whose four speeds are coplanar, else its two triangles
 cut along the diagonal whose end speeds differ least, a rule that makes the reversed link's
 section the mirror image), continuous everywhere; the floor is the polyline through the column
-depths; the surface is z = 0. Range-independent media are the special case of one profile
-column (every rectangle planar): the cells are the layers of :mod:`.layered`, which this
+depths; the surface is z = 0. Range-independent media are the special case of identical
+profile columns (every rectangle planar): the cells are the layers of :mod:`.layered`, which this
 solver reproduces to 1e-12 s (tests/channel/test_rangedep.py).
 
 Rays. Where the gradient of c is constant a ray is an exact arc of a circle, so the walk from
