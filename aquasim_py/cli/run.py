@@ -36,7 +36,6 @@ examples:
   aquasim-py sweep scenarios/beacon.toml --workers 2
   aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786
   aquasim-py report out/beacon                       # plots and report.html of a finished run
-  aquasim-py arrivals scenarios/beacon.toml --from 0,0,50 --to 900,400,120   # every arrival of a link
 
 --set values are TOML (numbers, strings in quotes, [arrays], {inline tables}, true/false);
 anything that is not valid TOML is taken as a plain string. List items are addressed by
