@@ -161,7 +161,7 @@ def arrivals(
     """Every eigenray from ``src`` to ``dst`` ((..., 3), m; broadcast) with at most
     ``max_bounces`` surface + bottom bounces, in increasing delay per link (see the module
     docstring for the level). Links with an end outside the water have none."""
-    from . import _rangedep_jit as jit
+    from . import _rangedep_search_jit as jit
 
     shape = np.broadcast_shapes(np.shape(src)[:-1], np.shape(dst)[:-1])
     sec = rangedep.sections(env, src, dst)

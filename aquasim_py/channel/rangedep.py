@@ -19,7 +19,8 @@ cell to cell is closed form (circle / line intersections, travel time and arc le
 :mod:`._rangedep_jit`); rays reflect specularly off the surface and the sloping floor (paying
 the floor's Rayleigh loss). No step size, no integration error: what remains is rounding.
 
-Eigenrays. Per link, a fan of launch angles, bisection towards the edges of each bounce family
+Eigenrays. Per link, a fan of launch angles (with samples next to the angles whose rays turn at
+a depth node of the source's profile, where a family may fold), bisection towards the edges of each bounce family
 (the rays with one sequence of surface / bottom bounces), and regula falsi on the depth miss at
 the receiver's range inside each family, to 1e-8 m; the travel time is then corrected to first
 order for the remaining miss (dt/dz = sin(theta_R) / c_R), far below 1e-9 s.
@@ -47,7 +48,7 @@ FloatArray = NDArray[np.float64]
 
 MIN_RANGE_M = 1e-3
 _OPEN_DEPTH_M = 1.0e4  # depth of the grid's end below the deepest point where no floor is modelled
-_FAN_DW = 0.35  # fan spacing in w = tan(theta) R / H (families are ~2 apart)
+_FAN_DW = 0.25  # fan spacing in w = tan(theta) R / H (families are ~2 apart)
 _ZTOL_M = 1e-8  # depth miss at the receiver at which a root is converged
 _MAX_ARRIVALS = 64
 
@@ -151,7 +152,11 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
         & (zs <= fz_s)
         & (zr <= fz_r)
     )
-    H = np.maximum(np.maximum.reduceat(fz, offs[:-1]) if floor else np.maximum(zs, zr), 1.0)
+    # the waveguide's depth between the ends (the end columns may lie far outside them)
+    inside = np.full(rs.shape, -np.inf)
+    inside[keep] = np.where((rs[keep] > 0.0) & (rs[keep] < np.broadcast_to(Rc, rs.shape)[keep]), fz, -np.inf)
+    between = np.maximum(np.maximum(fz_s, fz_r), inside.max(axis=1))
+    H = np.maximum(between if floor else np.maximum(zs, zr), 1.0)
     if not floor:
         H = np.maximum(H, 100.0)
     if np.any(cols <= 0.0):
@@ -190,8 +195,8 @@ def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
 
 
 def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray, NDArray[np.int64]]:
-    """Raw eigenray rows (n, cap, NF) (see _rangedep_jit.F_*) and counts (n,) of the sections."""
-    from . import _rangedep_jit as jit
+    """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the sections."""
+    from . import _rangedep_search_jit as jit
 
     mb = int(max_bounces)
     if mb < 0:
@@ -212,7 +217,7 @@ def trace_rays(
 ):
     """The exact walk of one ray per link at launch angle(s) ``theta0`` (rad) in the link's
     plane: (paths (n, npts, 3) of (range m, depth m, time s) vertices, counts (n,), sections)."""
-    from . import _rangedep_jit as jit
+    from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
     th = np.broadcast_to(np.asarray(theta0, float), sec.zs.shape).copy()
@@ -246,7 +251,7 @@ def track(
     """Delays (n, Q) of known eigenrays (launch angles theta0 (n, Q), depth-miss slopes, bounce
     sequences; code < 0 = none) followed to the links src -> dst (secant steps from the old
     angle, a few rays each instead of a search); NaN where one could not be followed."""
-    from . import _rangedep_jit as jit
+    from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
     starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
