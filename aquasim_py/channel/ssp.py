@@ -5,6 +5,9 @@ the surface is z = 0 and ``bottom`` is the sea-floor depth in metres (``None`` =
 modelled). Profiles other than :class:`Constant` and :class:`Isogradient` are ray traced as a
 stack of isogradient layers, so each one can give that stack with :meth:`to_layered`.
 
+A profile can also come from temperature / salinity through TEOS-10 (:func:`from_ts`, the
+``gsw`` package of the ``ocean`` extra, imported only then).
+
 The CTD profile uses Mackenzie's nine-term equation (J. Acoust. Soc. Am. 70(3), 807-812,
 1981) rather than TEOS-10: it is the standard equation of underwater acoustics, needs only
 depth, in-situ temperature and practical salinity (what a CTD cast reports), adds no
@@ -27,7 +30,9 @@ __all__ = [
     "Munk",
     "SoundSpeedProfile",
     "from_ctd",
+    "from_ts",
     "mackenzie",
+    "teos10_speed",
 ]
 
 
@@ -260,6 +265,12 @@ def from_ctd(
     The cast's shallowest sample is extended to the surface with the same speed when it
     does not start at z = 0 (a cast usually starts a metre or two down).
     """
+    d, T, S = _cast(depth, temperature, salinity)
+    return _from_surface(d, mackenzie(d, T, S), bottom)
+
+
+def _cast(depth: ArrayLike, temperature: ArrayLike, salinity: ArrayLike) -> tuple[NDArray[np.float64], ...]:
+    """The checked columns of a cast (depth m, temperature deg C, salinity)."""
     d = np.asarray(depth, dtype=float).ravel()
     T = np.asarray(temperature, dtype=float).ravel()
     S = np.asarray(salinity, dtype=float).ravel()
@@ -271,8 +282,57 @@ def from_ctd(
         raise ValueError("CTD cast: values must be finite (no NaN)")
     if d[0] < 0.0 or np.any(np.diff(d) <= 0.0):
         raise ValueError("CTD cast: depths must be non-negative and increase strictly")
-    c = mackenzie(d, T, S)
+    return d, T, S
+
+
+def _from_surface(d: NDArray[np.float64], c: NDArray[np.float64], bottom: float | None) -> Layered:
+    """The cast's speeds as a Layered profile, its shallowest sample extended to the surface."""
     if d[0] > 0.0:
         d = np.concatenate([[0.0], d])
         c = np.concatenate([[c[0]], c])
     return Layered(d, c, bottom=bottom)
+
+
+def teos10_speed(
+    depth: ArrayLike,
+    temperature: ArrayLike,
+    salinity: ArrayLike,
+    latitude: ArrayLike = 40.0,
+    longitude: ArrayLike = -70.0,
+) -> NDArray[np.float64]:
+    """TEOS-10 sound speed (m/s) from depth (m), in-situ temperature (deg C, ITS-90) and
+    practical salinity (PSS-78), at a latitude / longitude (deg): pressure from depth
+    (gsw.p_from_z), Absolute Salinity (gsw.SA_from_SP), Conservative Temperature
+    (gsw.CT_from_t), then gsw.sound_speed (the 75-term Gibbs function expression)."""
+    try:
+        import gsw
+    except ImportError as e:  # pragma: no cover - depends on the environment
+        raise ImportError("TEOS-10 sound speed needs the gsw package: pip install 'aquasim-py[ocean]'") from e
+    z = np.asarray(depth, dtype=float)
+    p = gsw.p_from_z(-z, latitude)
+    sa = gsw.SA_from_SP(salinity, p, longitude, latitude)
+    ct = gsw.CT_from_t(sa, temperature, p)
+    return np.asarray(gsw.sound_speed(sa, ct, p), dtype=float)
+
+
+def from_ts(
+    depth: ArrayLike,
+    temperature: ArrayLike,
+    salinity: ArrayLike,
+    latitude: float = 40.0,
+    longitude: float = -70.0,
+    bottom: float | None = None,
+    equation: str = "teos10",
+) -> Layered:
+    """A :class:`Layered` profile from a T/S cast (depth m, in-situ temperature deg C,
+    practical salinity) through TEOS-10 (``equation="teos10"``) or Mackenzie 1981
+    (``"mackenzie"``, the same as :func:`from_ctd`)."""
+    if equation == "mackenzie":
+        return from_ctd(depth, temperature, salinity, bottom=bottom)
+    if equation != "teos10":
+        raise ValueError(f"equation must be 'teos10' or 'mackenzie', got {equation!r}")
+    d, T, S = _cast(depth, temperature, salinity)
+    c = teos10_speed(d, T, S, latitude, longitude)
+    if not np.all(np.isfinite(c)):
+        raise ValueError("T/S cast: TEOS-10 gives no sound speed for some samples (values out of range?)")
+    return _from_surface(d, c, bottom)

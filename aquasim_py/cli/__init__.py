@@ -76,7 +76,7 @@ def _interruptible() -> Iterator[None]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
-    from aquasim_py.cli import report, run, sweep
+    from aquasim_py.cli import arrivals, report, run, sweep
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -85,6 +85,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return sweep.command(argv[1:])
             if argv and argv[0] == "report":
                 return report.command(argv[1:])
+            if argv and argv[0] == "arrivals":
+                return arrivals.command(argv[1:])
             return run.command(argv)
     except (ScenarioError, UsageError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -17,7 +17,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from aquasim_py import registry
+from aquasim_py.scenario import ocean
 from aquasim_py.scenario.errors import ScenarioError
+from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
 from aquasim_py.scenario.schema import (
     ConstantSSP,
     CtdSSP,
@@ -128,6 +130,8 @@ def make_ssp(sc: Scenario) -> Any:
 
     spec = sc.environment.sound_speed
     bottom = sc.environment.bottom_m
+    if isinstance(spec, (SectionSSP, GridSSP)):
+        return ocean.centre_profile(sc)  # what the scenario checks look at
     try:
         if isinstance(spec, ConstantSSP):
             return ssp.Constant(spec.speed_mps, bottom=bottom)
@@ -254,6 +258,13 @@ def build(sc: Scenario) -> Any:
     from aquasim_py.trace import TraceConfig
 
     file = sc.path
+    if ocean.range_dependent(sc):
+        raise ScenarioError(
+            file,
+            "environment",
+            "a range-dependent environment (bathymetry, section or grid sound speed) is not simulated by the "
+            "channel yet; list a link's arrivals with `aquasim-py arrivals`",
+        )
     vol = sc.environment.volume
     box = Box(vol.lo, vol.hi)
     try:

@@ -12,7 +12,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+
+from aquasim_py.scenario.ocean_schema import BathymetrySpec, GridSSP, SectionSSP, SedimentSpec
 
 __all__ = [
     "ROLES",
@@ -120,13 +122,33 @@ class CtdSSP(Strict):
         return self
 
 
-SoundSpeedSpec = Annotated[ConstantSSP | IsogradientSSP | LayeredSSP | MunkSSP | CtdSSP, Field(discriminator="model")]
+SoundSpeedSpec = Annotated[
+    ConstantSSP | IsogradientSSP | LayeredSSP | MunkSSP | CtdSSP | SectionSSP | GridSSP, Field(discriminator="model")
+]
 
 
 class EnvironmentSpec(Strict):
     volume: VolumeSpec
     sound_speed: SoundSpeedSpec = Field(default_factory=lambda: ConstantSSP(model="constant"))
     bottom_m: PosFloat | None = Field(None, description="sea-floor depth (m) for bottom reflections; none if unset")
+    # range-dependent environments (aquasim_py.scenario.ocean)
+    bathymetry: BathymetrySpec | None = Field(None, description="sea-floor depth over (x, y); instead of bottom_m")
+    sediment: SedimentSpec | None = Field(None, description="the bottom's sediment (default sand)")
+
+    @model_serializer(mode="wrap")
+    def _without_unset_ocean(self, handler: Any) -> Any:
+        # a scenario without them resolves exactly as before they existed
+        d = handler(self)
+        for key in ("bathymetry", "sediment"):
+            if isinstance(d, dict) and d.get(key) is None:
+                d.pop(key, None)
+        return d
+
+    @model_validator(mode="after")
+    def _one_floor(self) -> EnvironmentSpec:
+        if self.bottom_m is not None and self.bathymetry is not None:
+            raise ValueError("give bottom_m (a flat floor) or bathymetry, not both")
+        return self
 
     @model_validator(mode="after")
     def _bottom_below_volume(self) -> EnvironmentSpec:

@@ -1,0 +1,368 @@
+"""Compiled eigenray search of the range-dependent solver (numba): the per-link fan, the
+bisection towards family edges, regula falsi inside a family (:func:`search`, :func:`search_links`)
+and the following of known eigenrays to moved end points (:func:`track_links`). The ray walk they
+call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the public API.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._rangedep_jit import S_REACHED, _jit, _part_at, _plane, trace
+
+NF = 14  # fields of one arrival row, see search()
+F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR, F_KINK = range(NF)
+_BISECT_LEVELS = 8  # towards a family's edge
+_NONLIN_LEVELS = 6  # inside a family, where the miss is far from linear
+_EDGE_LEVELS = 40  # towards an edge where the miss heads for zero
+
+
+@_jit
+def _heading(f_end, f_prev, code):
+    """The miss of family ``code`` heads for zero at the edge: it shrank from f_prev to f_end
+    (same sign) and a few more such steps would reach zero."""
+    if code < 0 or not math.isfinite(f_prev) or not math.isfinite(f_end):
+        return False
+    if (f_end > 0.0) != (f_prev > 0.0):
+        return False
+    return abs(f_end) < abs(f_prev) and abs(f_end) < 8.0 * (abs(f_prev) - abs(f_end))
+
+
+_STACK = 96
+_MAXIT = 100
+_ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
+
+
+@_jit
+def _speed_src(rr, zz, cc, zs, R):
+    """c at the source (0, zs) on the cell that holds it."""
+    J, K = rr.size, zz.size
+    k = 0
+    while k < K - 2 and zz[k + 1] <= zs:
+        k += 1
+    j = 0
+    while j < J - 2 and rr[j + 1] <= 0.0:
+        j += 1
+    part = _part_at(rr, zz, cc, j, k, 0.0, zs)
+    c0, gr, gz = _plane(rr, zz, cc, j, k, part)
+    return c0 + gr * (0.0 - rr[j]) + gz * (zs - zz[k])
+
+
+@_jit
+def _miss(rr, zz, cc, bb, floor, zs, zr, R, th, maxb, bpar, dummy):
+    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c, _k = trace(
+        rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy
+    )
+    if st != S_REACHED:
+        return math.nan, -1
+    return ze - zr, code
+
+
+@_jit
+def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, ztol, out, row, dummy):
+    """Illinois regula falsi on the depth miss at r = R inside one bounce family [a, b]; the
+    converged ray's fields go to out[row]. Returns False if the family is not contiguous."""
+    m = a
+    fm = fa
+    if fa == 0.0:
+        m, fm = a, fa
+    elif fb == 0.0:
+        m, fm = b, fb
+    else:
+        for _ in range(_MAXIT):
+            m = b - fb * (b - a) / (fb - fa)
+            if not (min(a, b) < m < max(a, b)):
+                m = 0.5 * (a + b)
+            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
+            if cm != code:
+                m = 0.5 * (a + b)
+                fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
+                if cm != code:
+                    return False
+            if abs(fm) <= ztol or abs(b - a) <= 4e-16 * (1.0 + abs(m)):
+                break
+            if (fm > 0.0) != (fb > 0.0):
+                a, fa = b, fb
+            else:
+                fa *= 0.5
+            b, fb = m, fm
+    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(
+        rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy
+    )
+    if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
+        # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
+        # reflects off one slope or the other), not a root
+        return False
+    # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
+    out[row, F_TIME] = t + (zr - ze) * math.sin(thr) / cR
+    out[row, F_THETA0] = m
+    out[row, F_THETAR] = thr
+    out[row, F_NS] = ns
+    out[row, F_NB] = nb
+    out[row, F_CODE] = cd
+    out[row, F_ARC] = arc
+    out[row, F_LOSS] = loss
+    out[row, F_NTURN] = nturn
+    out[row, F_ZMISS] = ze - zr
+    out[row, F_CR] = cR
+    out[row, F_KINK] = kink
+    out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
+    # ray-tube width: d z_end / d theta0 by a small central difference inside the family
+    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
+    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
+    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
+    if cp == code and cq == code:
+        out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
+    elif cp == code:
+        out[row, F_DZDTH] = (fp - fm) / h
+    elif cq == code:
+        out[row, F_DZDTH] = (fm - fq) / h
+    else:
+        out[row, F_DZDTH] = math.nan
+    return True
+
+
+@_jit
+def _cusp_angles(rr, zz, cc, zs):
+    """Launch angles next to those of the rays that would turn exactly at a depth node in the
+    source's profile (cos th = c(z_s) / c(z_node), up towards shallower nodes, down towards
+    deeper ones): there the depth miss has a kink and a family may fold (two eigenrays a
+    fraction of a fan spacing apart). Two samples, 1e-7 on either side of each."""
+    J, K = rr.size, zz.size
+    j = 0
+    while j < J - 2 and rr[j + 1] <= 0.0:
+        j += 1
+    w = (0.0 - rr[j]) / (rr[j + 1] - rr[j])
+    cs = _speed_src(rr, zz, cc, zs, 0.0)  # R unused
+    out = np.empty(2 * K)
+    n = 0
+    for k in range(1, K - 1):
+        ck = cc[j, k] + w * (cc[j + 1, k] - cc[j, k])
+        if ck > cs and zz[k] != zs:
+            a = math.acos(cs / ck)
+            if zz[k] < zs:
+                a = -a
+            out[n] = a * (1.0 - 1e-7)
+            out[n + 1] = a * (1.0 + 1e-7)
+            n += 2
+    return out[:n]
+
+
+@_jit
+def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
+    """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces. A fan of
+    ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of
+    a waveguide of depth H lie about 2 apart in w), then adaptive bisection of each fan
+    interval: where its ends took different bounce sequences (to put samples next to each
+    family's edge), and where the depth miss at the receiver's range is not nearly linear
+    between them (a fold of the family may hide two roots); regula falsi inside each family
+    where the miss changes sign. Returns the number of arrival rows written to ``out``."""
+    dummy = np.empty((1, 3))
+    cusp = _cusp_angles(rr, zz, cc, zs)
+    th = np.empty(nfan + cusp.size)
+    for i in range(nfan):
+        w = -wmax + 2.0 * wmax * (i + 0.5) / nfan
+        th[i] = math.atan(w * H / R)
+    th[nfan:] = cusp
+    th = np.sort(th)
+    nfan = th.size
+    f = np.empty(nfan)
+    cd = np.empty(nfan, np.int64)
+    for i in range(nfan):
+        f[i], cd[i] = _miss(rr, zz, cc, bb, floor, zs, zr, R, th[i], maxb, bpar, dummy)
+    n = 0
+    cap = out.shape[0]
+    nbmax = 8 * nfan + 256
+    br = np.empty((nbmax, 4))  # brackets (a, fa, b, fb) and their family
+    bc = np.empty(nbmax, np.int64)
+    nbr = 0
+    # interval stack: a, f(a), code(a), b, f(b), code(b), and the previous miss of a's family
+    # beyond a and of b's family beyond b (NaN if unknown): is the miss heading for zero at an edge?
+    stack = np.empty((_STACK, 8))
+    lev = np.zeros(_STACK, np.int64)
+    for i in range(nfan - 1):
+        stack[0, 0], stack[0, 1], stack[0, 2] = th[i], f[i], cd[i]
+        stack[0, 3], stack[0, 4], stack[0, 5] = th[i + 1], f[i + 1], cd[i + 1]
+        stack[0, 6] = f[i - 1] if i > 0 and cd[i - 1] == cd[i] else math.nan
+        stack[0, 7] = f[i + 2] if i + 2 < nfan and cd[i + 2] == cd[i + 1] else math.nan
+        lev[0] = 0
+        top = 1
+        while top > 0:
+            top -= 1
+            a, fa, b, fb = stack[top, 0], stack[top, 1], stack[top, 3], stack[top, 4]
+            ca, cb = int(stack[top, 2]), int(stack[top, 5])
+            pa, pb = stack[top, 6], stack[top, 7]
+            lv = lev[top]
+            if ca == cb and ca < 0:
+                continue  # both rays lost
+            same = ca == cb
+            stop = lv >= (_NONLIN_LEVELS if same else _BISECT_LEVELS) or top + 2 > _STACK
+            if stop and not same and top + 2 <= _STACK and lv < _EDGE_LEVELS and abs(b - a) > 1e-13:
+                # near a family's edge the miss may race to zero (a ray grazing a boundary):
+                # keep bisecting while it heads there
+                stop = not (_heading(fa, pa, ca) or _heading(fb, pb, cb))
+            if stop:
+                if same and ((fa > 0.0) != (fb > 0.0) or fa == 0.0) and nbr < nbmax:
+                    br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, b, fb
+                    bc[nbr] = ca
+                    nbr += 1
+                continue
+            m = 0.5 * (a + b)
+            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
+            split = True
+            if same and cm == ca:
+                # a fold may hide two roots where the miss bends by more than a quarter of its
+                # distance from zero (ends of one sign), or three where it bends by more than a
+                # quarter of its change across the interval (ends of both signs: an S)
+                dev = abs(fm - 0.5 * (fa + fb))
+                if (fa > 0.0) == (fb > 0.0):
+                    split = min(abs(fa), abs(fb), abs(fm)) < 4.0 * dev
+                else:
+                    split = dev > 0.25 * abs(fb - fa)
+            if split:
+                stack[top, 0], stack[top, 1], stack[top, 2] = a, fa, ca
+                stack[top, 3], stack[top, 4], stack[top, 5] = m, fm, cm
+                stack[top, 6], stack[top, 7] = pa, (fb if cm == cb else math.nan)
+                lev[top] = lv + 1
+                stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = m, fm, cm
+                stack[top + 1, 3], stack[top + 1, 4], stack[top + 1, 5] = b, fb, cb
+                stack[top + 1, 6], stack[top + 1, 7] = (fa if cm == ca else math.nan), pb
+                lev[top + 1] = lv + 1
+                top += 2
+                continue
+            for x0, f0, x1, f1 in ((a, fa, m, fm), (m, fm, b, fb)):
+                if ((f0 > 0.0) != (f1 > 0.0) or f0 == 0.0) and nbr < nbmax:
+                    br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = x0, f0, x1, f1
+                    bc[nbr] = ca
+                    nbr += 1
+    for q in range(nbr):
+        if n >= cap:
+            break
+        if _refine(
+            rr,
+            zz,
+            cc,
+            bb,
+            floor,
+            zs,
+            zr,
+            R,
+            maxb,
+            bpar,
+            br[q, 0],
+            br[q, 1],
+            br[q, 2],
+            br[q, 3],
+            bc[q],
+            ztol,
+            out,
+            n,
+            dummy,
+        ):
+            # the same eigenray from two brackets sharing a sample
+            dup = False
+            for p in range(n):
+                if out[p, F_CODE] == out[n, F_CODE] and abs(out[p, F_THETA0] - out[n, F_THETA0]) <= 1e-12:
+                    dup = True
+                    break
+            if not dup:
+                n += 1
+    return n
+
+
+@_jit
+def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, cap):
+    """:func:`search` for every link l: its section rows starts[l]:ends[l] of rr_all (J,),
+    cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped). Returns (rows (L, cap, NF),
+    counts (L,))."""
+    L = zs.size
+    out = np.full((L, cap, NF), np.nan)
+    cnt = np.zeros(L, np.int64)
+    for l in range(L):
+        o0, o1 = starts[l], ends[l]
+        if o1 - o0 < 2:
+            continue
+        cnt[l] = search(
+            rr_all[o0:o1],
+            zz,
+            cc_all[o0:o1],
+            bb_all[o0:o1],
+            floor,
+            zs[l],
+            zr[l],
+            R[l],
+            maxb,
+            bpar,
+            wmax[l],
+            nfan[l],
+            H[l],
+            ztol,
+            out[l],
+        )
+    return out, cnt
+
+
+@_jit
+def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bpar, npts):
+    """The walk of one ray per link (launch angle theta0[l]): vertices (L, npts, 3) of (r, z, t)
+    and their counts, for plots and for the reference checks."""
+    L = zs.size
+    paths = np.full((L, npts, 3), np.nan)
+    cnt = np.zeros(L, np.int64)
+    for l in range(L):
+        o0, o1 = offs[l], offs[l + 1]
+        res = trace(
+            rr_all[o0:o1], zz, cc_all[o0:o1], bb_all[o0:o1], floor, zs[l], theta0[l], R[l], maxb, bpar, True, paths[l]
+        )
+        cnt[l] = res[10]
+    return paths, cnt
+
+
+@_jit
+def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
+    """Follow known eigenrays to slightly moved end points: for each link l and each of its
+    arrivals q (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope
+    d z_R / d theta0 slope[l, q]), secant iterations from the old launch angle in the new
+    section, keeping the bounce sequence. Returns the corrected delays (L, Q), NaN where the
+    arrival could not be followed (its sequence changed, or no convergence in 12 steps)."""
+    L, Q = theta0.shape
+    out = np.full((L, Q), np.nan)
+    dummy = np.empty((1, 3))
+    for l in range(L):
+        o0, o1 = starts[l], ends[l]
+        if o1 - o0 < 2:
+            continue
+        rr, cc, bb = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1]
+        for q in range(Q):
+            cd = code[l, q]
+            if cd < 0 or not math.isfinite(theta0[l, q]):
+                continue
+            a = theta0[l, q]
+            fa, ca = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy)
+            if ca != cd:
+                continue
+            s = slope[l, q]
+            if not (math.isfinite(s) and s != 0.0):
+                continue
+            ok = abs(fa) <= ztol
+            for _ in range(12):
+                if ok:
+                    break
+                b = a - fa / s
+                fb, cb = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy)
+                if cb != cd:
+                    break
+                if fb != fa and b != a:
+                    s = (fb - fa) / (b - a)
+                a, fa = b, fb
+                ok = abs(fa) <= ztol
+            if not ok:
+                continue
+            st, ze, t, thr, _arc, _ns, _nb, c2, _lo, _nt, _np, cR, _k = trace(
+                rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy
+            )
+            if st == S_REACHED and c2 == cd:
+                out[l, q] = t + (zr[l] - ze) * math.sin(thr) / cR
+    return out

@@ -1,0 +1,275 @@
+"""Eigenrays in range-dependent media: every arrival of a link up to a number of boundary bounces.
+
+Model (N x 2-D). Each link is solved in the vertical plane through its two end points. Along
+its line the environment is sampled at the geographic points where its horizontal
+interpolation or its sea floor has a kink (:meth:`.fields.SoundSpeedField.section_ranges`,
+:meth:`.bathymetry.Bathymetry.section_ranges`), from the last one at or before the source to
+the first one at or after the receiver (the ends lie inside the end cells, so sliding an end
+along the line does not change the medium): columns of the field's profile on its depth nodes,
+and floor depths. In the (range, depth) plane the speed is linear
+on each cell of that grid (a rectangle whose four speeds are coplanar, else its two triangles
+cut along the diagonal whose end speeds differ least, a rule that makes the reversed link's
+section the mirror image), continuous everywhere; the floor is the polyline through the column
+depths; the surface is z = 0. Range-independent media are the special case of identical
+profile columns (every rectangle planar): the cells are the layers of :mod:`.layered`, which this
+solver reproduces to 1e-12 s (tests/channel/test_rangedep.py).
+
+Rays. Where the gradient of c is constant a ray is an exact arc of a circle, so the walk from
+cell to cell is closed form (circle / line intersections, travel time and arc length per arc:
+:mod:`._rangedep_jit`); rays reflect specularly off the surface and the sloping floor (paying
+the floor's Rayleigh loss). No step size, no integration error: what remains is rounding.
+
+Eigenrays. Per link, a fan of launch angles (with samples next to the angles whose rays turn at
+a depth node of the source's profile, where a family may fold), bisection towards the edges of each bounce family
+(the rays with one sequence of surface / bottom bounces), and regula falsi on the depth miss at
+the receiver's range inside each family, to 1e-8 m; the travel time is then corrected to first
+order for the remaining miss (dt/dz = sin(theta_R) / c_R), far below 1e-9 s.
+
+Limits (documented, not hidden): rays that travel backwards past the source's range, cross the
+receiver's range twice, or bounce more than ``max_bounces`` times are dropped; two eigenrays of
+one family closer than the fan's spacing (a fold near a caustic) count as one or none;
+out-of-plane refraction is ignored (N x 2-D); below 1 mm of horizontal separation a link is
+solved as if the receiver were 1 mm away along +x (a time error below 1e-12 s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .environment import Environment
+
+__all__ = ["MIN_RANGE_M", "Sections", "sections", "solve", "trace_rays", "track"]
+
+FloatArray = NDArray[np.float64]
+
+MIN_RANGE_M = 1e-3
+_OPEN_DEPTH_M = 1.0e4  # depth of the grid's end below the deepest point where no floor is modelled
+_FAN_DW = 0.25  # fan spacing in w = tan(theta) R / H (families are ~2 apart)
+_ZTOL_M = 1e-8  # depth miss at the receiver at which a root is converged
+_MAX_ARRIVALS = 64
+
+
+@dataclass(frozen=True)
+class Sections:
+    """The (range, depth) sections of n links, rows of each link at offs[l]:offs[l+1]."""
+
+    offs: NDArray[np.int64]
+    r: FloatArray  #: (rows,) column ranges, m (from <= 0 to >= R per link)
+    c: FloatArray  #: (rows, K) speeds on ``z``
+    floor_z: FloatArray  #: (rows,) floor depth at each column, m
+    z: FloatArray  #: (K,) depth nodes, m
+    floor: bool  #: a sea floor reflects (False: none modelled)
+    zs: FloatArray  #: (n,) source depths
+    zr: FloatArray  #: (n,) receiver depths
+    R: FloatArray  #: (n,) horizontal ranges, m
+    H: FloatArray  #: (n,) vertical scale (deepest floor or point), m
+    ux: FloatArray  #: (n,) unit direction, x
+    uy: FloatArray  #: (n,) unit direction, y
+    valid: NDArray[np.bool_]  #: (n,) both ends in the water
+
+    def link(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(r, c, floor_z) of link i."""
+        a, b = self.offs[i], self.offs[i + 1]
+        return self.r[a:b], self.c[a:b], self.floor_z[a:b]
+
+
+def _pairs(src: ArrayLike, dst: ArrayLike) -> tuple[tuple[int, ...], FloatArray, FloatArray]:
+    s = np.asarray(src, dtype=float)
+    d = np.asarray(dst, dtype=float)
+    if s.shape[-1:] != (3,) or d.shape[-1:] != (3,):
+        raise ValueError("src and dst must have a last axis of length 3 (x, y, z)")
+    s, d = np.broadcast_arrays(s, d)
+    return s.shape[:-1], s.reshape(-1, 3), d.reshape(-1, 3)
+
+
+def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
+    """The vertical-plane sections of the links src -> dst (each (..., 3)), vectorized."""
+    _, s, d = _pairs(src, dst)
+    n = s.shape[0]
+    dx, dy = d[:, 0] - s[:, 0], d[:, 1] - s[:, 1]
+    R = np.hypot(dx, dy)
+    short = ~(R >= MIN_RANGE_M)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ux = np.where(short, 1.0, dx / R)
+        uy = np.where(short, 0.0, dy / R)
+    R = np.where(short, MIN_RANGE_M, R)
+    x0, y0 = s[:, 0], s[:, 1]
+    # the kinks of the field and the floor along the link's line (geographic points), the
+    # last one at or before the source and the first one at or after the receiver: the ends
+    # lie inside the end cells, so moving an end along the line leaves the medium unchanged
+    parts = [env.field.section_ranges(x0, y0, ux, uy, R)]
+    if env.bathymetry is not None:
+        parts.append(env.bathymetry.section_ranges(x0, y0, ux, uy, R))
+    kinks = np.concatenate([np.empty((n, 0))] + parts, axis=1)
+    Rc = R[:, None]
+    left = np.max(np.where(kinks <= 0.0, kinks, -np.inf), axis=1, initial=-np.inf)
+    right = np.min(np.where(kinks >= Rc, kinks, np.inf), axis=1, initial=np.inf)
+    left = np.where(np.isfinite(left), left, 0.0)
+    right = np.where(np.isfinite(right), right, R)
+    inner = np.where((kinks > 0.0) & (kinks < Rc), kinks, np.nan)
+    rs = np.sort(np.concatenate([left[:, None], inner, right[:, None]], axis=1), axis=1)  # NaN last
+    # drop columns closer than a nanometre to the previous one
+    close = np.zeros(rs.shape, bool)
+    close[:, 1:] = np.diff(rs, axis=1) <= 1e-9 * np.maximum(1.0, Rc)
+    rs = np.sort(np.where(close, np.nan, rs), axis=1)
+    cnt = np.isfinite(rs).sum(axis=1)
+    # the right end column must stay (it may have been dropped as "close" to an inner kink)
+    rs[np.arange(n), cnt - 1] = np.maximum(rs[np.arange(n), cnt - 1], right)
+    keep = np.isfinite(rs)
+    px = x0[:, None] + rs * ux[:, None]
+    py = y0[:, None] + rs * uy[:, None]
+    px, py = px[keep], py[keep]
+    cols = np.asarray(env.field.columns(px, py), dtype=float)
+    depths = np.asarray(env.field.depths, dtype=float)
+    zs, zr = s[:, 2], d[:, 2]
+    deepest = float(np.nanmax(np.concatenate([zs, zr, [0.0]])))
+    if env.bathymetry is not None:
+        fz = np.asarray(env.bathymetry.depth(px, py), dtype=float)
+        zmax = max(float(fz.max(initial=0.0)), deepest) + 1.0
+        floor = True
+    else:
+        zmax = max(deepest, float(depths[-1])) + _OPEN_DEPTH_M
+        fz = np.full(px.shape, zmax - 1.0)
+        floor = False
+    if depths[-1] < zmax:  # the last gradient continues down to the grid's end
+        g = (cols[:, -1] - cols[:, -2]) / (depths[-1] - depths[-2])
+        cols = np.concatenate([cols, (cols[:, -1] + g * (zmax - depths[-1]))[:, None]], axis=1)
+        depths = np.concatenate([depths, [zmax]])
+    offs = np.zeros(n + 1, np.int64)
+    offs[1:] = np.cumsum(cnt)
+    # floor depth under each end: the polyline between the columns that bracket it
+    fz_s = _polyline_at(rs, fz, offs, np.zeros(n))
+    fz_r = _polyline_at(rs, fz, offs, R)
+    valid = (
+        np.isfinite(s).all(axis=1)
+        & np.isfinite(d).all(axis=1)
+        & (zs >= 0.0)
+        & (zr >= 0.0)
+        & (zs <= fz_s)
+        & (zr <= fz_r)
+    )
+    # the waveguide's depth between the ends (the end columns may lie far outside them)
+    inside = np.full(rs.shape, -np.inf)
+    inside[keep] = np.where((rs[keep] > 0.0) & (rs[keep] < np.broadcast_to(Rc, rs.shape)[keep]), fz, -np.inf)
+    between = np.maximum(np.maximum(fz_s, fz_r), inside.max(axis=1))
+    H = np.maximum(between if floor else np.maximum(zs, zr), 1.0)
+    if not floor:
+        H = np.maximum(H, 100.0)
+    if np.any(cols <= 0.0):
+        raise ValueError("sound speed not positive inside the sections (check the field's depth extrapolation)")
+    return Sections(offs, rs[keep], cols, fz, depths, floor, zs, zr, R, H, ux, uy, valid)
+
+
+def _polyline_at(rs: FloatArray, fz: FloatArray, offs: NDArray[np.int64], q: FloatArray) -> FloatArray:
+    """The floor polyline (columns rs (n, m) NaN-padded, depths fz flat) at distance q (n,)."""
+    n = q.size
+    cnt = np.diff(offs)
+    r = np.where(np.isfinite(rs), rs, np.inf)
+    j = np.clip((r <= q[:, None]).sum(axis=1) - 1, 0, cnt - 2)
+    r0, r1 = rs[np.arange(n), j], rs[np.arange(n), j + 1]
+    f0, f1 = fz[offs[:-1] + j], fz[offs[:-1] + j + 1]
+    return f0 + (f1 - f0) * (q - r0) / (r1 - r0)
+
+
+def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
+    """(starts, ends, r, z, c, floor_z, floor, zs, zr, R) as the search / track kernels take them;
+    links with an end outside the water get an empty section."""
+    starts = sec.offs[:-1]
+    ends = np.where(sec.valid, sec.offs[1:], starts)
+    return [
+        starts,
+        ends,
+        sec.r,
+        sec.z,
+        np.ascontiguousarray(sec.c),
+        sec.floor_z,
+        sec.floor,
+        np.where(sec.valid, sec.zs, 0.0),
+        np.where(sec.valid, sec.zr, 0.0),
+        sec.R,
+    ]
+
+
+def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the sections."""
+    from . import _rangedep_search_jit as jit
+
+    mb = int(max_bounces)
+    if mb < 0:
+        raise ValueError(f"max_bounces must be >= 0, got {max_bounces!r}")
+    n = sec.zs.size
+    wmax = np.full(n, 2.0 * (mb + 1) + 1.0) * 1.5
+    nfan = np.ceil(2.0 * wmax / _FAN_DW).astype(np.int64)
+    starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
+    bpar = np.array(env.bottom.params, dtype=float)
+    rows, cnt = jit.search_links(
+        starts, ends, r, z, c, fz, floor, zs, zr, R, mb, bpar, wmax, nfan, sec.H, _ZTOL_M, _MAX_ARRIVALS
+    )
+    return rows, cnt
+
+
+def trace_rays(
+    env: Environment, src: ArrayLike, dst: ArrayLike, theta0: ArrayLike, max_bounces: int = 10, npts: int = 4000
+):
+    """The exact walk of one ray per link at launch angle(s) ``theta0`` (rad) in the link's
+    plane: (paths (n, npts, 3) of (range m, depth m, time s) vertices, counts (n,), sections)."""
+    from . import _rangedep_search_jit as jit
+
+    sec = sections(env, src, dst)
+    th = np.broadcast_to(np.asarray(theta0, float), sec.zs.shape).copy()
+    bpar = np.array(env.bottom.params, dtype=float)
+    paths, cnt = jit.trace_links(
+        sec.offs,
+        sec.r,
+        sec.z,
+        np.ascontiguousarray(sec.c),
+        sec.floor_z,
+        sec.floor,
+        sec.zs,
+        sec.R,
+        th,
+        int(max_bounces),
+        bpar,
+        int(npts),
+    )
+    return paths, cnt, sec
+
+
+def track(
+    env: Environment,
+    src: ArrayLike,
+    dst: ArrayLike,
+    max_bounces: int,
+    theta0: FloatArray,
+    slope: FloatArray,
+    code: NDArray[np.int64],
+) -> FloatArray:
+    """Delays (n, Q) of known eigenrays (launch angles theta0 (n, Q), depth-miss slopes, bounce
+    sequences; code < 0 = none) followed to the links src -> dst (secant steps from the old
+    angle, a few rays each instead of a search); NaN where one could not be followed."""
+    from . import _rangedep_search_jit as jit
+
+    sec = sections(env, src, dst)
+    starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
+    return jit.track_links(
+        starts,
+        ends,
+        r,
+        z,
+        c,
+        fz,
+        floor,
+        zs,
+        zr,
+        R,
+        int(max_bounces),
+        np.array(env.bottom.params, dtype=float),
+        np.ascontiguousarray(theta0, dtype=float),
+        np.ascontiguousarray(slope, dtype=float),
+        np.ascontiguousarray(code, dtype=np.int64),
+        _ZTOL_M,
+    )

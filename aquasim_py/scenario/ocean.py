@@ -1,0 +1,143 @@
+"""The range-dependent part of ``[environment]``: bathymetry, sediment, sound-speed sections and
+grids (schema models), and :func:`make_environment`, the scenario's
+:class:`aquasim_py.channel.environment.Environment`.
+
+```toml
+[environment.sound_speed]          # profiles along a line (a section across a front)
+model = "section"
+ranges_m = [0.0, 10000.0]          # distances along the line from origin_m at azimuth_deg
+depths_m = [0.0, 50.0, 200.0]
+speeds_mps = [[1500.0, 1495.0, 1490.0], [1510.0, 1500.0, 1491.0]]
+
+[environment.sound_speed]          # or a netCDF grid (speed, or temperature + salinity via TEOS-10)
+model = "grid"
+file = "shelfbreak.nc"             # relative to the scenario file; "package:shelfbreak" = the bundled sample
+
+[environment.bathymetry]           # flat | plane | seamount | grid
+model = "plane"
+depth_m = 200.0
+slope_x = 0.03
+
+[environment.sediment]             # a preset (clay, silt, sand, gravel) or the three values
+name = "sand"
+```
+
+A scenario without these keys resolves exactly as before (the keys are left out of the resolved
+scenario when unset).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from aquasim_py.scenario.errors import ScenarioError
+from aquasim_py.scenario.ocean_schema import (
+    PACKAGE_PREFIX,
+    FlatBathymetry,
+    GridSSP,
+    PlaneBathymetry,
+    SeamountBathymetry,
+    SectionSSP,
+)
+
+__all__ = ["centre_profile", "make_environment", "range_dependent"]
+
+
+def range_dependent(sc: Any) -> bool:
+    """The scenario's environment has a section / grid sound speed or a bathymetry."""
+    env = sc.environment
+    return isinstance(env.sound_speed, (SectionSSP, GridSSP)) or env.bathymetry is not None
+
+
+def _data_path(sc: Any, key: str, name: str) -> Any:
+    from pathlib import Path
+
+    if name.startswith(PACKAGE_PREFIX):
+        from aquasim_py.channel.data import sample_path
+
+        try:
+            return sample_path(name[len(PACKAGE_PREFIX) :])
+        except KeyError as e:
+            raise ScenarioError(sc.path, key, str(e)) from None
+    p = Path(name)
+    if not p.is_absolute() and sc.path is not None:
+        p = Path(sc.path).parent / p
+    if not p.is_file():
+        raise ScenarioError(sc.path, key, f"no such file: {p}")
+    return p
+
+
+def _field(sc: Any, profile: Any) -> Any:
+    from aquasim_py.channel import fields
+
+    spec = sc.environment.sound_speed
+    key = "environment.sound_speed"
+    try:
+        if isinstance(spec, SectionSSP):
+            return fields.RangeProfiles(
+                spec.ranges_m, spec.depths_m, spec.speeds_mps, (spec.origin_m[0], spec.origin_m[1]), spec.azimuth_deg
+            )
+        if isinstance(spec, GridSSP):
+            path = _data_path(sc, f"{key}.file", spec.file)
+            return fields.GriddedField.from_netcdf(
+                path,
+                x=spec.x,
+                y=spec.y,
+                depth=spec.depth,
+                speed=spec.speed,
+                temperature=spec.temperature,
+                salinity=spec.salinity,
+            )
+    except (ValueError, KeyError, OSError) as e:
+        raise ScenarioError(sc.path, key, str(e)) from None
+    except ImportError as e:
+        raise ScenarioError(sc.path, key, str(e)) from None
+    return fields.DepthProfile(profile)
+
+
+def _bathymetry(sc: Any) -> Any:
+    from aquasim_py.channel import bathymetry as b
+
+    spec = sc.environment.bathymetry
+    key = "environment.bathymetry"
+    try:
+        if spec is None:
+            return None if sc.environment.bottom_m is None else b.Flat(sc.environment.bottom_m)
+        if isinstance(spec, FlatBathymetry):
+            return b.Flat(spec.depth_m)
+        if isinstance(spec, PlaneBathymetry):
+            return b.Plane(spec.depth_m, spec.slope_x, spec.slope_y, spec.x0_m, spec.y0_m, spec.max_depth_m)
+        if isinstance(spec, SeamountBathymetry):
+            return b.Seamount(spec.base_m, spec.height_m, spec.width_m, spec.x0_m, spec.y0_m, spec.resolution_m)
+        path = _data_path(sc, f"{key}.file", spec.file)
+        return b.GriddedBathymetry.from_netcdf(path, spec.variable, spec.x, spec.y)
+    except (ValueError, KeyError, OSError, ImportError) as e:
+        raise ScenarioError(sc.path, key, str(e)) from None
+
+
+def make_environment(sc: Any, profile: Any = None) -> Any:
+    """The scenario's :class:`~aquasim_py.channel.environment.Environment`; ``profile`` is the
+    scenario's depth profile (:func:`aquasim_py.scenario.build.make_ssp`) where the sound speed
+    is one (constant, isogradient, layered, munk, ctd)."""
+    from aquasim_py.channel.bathymetry import SEDIMENTS, FluidBottom
+    from aquasim_py.channel.environment import Environment
+
+    sed = sc.environment.sediment
+    if sed is None:
+        bottom = SEDIMENTS["sand"]
+    elif sed.name is not None:
+        bottom = SEDIMENTS[sed.name]
+    else:
+        bottom = FluidBottom(sed.sound_speed_mps, sed.density, sed.attenuation_db_per_wavelength)
+    return Environment(_field(sc, profile), _bathymetry(sc), bottom)
+
+
+def centre_profile(sc: Any) -> Any:
+    """The depth profile of a range-dependent field at the volume's centre (what the scenario
+    checks of the sound speed look at)."""
+    from aquasim_py.channel.ssp import Layered
+
+    field = _field(sc, None)
+    lo, hi = sc.environment.volume.lo, sc.environment.volume.hi
+    col = field.columns(0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
+    return Layered(field.depths, col, bottom=sc.environment.bottom_m)

@@ -1,0 +1,121 @@
+"""BELLHOP (the Acoustics Toolbox's beam tracer, run in-process by the GPL ``pelagic`` package, a
+test extra) on the same (range, depth) section as aquasim_py's range-dependent solver.
+
+The section of one link (aquasim_py.channel.rangedep.sections) becomes a BELLHOP case: the
+profile of its first column as a c-linear SSP (the comparisons use depth-only fields, where
+BELLHOP's and our interpolations are the same function), the floor polyline as a linear
+bathymetry (.bty, 'L'), the sediment as an acoustic half-space, a vacuum surface; run type 'A'
+(arrivals) with ``beams`` launch angles. Not used by the package.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+def available() -> tuple[bool, str]:
+    """(True, version) if pelagic imports here, else (False, the import error)."""
+    try:
+        import pelagic
+    except Exception as e:  # pragma: no cover - depends on the environment
+        return False, f"pelagic not importable: {e}"
+    return True, str(pelagic.__version__)
+
+
+@dataclass(frozen=True)
+class BellhopArrivals:
+    delay: np.ndarray  #: s (BELLHOP writes float32)
+    amplitude: np.ndarray
+    launch_deg: np.ndarray
+    surface: np.ndarray
+    bottom: np.ndarray
+
+
+def run(
+    r: np.ndarray,
+    floor_z: np.ndarray,
+    z: np.ndarray,
+    c: np.ndarray,
+    zs: float,
+    zr: float,
+    bottom: tuple[float, float, float],
+    beams: int = 4001,
+    angles_deg: tuple[float, float] = (-89.0, 89.0),
+    frequency_hz: float = 1000.0,
+    step_m: float = 0.0,
+    R: float | None = None,
+) -> BellhopArrivals:
+    """Arrivals at (R (default r[-1]), zr) from a source at (0, zs): section columns at ranges r (m)
+    with floor depths floor_z (m), speeds c (m/s) on depths z (m), either one profile (K,) or
+    one per column (J, K) (BELLHOP then interpolates bilinearly, option 'Q'); ``bottom`` =
+    (speed m/s, density, attenuation dB per wavelength); ``step_m`` BELLHOP's ray step (0: its
+    default, a tenth of the depth)."""
+    import pelagic as pg
+
+    zmax = float(np.max(floor_z))
+    zs, zr = float(zs), float(zr)
+    keep = z < zmax
+    zz = np.concatenate([z[keep], [zmax]])
+    c2 = np.atleast_2d(np.asarray(c, float))  # (profiles, depths): one profile, or one per column r
+
+    def on_zz(col: np.ndarray) -> np.ndarray:
+        if zmax <= z[-1]:
+            return np.interp(zz, z, col)
+        return np.concatenate([col[keep], [col[-1] + (col[-1] - col[-2]) / (z[-1] - z[-2]) * (zmax - z[-1])]])
+
+    cq = np.array([on_zz(col) for col in c2])
+    cz = cq[0]
+    quad = cq.shape[0] > 1  # range-dependent: BELLHOP's 'Q' (bilinear between profiles at r)
+    R = float(r[-1] if R is None else R)
+    bottom = tuple(float(v) for v in bottom)
+    with tempfile.TemporaryDirectory(prefix="aquasim-bellhop-") as tmp:
+        base = Path(tmp) / "case"
+        lines = [
+            "'aquasim section'",
+            f"{frequency_hz}",
+            "1",
+            "'QVW'" if quad else "'CVW'",
+            f"0 0.0 {zmax}",
+        ]
+        lines += [f"{float(zi)!r} {float(ci)!r} /" for zi, ci in zip(zz, cz)]
+        cb, rho, att = bottom
+        lines += [
+            "'A*' 0.0",
+            f"{zmax} {cb} 0.0 {rho} {att} /",
+            "1",
+            f"{zs} /",
+            "1",
+            f"{zr} /",
+            "1",
+            f"{R / 1000.0} /",
+            "'A'",
+            f"{beams}",
+            f"{angles_deg[0]} {angles_deg[1]} /",
+            f"{float(step_m)!r} {zmax * 1.01 + 1.0} {R * 1.01 / 1000.0 + 0.01}",
+        ]
+        base.with_suffix(".env").write_text("\n".join(lines) + "\n")
+        if quad:
+            # the end profiles repeated far beyond both ends: BELLHOP needs c wherever a ray goes
+            rq = np.concatenate([[min(r[0], 0.0) - 1e5], r, [max(r[-1], R) + 1e5]])
+            cqx = np.concatenate([cq[:1], cq, cq[-1:]])
+            ssp = [str(rq.size), " ".join(f"{float(v) / 1000.0!r}" for v in rq)]
+            ssp += [" ".join(f"{float(v)!r}" for v in cqx[:, i]) for i in range(zz.size)]
+            base.with_suffix(".ssp").write_text("\n".join(ssp) + "\n")
+        # bathymetry: linear between points, ranges in km (extended a little past both ends)
+        rb = np.concatenate([[min(r[0], 0.0) - 0.01 * R - 1.0], r, [max(r[-1], R) * 1.02 + 10.0]]) / 1000.0
+        zb = np.concatenate([[floor_z[0]], floor_z, [floor_z[-1]]])
+        bty = ["'L'", str(rb.size)] + [f"{float(a)!r} {float(b)!r}" for a, b in zip(rb, zb)]
+        base.with_suffix(".bty").write_text("\n".join(bty) + "\n")
+        res = pg.bellhop.load(str(base.with_suffix(".env"))).run()
+    a = res.arrivals
+    return BellhopArrivals(
+        delay=np.asarray(a.travel_time_s, float),
+        amplitude=np.asarray(a.amplitude, float),
+        launch_deg=np.asarray(a.source_angle_degrees, float),
+        surface=np.asarray(a.top_bounces, int),
+        bottom=np.asarray(a.bottom_bounces, int),
+    )
