@@ -41,6 +41,7 @@ class UnawaitedEventsWarning(UserWarning):
     """A protocol's nodes made ``sleep`` / ``recv`` / ``send`` / ``broadcast`` events that fired
     with nobody waiting on them: almost always a missing ``yield``."""
 
+
 ClockSpec = Sequence[Any] | Callable[[int, np.random.Generator], Any] | None
 MobilitySpec = Any  # a Mobility object, or a callable rng -> Mobility
 
