@@ -149,3 +149,36 @@ def test_imm_beats_raw_fixes_on_turning_nodes():
     imm = np.mean([_variant("itmtl", s, mobility=turn, promotion=False)["loc_rmse_m"] for s in seeds])
     raw = np.mean([_variant("itmtl", s, mobility=turn, promotion=False, imm=False)["loc_rmse_m"] for s in seeds])
     assert imm < raw
+
+
+def _node(raw: dict, index: int):
+    """Node ``index`` of the scenario, built (not run)."""
+    raw["simulation"]["duration_s"] = 1.0
+    return scenario.build(scenario.load_dict(raw, SCEN)).nodes[index]
+
+
+def test_reply_hold_per_slot_and_closed_req():
+    """A reference answers in the slot the Req lists it in, in a random open slot when it is
+    not listed, and not at all when the Req is closed (the hierarchy)."""
+    ref = _node(_raw(), 0)
+    req = {"slots": (3, 0, 2), "open": 0, "slot_s": 1.0, "turn_s": 0.15}
+    assert ref.reply_hold(req) == pytest.approx(0.15 + 1 * 1.0)
+    assert ref.reply_hold({**req, "slots": (3, 2)}) is None
+    holds = {ref.reply_hold({**req, "slots": (3, 2), "open": 4}) for _ in range(50)}
+    assert holds <= {0.15 + k * 1.0 for k in range(2, 6)} and len(holds) > 1
+
+
+def test_requester_and_responder_are_processes_of_one_node(itmtl_tables):
+    """A promoted node answers other nodes' Reqs while its own round collects answers: the
+    two roles run side by side (one process each), not in turns."""
+    pk = itmtl_tables["packets"]
+    tx = pk[pk["event"] == "tx"]
+    rounds = itmtl_tables["reqres_rounds"]
+    overlap = 0
+    for node, mine in tx[tx["kind"] == "sync_req"].groupby("node"):
+        closes = rounds[rounds["node"] == node]["time"].to_numpy()
+        res = tx[(tx["kind"] == "sync_res") & (tx["node"] == node)]["time"].to_numpy()
+        for t1 in mine["time"].to_numpy():
+            end = closes[closes >= t1].min(initial=np.inf)
+            overlap += int(((res > t1) & (res < end)).sum())
+    assert overlap > 0
