@@ -388,14 +388,14 @@ MEMORY_SCENARIO = textwrap.dedent(
     [[nodes]]
     name = "beacons"
     role = "anchor"
-    protocol = "multilateration_bound"
+    protocol = "multilateration_all_refs"
     placement = { kind = "explicit", positions = [[0.0, 231.0, 20.0], [200.0, -115.5, 20.0], [-200.0, -115.5, 20.0]] }
     params = { range_m = 260.0, period_s = 10.0, listen_s = 9.0, send_window_s = 5.0 }
     [[nodes]]
     name = "unknown"
     role = "ordinary"
     count = 4
-    protocol = "multilateration_bound"
+    protocol = "multilateration_all_refs"
     placement = { kind = "uniform", lo = [-15.0, -15.0, 15.0], hi = [15.0, 15.0, 25.0] }
     params = { range_m = 260.0, period_s = 10.0, listen_s = 9.0, send_window_s = 5.0 }
     [trace]

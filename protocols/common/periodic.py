@@ -2,7 +2,12 @@
 
 Every ``period_s`` (local clock) references broadcast one beacon at a uniform random offset in
 [0, ``send_window_s``); unknown nodes listen until ``listen_s`` into the period, then localize
-from the beacons heard. Subclasses give the payload, the localization, and when to start.
+from the beacons heard. Subclasses say whether the node is a reference this period
+(:meth:`PeriodicBeaconNode.advertises`, decided at the period start), what a reference does
+right before it speaks (:meth:`~PeriodicBeaconNode.localize_reference`), the payload
+(:meth:`~PeriodicBeaconNode.beacon_payload`, composed at the send instant, so the position it
+carries is the sender's at the MAC transmit stamp the receivers measure from), the
+localization, and when to start.
 """
 
 from __future__ import annotations
@@ -64,8 +69,15 @@ class PeriodicBeaconNode(Node):
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)
     drain_inbox = True
 
+    def advertises(self) -> bool:
+        """Whether this node is a reference this period (asked at the period start)."""
+        raise NotImplementedError
+
+    def localize_reference(self) -> None:
+        """A reference's own localization right before its beacon (default: none)."""
+
     def beacon_payload(self) -> Any:
-        """What this node broadcasts this period, or None if it is not a reference."""
+        """The beacon, composed at its send instant (no side effects)."""
         raise NotImplementedError
 
     def localize(self, heard: list[Any]) -> None:
@@ -82,13 +94,13 @@ class PeriodicBeaconNode(Node):
         k = 0
         while True:
             period_start = t_start + k * p.period_s
-            payload = self.beacon_payload()
-            if payload is not None:
+            if self.advertises():
                 # A random offset per period: all references sending at once would be deaf to
                 # each other (half-duplex modems); the paper's simulation has no MAC at all.
                 offset = self.rng.uniform(0.0, p.send_window_s)
                 yield self.sleep(max(0.0, period_start + offset - self.local_time()))
-                yield self.broadcast(self.beacon_kind, payload, p.bits)
+                self.localize_reference()
+                yield self.broadcast(self.beacon_kind, self.beacon_payload(), p.bits)
             if not self.is_beacon:
                 yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
                 received: list[Reception] = []

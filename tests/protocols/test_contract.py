@@ -70,12 +70,12 @@ CASES: dict[str, tuple[str, list[str]]] = {
             "nodes.1.params={training_s=1.0}",
         ],
     ),
-    "multilateration_bound": (
+    "multilateration_all_refs": (
         "stvf_quick.toml",
         [
             "simulation.duration_s=4.0",
-            'nodes.0.protocol="multilateration_bound"',
-            'nodes.1.protocol="multilateration_bound"',
+            'nodes.0.protocol="multilateration_all_refs"',
+            'nodes.1.protocol="multilateration_all_refs"',
             "nodes.0.params={training_s=1.0}",
             "nodes.1.params={training_s=1.0}",
         ],
