@@ -46,6 +46,7 @@ from aquasim_py.node import Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
+from ..stvf.genie import crb_metrics
 from ..stvf.metrics import localization_metrics
 from .math import MobilityPredictor, in_range, prediction_residual, slmp_confidence
 
@@ -86,7 +87,7 @@ class SlmpNode(PeriodicBeaconNode):
     re-localize when the prediction misses."""
 
     name = "slmp"
-    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
+    trace_tables = ("estimates", "nodes", "positions")  # what metrics / derived_tables / report read
     Params = SlmpParams
     beacon_kind = KIND
 
@@ -208,6 +209,9 @@ class SlmpNode(PeriodicBeaconNode):
             miss_m=miss,
             attempted=attempted,
             period_s=p.period_s,
+            epoch_lag_s=now - epoch,
+            refs=" ".join(str(rec.packet.src) for rec in heard),
+            range_rel_std=p.noise_ratio,
         )
 
     def least_squares(self, refs: np.ndarray, r: np.ndarray) -> np.ndarray | None:
@@ -227,7 +231,7 @@ class SlmpNode(PeriodicBeaconNode):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
-        out = localization_metrics(tables, cls.name)
+        out = {**localization_metrics(tables, cls.name), **crb_metrics(tables, cls.name)}
         est = tables.get("estimates")
         if est is not None and len(est) and "method" in est.columns:
             e = est[est["protocol"] == cls.name]

@@ -36,6 +36,7 @@ from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
 from ..common.track import EpochTrack
+from .genie import crb_metrics
 from .metrics import localization_metrics
 
 __all__ = ["StvfNode"]
@@ -170,7 +171,7 @@ class StvfNode(PeriodicBeaconNode):
     """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "stvf"
-    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
+    trace_tables = ("estimates", "nodes", "positions")  # what metrics / derived_tables / report read
     #: run the updates of one instant as one batch (_UpdateBatch; same results, faster);
     #: False runs each node's update inline
     batch_updates = True
@@ -265,6 +266,7 @@ class StvfNode(PeriodicBeaconNode):
         gamma = vf.measurement_confidence(eta, z, speed, (p.c1, p.c2, p.c3), penalize=p.penalize_far_fast)
         sel = vf.select_references(gamma, p.n_ref)
         z, refs, eta = z[sel], refs[sel], eta[sel]
+        used = " ".join(str(heard[i].packet.src) for i in sel)
         # the estimate is the position when its ranges were measured (their mean receive stamp)
         epoch = float(t_rx[sel].mean()) if p.estimate_epoch == "measurement" else now
 
@@ -285,6 +287,7 @@ class StvfNode(PeriodicBeaconNode):
             depth=depth,
             fresh=fresh,
             n_heard=len(heard),
+            used=used,
         )
         # Deferred to the end of this instant, unless the next period starts at it (listen_s >=
         # period_s): the node then reads its own confidence for its beacon at this instant.
@@ -307,6 +310,7 @@ class StvfNode(PeriodicBeaconNode):
         depth: float,
         fresh: bool,
         n_heard: int,
+        used: str,
     ) -> None:
         """The rest of a localization once Algorithm 1's update ``out`` is in: the estimate is
         recorded at its measurement ``epoch`` and logged carried to ``now``."""
@@ -330,6 +334,8 @@ class StvfNode(PeriodicBeaconNode):
             fresh=fresh,
             period_s=p.period_s,
             epoch_lag_s=now - epoch,
+            refs=used,
+            range_rel_std=p.noise_ratio,
         )
 
     def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray | None:
@@ -345,4 +351,4 @@ class StvfNode(PeriodicBeaconNode):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
-        return localization_metrics(tables, cls.name, converge_within=5)
+        return {**localization_metrics(tables, cls.name, converge_within=5), **crb_metrics(tables, cls.name)}
