@@ -121,8 +121,14 @@ class StvfParams(BaseModel):
     c1: float = Field(0.7, ge=0, description="gamma weight of the reference confidence")
     c2: float = Field(0.2, ge=0, description="gamma weight of the normalized delay")
     c3: float = Field(0.1, ge=0, description="gamma weight of the normalized reference speed")
-    penalize_far_fast: bool = Field(True, description="gamma uses 1 - f_z, 1 - f_v (text) instead of eq 27 as printed")
-    absolute_error: bool = Field(True, description="eq 26 sums |error| per reference instead of the signed sum")
+    penalize_far_fast: bool = Field(
+        False,
+        description="eq 27: gamma = C1 eta + C2 f_z + C3 f_v as printed (false), or with (1 - f_z), (1 - f_v) "
+        "as the text motivating it reads (true: far and fast references ranked down)",
+    )
+    absolute_error: bool = Field(
+        False, description="eq 26: E sums the signed errors as printed (false), or |error| per reference (true)"
+    )
     transition_precision: float = Field(1 / 900, gt=0, description="Lambda = this * I (1/m^2)")
     wishart_scale: float = Field(5.0, gt=0, description="W = this * I")
     wishart_dof: float = Field(10.0, gt=0, description="n")
