@@ -667,7 +667,7 @@ class NoisyConstantVelocity(Mobility):
         """Draw the first ``steps`` steps, each node's again until its track stays in the box."""
         p0, v0 = self._P.last.copy(), self._V.last.copy()
         ps, vs = self._steps(self._steps_rng.standard_normal((steps, self.n, 3, 2)), p0, v0)
-        out = ~self.box.contains(ps).all(axis=0)  # (n,)
+        out: NDArray[np.bool_] = np.asarray(~self.box.contains(ps).all(axis=0))  # (n,)
         tries = 1
         while out.any():
             if tries >= max_redraws:
