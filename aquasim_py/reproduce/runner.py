@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from aquasim_py import scenario, sweep
+from aquasim_py.scenario import Scenario
 
 from .claims import Claim, Paper, Quantity, Reading, Scale
 from .verdict import Outcome, evaluate
@@ -40,7 +41,7 @@ class Unit:
     variants: tuple[str | None, ...]
     runs: int
 
-    def load(self) -> scenario.Scenario:
+    def load(self) -> Scenario:
         """The scenario with a ``[sweep]`` of the unit's seeds and variants."""
         grid = {} if self.variants == (None,) else {"variant": list(self.variants)}
         sets = [*self.overrides, f"sweep.runs={self.runs}", f"sweep.grid={_toml_inline(grid)}"]
