@@ -111,7 +111,9 @@ def run_units(
             journal.unlink(missing_ok=True)
         before, _dropped = sweep.read_journal(journal, repair=True)
         done = sweep.done_keys(before)
-        todo = [j for j in jobs if j.key not in done]
+        # seed by seed, every variant of a seed before the next seed: a reproduction stopped
+        # early has complete, paired seeds
+        todo = sorted((j for j in jobs if j.key not in done), key=lambda j: (j.run, j.index))
         if todo:
             base = len(jobs) - len(todo)
             total = len(jobs)
