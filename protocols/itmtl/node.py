@@ -1,8 +1,8 @@
-"""ITMTL: joint time synchronization and localization by iterative tracing (seed 004).
+"""ITMTL: joint time synchronization and localization by iterative tracing.
 
 R. Gao, D. Qiao, M. Zhang, G. Xu et al., mobile target localization based on iterative
 tracing for underwater wireless sensor networks. The equations of the paper were lost; the
-maths follows the reconstruction in ``notes/papers.md`` (see :mod:`aquasim_protocols.itmtl.math` and
+maths follows the reconstruction in docs/itmtl.md (see :mod:`aquasim_protocols.itmtl.math` and
 :mod:`aquasim_py.estimation.sync`).
 
 Roles: buoys and anchors answer Req messages (true time, known position); ordinary nodes run

@@ -420,7 +420,7 @@ class ReqResNode(Node):
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
 
-    #: What the ITMTL paper (seed 004) reports for this protocol, quantity -> claim, listed by
+    #: What the ITMTL paper reports for this protocol, quantity -> claim, listed by
     #: the report of a single run (the variants runner prints them with our values: paper.py).
     paper: ClassVar[dict[str, str]] = {}
 
