@@ -5,7 +5,8 @@ every reading of the paper's open choices (``claims.csv``, ``index.html``: :mod:
     aquasim-py reproduce stvf --quick
     aquasim_py.reproduce.reproduce("stvf", "quick", "out/reproduce/stvf-quick")
 
-``DIR`` holds ``claims.csv``, ``index.html``, ``reproduce.json`` (what ran: paper, scale,
+``DIR`` holds ``claims.csv`` (and the same as a markdown table, ``claims.md``), ``index.html``,
+``reproduce.json`` (what ran: paper, scale,
 command, units, timing) and ``units/<unit>/`` (each unit's row journal, ``sweep.csv`` and
 ``summary.csv``).
 """
@@ -22,7 +23,7 @@ import pandas as pd
 
 from .claims import REL_TOL, Claim, Paper, Quantity, Reading, Scale
 from .papers import PAPERS
-from .report import claims_table, write_csv, write_html
+from .report import claims_table, markdown, write_csv, write_html
 from .runner import Unit, evaluate_claims, plan_units, run_units
 
 __all__ = [
@@ -38,7 +39,7 @@ __all__ = [
     "select",
 ]
 
-OUTPUTS = ("claims.csv", "index.html", "reproduce.json")
+OUTPUTS = ("claims.csv", "claims.md", "index.html", "reproduce.json")
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,7 @@ def reproduce(
     results = evaluate_claims(p, sc, claims, rows, units, sets=sets)
     table = claims_table(p, results)
     write_csv(table, out / "claims.csv")
+    (out / "claims.md").write_text(markdown(table))
     write_html(p, scale, sc, table, command, out / "index.html")
     wall = time.perf_counter() - t0
     info = {

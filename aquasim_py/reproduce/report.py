@@ -13,7 +13,7 @@ import pandas as pd
 from .claims import REL_TOL, Paper, Scale
 from .runner import ClaimResult
 
-__all__ = ["claims_table", "write_csv", "write_html"]
+__all__ = ["claims_table", "markdown", "write_csv", "write_html"]
 
 COLUMNS = [
     "paper",
@@ -128,3 +128,17 @@ The project's reconstruction of the paper: {esc(paper.doc)}.</p>
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(page, encoding="utf-8")
     tmp.replace(path)
+
+
+def markdown(table: pd.DataFrame) -> str:
+    """The claims as a markdown table (one row per claim and reading), for the docs."""
+    lines = [
+        "| claim | where | reading | paper | ours [95 % CI] | n | verdict |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in table.itertuples():
+        paper = str(r.paper_text) if isinstance(r.paper_text, str) and r.paper_text else _num(float(r.paper_value))
+        ours = f"{_num(float(r.ours))} [{_num(float(r.ci95_low))}, {_num(float(r.ci95_high))}]"
+        verdict = f"**{r.verdict}**" if r.verdict in ("holds", "does not hold") else str(r.verdict)
+        lines.append(f"| {r.claim}: {r.text} | {r.figure} | {r.reading} | {paper} | {ours} | {r.n} | {verdict} |")
+    return "\n".join(lines) + "\n"

@@ -17,11 +17,23 @@ from operator import itemgetter
 from typing import Any
 
 import simpy
+from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.node import Node
 from aquasim_py.packet import Reception
 
 _TURNS = "periodic_turns"  # key of the run's _Turns in Node.out_of_band
+
+
+class PeriodicParams(BaseModel):
+    """The period cycle's parameters (STVF Table 1 / Sec. 5.3 defaults)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    period_s: float = Field(1.0, gt=0, description="localization period (s)")
+    listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
+    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
+    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
 
 
 class _Turns:
@@ -56,7 +68,8 @@ class _Turns:
 
 class PeriodicBeaconNode(Node):
     """Node base for period-based beacon localization; ``params`` needs ``period_s``,
-    ``listen_s``, ``send_window_s`` and ``bits``, and ``setup`` must set ``is_beacon``."""
+    ``listen_s``, ``send_window_s`` and ``bits`` (:class:`PeriodicParams`), and ``setup``
+    must set ``is_beacon``."""
 
     beacon_kind: str = "beacon"
     is_beacon: bool

@@ -32,7 +32,7 @@ from collections.abc import Mapping
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
@@ -40,7 +40,7 @@ from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from ..common.periodic import PeriodicBeaconNode
+from ..common.periodic import PeriodicBeaconNode, PeriodicParams
 from ..stvf.metrics import localization_metrics
 from .math import MobilityPredictor, in_range, slmp_confidence
 
@@ -49,15 +49,9 @@ __all__ = ["MultilaterationAllRefsNode", "MultilaterationAllRefsParams"]
 KIND = "mlat_all_beacon"
 
 
-class MultilaterationAllRefsParams(BaseModel):
+class MultilaterationAllRefsParams(PeriodicParams):
     """Parameters of ``multilateration_all_refs`` (SLMP's STVF Sec. 5.3 defaults where shared)."""
 
-    model_config = ConfigDict(extra="forbid")
-
-    period_s: float = Field(1.0, gt=0, description="localization period (s)")
-    listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
-    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
-    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
     training_s: float = Field(100.0, ge=0, description="beacon training before unknown nodes localize (s)")
     window_s: float = Field(60.0, gt=0, description="prediction window (s)")
     overlap: float = Field(0.2, ge=0, lt=1, description="overlap of neighbouring windows (fraction)")

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from aquasim_py import metrics as generic
 from aquasim_py.estimation.bounds import range_crb_trace
@@ -37,7 +37,7 @@ from aquasim_py.estimation.variational import initial_fix
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from ..common.periodic import PeriodicBeaconNode
+from ..common.periodic import PeriodicBeaconNode, PeriodicParams
 
 __all__ = ["GenieMultilaterationNode", "crb_metrics", "genie_fixes"]
 
@@ -45,15 +45,9 @@ KIND = "genie_beacon"
 RANGES = "genie_ranges"
 
 
-class GenieParams(BaseModel):
+class GenieParams(PeriodicParams):
     """The beacon cycle and ranging model of STVF (Table 1 defaults)."""
 
-    model_config = ConfigDict(extra="forbid")
-
-    period_s: float = Field(1.0, gt=0, description="localization period (s)")
-    listen_s: float = Field(0.9, gt=0, description="time after the period start to collect beacons (s)")
-    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
-    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay (STVF's measurement model)")
     speed_mps: float = Field(1500.0, gt=0, description="nominal sound speed, delays to ranges (m/s)")
     speed_std_mps: float = Field(10.0, ge=0, description="spread of the true sound speed around it (m/s)")
