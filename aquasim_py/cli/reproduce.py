@@ -125,6 +125,6 @@ def _print_table(table: object) -> None:
     for c in ("claim", "reading", "paper", "ours", "verdict"):
         t.add_column(c)
     for r in table.itertuples():  # type: ignore[attr-defined]
-        paper = r.paper_text or common.fmt(r.paper_value)
+        paper = r.paper_text or f"{r.paper_value:.4g}"
         t.add_row(r.claim, r.reading, paper, f"{r.ours:.4g} [{r.ci95_low:.4g}, {r.ci95_high:.4g}]", str(r.verdict))
     console().print(t)
