@@ -81,7 +81,7 @@ def quiet_gc() -> Iterator[None]:
     reference counting (SimPy breaks its event-process cycles when an event is processed), so
     the collections mostly rescan the live signal records, queue entries and packets, whose
     number grows with the network: at 5000 nodes they cost about a fifth of the run
-    (tools/bench_kernel.py, docs/performance.md)."""
+    (tools/bench_kernel.py)."""
     gc.freeze()
     old = gc.get_threshold()
     gc.set_threshold(max(old[0], RUN_GC_THRESHOLD), *old[1:])

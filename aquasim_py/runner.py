@@ -339,7 +339,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
         tables = finish()
     # The metrics read the tables back from the files: the network (nodes, modem buffers,
     # SimPy queue; reference cycles) is freed first, so that reading reuses its memory instead
-    # of adding to the run's peak (docs/performance.md, STVF at paper scale).
+    # of adding to the run's peak (STVF's Table 1 run).
     del sim, finish
     gc.collect()
     errors: dict[str, str] = {}

@@ -91,7 +91,7 @@ def csv_lines(
     """The CSV text of ``n`` rows given as columns (kind, values, categories) as in
     :class:`_Chunk`, byte for byte what ``DataFrame.to_csv`` writes for them, formatted a
     column at a time instead of through pandas' per-field path (about 5 us per ``packets``
-    row there, 1-2 us here; docs/performance.md, "End to end"). ``quoted`` caches string
+    row there, 1-2 us here). ``quoted`` caches string
     fields across calls. None when an object column holds something other than strings /
     None / bools, for a single column (csv writes an empty lone field as ``""``) and for no
     rows: the caller then uses pandas."""

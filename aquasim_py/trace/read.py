@@ -55,7 +55,7 @@ def _read_csv(path: Path, name: str, columns: Sequence[str] | None = None) -> pd
         header = [c for c in header if c in columns]
     if len(set(header)) == len(header):
         # the columns named even when all are read: the parse then peaks about 25 MiB lower
-        # on STVF's 500-s estimates (14.5 MB; docs/performance.md, "End to end")
+        # on STVF's 500-s estimates (14.5 MB)
         kw["usecols"] = list(header)
     # categories as text: "007" or "1.50" must not become numbers
     dtype = {c: str for c in header if kinds.get(c) == "c"}

@@ -79,7 +79,7 @@ class TraceConfig:
 #: rows a streamed table holds before handing them to its file (~0.5 MB of columns for
 #: ``packets``; formatting a chunk as CSV briefly takes several times that, and the heap keeps
 #: that high-water mark: 16384 rows cost STVF's Table-1 run, at 100 s, 17 MiB more peak
-#: memory for no measurable CPU, docs/performance.md)
+#: memory for no measurable CPU)
 CHUNK_ROWS = 4096
 
 

@@ -42,7 +42,7 @@ class Table:
 
     # rows buffered before they move into the columns: 512 row tuples (about 150 kB with their
     # numbers) are still in the core's cache when the columns take them and free them; 4096
-    # were not in a large network (docs/performance.md, ninth pass)
+    # were not in a large network (200 nodes, bench_kernel.py)
     _BATCH = 512
 
     def __init__(self, name: str, schema: Iterable[tuple[str, str]] = ()) -> None:

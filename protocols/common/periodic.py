@@ -76,7 +76,7 @@ class PeriodicBeaconNode(Node):
     # An unknown node empties its inbox once a period (at most one beacon per reference in
     # range: 35 at Table 1's density 16); beacons never read theirs, so with the kernel's
     # default of 4096 each of Table 1's 40 anchors would hold its last 4096 receptions, about
-    # 100 MiB at the end of a 500-s run (docs/performance.md). 256 keeps every period's beacons.
+    # 100 MiB at the end of a 500-s run. 256 keeps every period's beacons.
     inbox_capacity = 256
     #: take the inbox at once and localize in turn (_Turns) instead of one recv() event per
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)

@@ -86,7 +86,7 @@ def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int
     if nodes is None or pk is None or len(nodes) == 0:
         return float("nan")
     # imported here: every run imports every built-in protocol (the registry), and networkx
-    # adds about 12 MiB to each one's memory (docs/performance.md)
+    # adds about 12 MiB to each one's memory
     import networkx as nx
 
     rx = pk[pk["event"].astype(str) == "rx"]

@@ -69,7 +69,7 @@ class _UpdateBatch:
     """Algorithm 1's updates handed in at one instant, run together after the instant's other
     events (``NodeEnv.at_instant_end``) by ``variational_update_batch``: with a common period
     every unknown node localizes at the same instant, and one numpy call for all of them costs
-    about what one node's costs alone (docs/performance.md). Each node's result has the bits of
+    about what one node's costs alone (0.18 against 1.0 ms per node). Each node's result has the bits of
     its update alone, drawn from its own stream; no node sees another's data. The nodes then
     finish in the order they handed in, so rows are logged as with one update per node."""
 
