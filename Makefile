@@ -8,7 +8,7 @@ UV     ?= uv
 # one universal lock for Python 3.11 and newer (markers where a newest release dropped 3.11)
 COMPILE = $(UV) pip compile pyproject.toml --universal --python-version 3.11 --quiet --no-header
 
-.PHONY: run test lint docs install install-test install-lint install-docs lock lock-check clean
+.PHONY: run test lint docs docs-check install install-test install-lint install-docs lock lock-check clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -55,15 +55,22 @@ test: install-test
 	$(BIN)/python -m pytest -q
 
 lint: install-lint
-	$(BIN)/ruff check aquasim_py protocols tools tests
-	$(BIN)/ruff format --check aquasim_py protocols tools tests
+	$(BIN)/ruff check aquasim_py protocols tools tests docs/_ext docs/tutorials/files
+	$(BIN)/ruff format --check aquasim_py protocols tools tests docs/_ext docs/tutorials/files
 	$(BIN)/mypy
 	$(BIN)/python tools/import_graph.py
 
 # the site, strict (a warning, a broken link or a failing tutorial cell fails it), into site/;
-# offline: nothing is fetched while it builds
+# offline: nothing is fetched while it builds. The tutorials' shell blocks run the environment's
+# aquasim-py (PATH); NO_MKDOCS_2_WARNING silences Material's notice about MkDocs 2 (docs/about.md)
+DOCS_ENV = PATH="$(abspath $(DOCS_BIN)):$$PATH" NO_MKDOCS_2_WARNING=1
 docs: install-docs
-	$(DOCS_BIN)/mkdocs build --strict --clean --site-dir site
+	$(DOCS_ENV) $(DOCS_BIN)/mkdocs build --strict --clean --site-dir site
+
+# checks of the built site: it loads nothing from the network, and a failing tutorial cell
+# fails the build (tools/docs_check.py)
+docs-check: install-docs
+	$(DOCS_ENV) $(DOCS_BIN)/python tools/docs_check.py
 
 lock:
 	$(COMPILE) -o $(LOCKS)/run.txt
