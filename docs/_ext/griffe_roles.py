@@ -8,20 +8,21 @@ no warning, as Sphinx shows an unresolved role). Names are resolved as Sphinx re
 in the scope of the documented object (its module's imports and members), a leading dot
 relative to the enclosing modules, otherwise as a full dotted path.
 
-A reST literal-block marker (a line ending in ``::``) becomes a single colon: the indented
-block after it is a Markdown code block already.
+A reST literal block (a paragraph ending in ``::``, then a block indented under it) becomes
+a fenced Markdown code block at the paragraph's indentation, so that it stays a code block
+inside a list item too; the ``::`` becomes a single colon.
 """
 
 from __future__ import annotations
 
 import re
+import textwrap
 from typing import Any
 
 import griffe
 
 _ROLE = re.compile(r":(?:py:)?(?:func|class|mod|meth|attr|data|exc|obj|const):`(?P<body>[^`]+)`")
-_LITERAL = re.compile(r"(?<=\S)::$", re.MULTILINE)  # "Example::" -> "Example:"
-_BARE_LITERAL = re.compile(r"^\s*::\s*$\n?", re.MULTILINE)  # a line holding only "::"
+_BULLET = re.compile(r"^(\s*)([-*+]|\d+\.)\s+")
 
 
 def _find(root: griffe.Object, path: str) -> griffe.Object | griffe.Alias | None:
@@ -69,9 +70,45 @@ def _rewrite(obj: griffe.Object | griffe.Alias, text: str) -> str:
             return f"`{title}`"
         return f'<autoref identifier="{path}" optional><code>{title}</code></autoref>'
 
-    text = _ROLE.sub(link, text)
-    text = _BARE_LITERAL.sub("", text)
-    return _LITERAL.sub(":", text)
+    return _literal_blocks(_ROLE.sub(link, text))
+
+
+def _indent(line: str) -> int:
+    return len(line) - len(line.lstrip())
+
+
+def _literal_blocks(text: str) -> str:
+    """Each reST literal block as a fenced code block (see the module docstring)."""
+    lines = text.split("\n")
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        i += 1
+        if not line.rstrip().endswith("::"):
+            out.append(line)
+            continue
+        head = line.rstrip()[:-2].rstrip()
+        if head:
+            out.append(head + ":")
+        # the paragraph's indentation: its own, or its list item's content column
+        bullet = _BULLET.match(line)
+        base = len(bullet.group(0)) if bullet else _indent(line)
+        j = i
+        while j < len(lines) and not lines[j].strip():
+            j += 1
+        block_end = j
+        while block_end < len(lines) and (not lines[block_end].strip() or _indent(lines[block_end]) > base):
+            block_end += 1
+        while block_end > j and not lines[block_end - 1].strip():
+            block_end -= 1
+        if block_end == j:  # no indented block follows: an ordinary colon
+            continue
+        pad = " " * base
+        body = textwrap.dedent("\n".join(lines[j:block_end]))
+        out += ["", pad + "```", *(pad + b if b else b for b in body.split("\n")), pad + "```"]
+        i = block_end
+    return "\n".join(out)
 
 
 class SphinxRoles(griffe.Extension):
