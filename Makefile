@@ -67,8 +67,8 @@ DOCS_ENV = PATH="$(abspath $(DOCS_BIN)):$$PATH" NO_MKDOCS_2_WARNING=1
 docs: install-docs
 	$(DOCS_ENV) $(DOCS_BIN)/mkdocs build --strict --clean --site-dir site
 
-# checks of the built site: it loads nothing from the network, and a failing tutorial cell
-# fails the build (tools/docs_check.py)
+# checks of the site: it loads nothing from the network, and a failing tutorial cell, a link
+# to a missing page or heading each fail the build (tools/docs_check.py)
 docs-check: install-docs
 	$(DOCS_ENV) $(DOCS_BIN)/python tools/docs_check.py
 
