@@ -10,11 +10,13 @@ relative to the enclosing modules, otherwise as a full dotted path.
 
 A reST literal block (a paragraph ending in ``::``, then a block indented under it) becomes
 a fenced Markdown code block at the paragraph's indentation, so that it stays a code block
-inside a list item too; the ``::`` becomes a single colon.
+inside a list item too (highlighted as Python when it parses as Python); the ``::`` becomes a
+single colon.
 """
 
 from __future__ import annotations
 
+import ast
 import re
 import textwrap
 from typing import Any
@@ -77,6 +79,15 @@ def _indent(line: str) -> int:
     return len(line) - len(line.lstrip())
 
 
+def _is_python(code: str) -> bool:
+    """Whether a literal block is Python source (highlighted as such) rather than TOML or text."""
+    try:
+        ast.parse(code)
+    except SyntaxError:
+        return False
+    return True
+
+
 def _literal_blocks(text: str) -> str:
     """Each reST literal block as a fenced code block (see the module docstring)."""
     lines = text.split("\n")
@@ -106,7 +117,8 @@ def _literal_blocks(text: str) -> str:
             continue
         pad = " " * base
         body = textwrap.dedent("\n".join(lines[j:block_end]))
-        out += ["", pad + "```", *(pad + b if b else b for b in body.split("\n")), pad + "```"]
+        fence = pad + "```" + ("python" if _is_python(body) else "")
+        out += ["", fence, *(pad + b if b else b for b in body.split("\n")), pad + "```"]
         i = block_end
     return "\n".join(out)
 
