@@ -194,7 +194,7 @@ def _no_truth(hint: str) -> _Unavailable:
     """A node's answer to a guessed truth attribute; ``hint`` says what to use instead."""
     return _Unavailable(
         "{cls} has no attribute {name!r}: a node sees only its local clock, its receptions and its own "
-        f"sensors{hint} (README, 'Writing a protocol')"
+        f"sensors{hint} (docs/node.md, 'Writing a protocol')"
     )
 
 

@@ -1,4 +1,4 @@
-"""Runs the complete protocol example of the README ("Writing a protocol")."""
+"""Runs the complete protocol example of docs/node.md ("Writing a protocol")."""
 
 from __future__ import annotations
 
@@ -8,17 +8,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-MARKER = "<!-- readme-example: kernel -->"
+MARKER = "<!-- example: kernel -->"
 
 
 def _example_source() -> tuple[Path, str]:
-    path = ROOT / "README.md"
+    path = ROOT / "docs" / "node.md"
     text = path.read_text(encoding="utf-8")
     if MARKER not in text:
-        pytest.fail(f"README.md does not contain {MARKER}")
+        pytest.fail(f"{path} does not contain {MARKER}")
     m = re.search(r"```python\n(.*?)```", text[text.index(MARKER) :], re.S)
     if m is None:
-        pytest.fail(f"README.md: no ```python block after {MARKER}")
+        pytest.fail(f"{path}: no ```python block after {MARKER}")
     return path, m.group(1)
 
 
