@@ -78,13 +78,14 @@ class SensorUnavailable(RuntimeError):
 class Sensors:
     """A group's sensors.
 
-    depth_std: std of the depth gauge's Gaussian noise (m).
-    position_std: std of the position fix's Gaussian noise per axis (m).
-    position: whether the nodes know their own position (GPS at the surface, or a surveyed
-        mooring); None = the role's default: buoys and anchors only.
-    velocity_std: std of the velocity sensor's Gaussian noise per axis (m/s).
-    velocity: whether the nodes have a velocity sensor (DVL / GPS-derived); None = the role's
-        default: every role but ``target`` (a non-cooperative target reports nothing).
+    Attributes:
+        depth_std: Std of the depth gauge's Gaussian noise (m).
+        position_std: Std of the position fix's Gaussian noise per axis (m).
+        position: Whether the nodes know their own position (GPS at the surface, or a surveyed
+            mooring); None = the role's default: buoys and anchors only.
+        velocity_std: Std of the velocity sensor's Gaussian noise per axis (m/s).
+        velocity: Whether the nodes have a velocity sensor (DVL / GPS-derived); None = the
+            role's default: every role but ``target`` (a non-cooperative target reports nothing).
     """
 
     depth_std: float = 0.0
@@ -193,7 +194,7 @@ def _no_truth(hint: str) -> _Unavailable:
     """A node's answer to a guessed truth attribute; ``hint`` says what to use instead."""
     return _Unavailable(
         "{cls} has no attribute {name!r}: a node sees only its local clock, its receptions and its own "
-        f"sensors{hint} (README, 'Writing a protocol')"
+        f"sensors{hint} (docs/node.md, 'Writing a protocol')"
     )
 
 
@@ -213,6 +214,36 @@ class Node:
     class's ``Params`` model), ``rng`` (this node's own numpy Generator), ``env`` (a
     :class:`NodeEnv`). Class attributes for the registry: ``name``, ``Params``, ``metrics``
     (and ``trace_tables`` / ``trace_columns``, the tables and columns it reads).
+
+    Examples:
+        Anchors broadcast a ping every ``period_s`` seconds of their own clock; every other
+        node logs the local arrival stamp of each ping it hears. Saved as ``ping.py``, a
+        scenario runs it with ``protocol = "./ping.py:PingNode"`` (the tutorial
+        "A protocol in one file" builds a complete one)::
+
+            from pydantic import BaseModel, Field
+
+            from aquasim_py.node import Node, Role
+
+
+            class PingParams(BaseModel):
+                period_s: float = Field(10.0, gt=0, description="time between pings (local s)")
+
+
+            class PingNode(Node):
+                name = "ping"
+                Params = PingParams
+
+                def run(self):
+                    if self.role is Role.ANCHOR:
+                        yield self.sleep(self.rng.uniform(0.0, self.params.period_s))
+                        while True:
+                            yield self.broadcast("ping")
+                            yield self.sleep(self.params.period_s)
+                    else:
+                        while True:
+                            rx = yield self.recv(kinds="ping")
+                            self.log("pings", anchor=rx.packet.src, rx_local=rx.rx_local)
     """
 
     name: ClassVar[str] = "node"

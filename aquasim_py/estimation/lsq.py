@@ -66,6 +66,26 @@ def multilaterate(
     Gauss-Newton steps on the range residuals |x - a_i| - r_i (stopping once a step is below
     1 um): the maximum-likelihood fix for equal Gaussian range noise, which the linear
     solution is not once the ranges are noisy.
+
+    Examples:
+        Four anchors (x, y, depth in m), three at 10 m and one at 150 m, and a node at 120 m:
+
+        >>> import numpy as np
+        >>> from aquasim_py.estimation import multilaterate
+        >>> anchors = np.array([[0, 0, 10], [2000, 0, 10], [0, 2000, 10], [2000, 2000, 150]], float)
+        >>> truth = np.array([700.0, 1200.0, 120.0])
+        >>> ranges = np.linalg.norm(anchors - truth, axis=1)
+        >>> multilaterate(anchors, ranges).round(6)
+        array([ 700., 1200.,  120.])
+
+        With 1 m of range noise the nearly flat anchor geometry fixes the depth badly; a
+        known depth (a pressure gauge) removes that error:
+
+        >>> noisy = ranges + np.random.default_rng(1).normal(0.0, 1.0, 4)
+        >>> multilaterate(anchors, noisy).round(2)
+        array([ 699.51, 1200.06,  143.69])
+        >>> multilaterate(anchors, noisy, depth=120.0).round(2)
+        array([ 700.07, 1200.62,  120.  ])
     """
     A = _anchors(anchors)
     r = np.asarray(ranges, dtype=float).reshape(-1)

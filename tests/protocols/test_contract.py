@@ -83,7 +83,7 @@ CASES: dict[str, tuple[str, list[str]]] = {
     ),
 }
 
-# documented columns (DESIGN.md, README "Trace tables"); protocols may add their own
+# documented columns (docs/node.md, "Trace tables"); protocols may add their own
 DOCUMENTED = {
     "estimates": {"time", "node", "protocol", "x", "y", "z", "true_x", "true_y", "true_z", "error"},
     "clocks": {"time", "node", "protocol", "skew", "offset", "true_skew", "true_offset", "error"},
