@@ -51,6 +51,8 @@ __all__ = [
     "positions_at",
     "positions_source",
     "rmse",
+    "rmse_h",
+    "rmse_over_crb",
     "rmse_per_node",
     "select_rows",
     "summarize",
@@ -144,6 +146,33 @@ def rmse(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: A
     """
     e = position_errors(estimates, nodes, **select)
     return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
+
+
+def rmse_h(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """Root-mean-square horizontal error sqrt(mean((x_hat - x)^2 + (y_hat - y)^2)) (m) over the
+    selected rows (``select``: see :func:`select_rows`); NaN when none."""
+    df = select_rows(estimates, nodes, **select)
+    if len(df) == 0:
+        return float("nan")
+    d, _ = _err_vectors(df)
+    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)))
+
+
+def rmse_over_crb(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """sqrt(mean e_h^2) / sqrt(mean crb_h_m^2) over the selected rows with a finite ``crb_h_m``
+    (the rows that declared their references, :meth:`~aquasim_py.node.Node.log_estimate`):
+    the horizontal RMSE over the RMS of the bounds of the geometries the estimates used. 1 is
+    the bound of a one-shot unbiased fix from those ranges with the noise the node declared;
+    a filter that fuses earlier rounds may go below it. NaN without such rows."""
+    df = select_rows(estimates, nodes, **select)
+    if len(df) == 0 or "crb_h_m" not in df.columns:
+        return float("nan")
+    crb = pd.to_numeric(df["crb_h_m"], errors="coerce").to_numpy(float)
+    ok = np.isfinite(crb)
+    if not ok.any():
+        return float("nan")
+    d, _ = _err_vectors(df[ok])
+    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) / np.sqrt(np.mean(crb[ok] ** 2)))
 
 
 def mean_error(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
@@ -481,6 +510,10 @@ def summarize(
             loc["nmse"] = nmse(est, nodes, roles=roles)
             if nodes is not None:
                 loc["coverage"] = coverage(est, evaluated_nodes(nodes, roles))
+            loc["rmse_h_m"] = rmse_h(est, nodes, roles=roles)
+            ratio = rmse_over_crb(est, nodes, roles=roles)
+            if not math.isnan(ratio):  # only where some estimate declared its references
+                loc["rmse_over_crb"] = ratio
         return loc
 
     def sync() -> dict[str, float]:
