@@ -163,7 +163,8 @@ def rmse_over_crb(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **
     (the rows that declared their references, :meth:`~aquasim_py.node.Node.log_estimate`):
     the horizontal RMSE over the RMS of the bounds of the geometries the estimates used. 1 is
     the bound of a one-shot unbiased fix from those ranges with the noise the node declared;
-    a filter that fuses earlier rounds may go below it. NaN without such rows."""
+    a filter that fuses earlier rounds may go below it. NaN without such rows, or when their
+    bounds are all 0 (noise-free declarations)."""
     df = select_rows(estimates, nodes, **select)
     if len(df) == 0 or "crb_h_m" not in df.columns:
         return float("nan")
@@ -171,8 +172,11 @@ def rmse_over_crb(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **
     ok = np.isfinite(crb)
     if not ok.any():
         return float("nan")
+    bound = float(np.sqrt(np.mean(crb[ok] ** 2)))
+    if bound == 0.0:  # noise-free declarations: no ratio
+        return float("nan")
     d, _ = _err_vectors(df[ok])
-    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) / np.sqrt(np.mean(crb[ok] ** 2)))
+    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) / bound)
 
 
 def mean_error(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:

@@ -363,8 +363,8 @@ class Node:
         """Log a position estimate (m) to ``estimates``; the kernel adds truth and errors.
 
         ``refs``: the node ids whose ranges this estimate used, with the ranging noise the node
-        assumed for them: std ``range_std`` (m) + ``range_rel_std`` x range (both > 0 or one
-        of them), and ``depth_known``: z came from the depth gauge, the ranges fixed (x, y).
+        assumed for them: variance ``range_std``^2 + (``range_rel_std`` x range)^2 (m^2; both 0:
+        noise-free, a zero bound), and ``depth_known``: z came from the depth gauge, the ranges fixed (x, y).
         The kernel then adds the geometry's bound (``crb_h_m``, ``gdop``: from the references'
         true positions, which the node never sees) and records the declaration (``refs``
         as ids separated by spaces, ``range_std``, ``range_rel_std``)."""

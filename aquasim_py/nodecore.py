@@ -344,8 +344,6 @@ class NodeCore:
         err_v = abs(z - tz)
         crb_h = gdop = math.nan
         if geometry is not None:
-            if set(extra).intersection(_DECLARED):
-                raise ValueError(f"log_estimate(): columns {sorted(_DECLARED)} record refs=..., give them that way")
             refs, std, rel_std, depth_known = geometry
             crb_h, gdop = self._geometry(np.array([tx, ty, tz]), t, refs, std, rel_std, depth_known)
             extra = {**extra, "refs": " ".join(map(str, refs)), "range_std": std, "range_rel_std": rel_std}
@@ -364,11 +362,9 @@ class NodeCore:
         bad = [r for r in refs if not 0 <= r < n]
         if bad:
             raise ValueError(f"log_estimate(refs=...): no node with id {bad[0]} (ids are 0..{n - 1})")
-        if not (
-            math.isfinite(std) and math.isfinite(rel_std) and std >= 0.0 and rel_std >= 0.0 and std + rel_std > 0.0
-        ):
+        if not (math.isfinite(std) and math.isfinite(rel_std) and std >= 0.0 and rel_std >= 0.0):
             raise ValueError(
-                f"log_estimate(refs=...): range_std ({std}) and range_rel_std ({rel_std}) must be >= 0 and finite, not both 0"
+                f"log_estimate(refs=...): range_std ({std}) and range_rel_std ({rel_std}) must be >= 0 and finite"
             )
         if not refs:
             return math.nan, math.nan
@@ -376,6 +372,9 @@ class NodeCore:
         anchors = self.sim.positions_at(idx, np.full(idx.size, t))
         if np.any(np.all(anchors == here, axis=1)):  # a reference where the node is: no range geometry
             return math.nan, math.nan
+        if std == 0.0 and rel_std == 0.0:  # noise-free ranges: a zero bound (where they fix the position)
+            _, gdop = range_geometry(here, anchors, std=1.0, depth_known=depth_known)
+            return 0.0 * float(gdop), float(gdop)
         crb_h, gdop = range_geometry(here, anchors, std=std, rel_std=rel_std, depth_known=depth_known)
         return float(crb_h), float(gdop)
 
@@ -395,8 +394,6 @@ class NodeCore:
 
 
 _ESTIMATE_COLUMNS = tuple(c for c, _ in SCHEMAS["estimates"])
-#: the columns that record a log_estimate(refs=...) declaration (after the protocol's own)
-_DECLARED = ("refs", "range_std", "range_rel_std")
 _CLOCK_COLUMNS = tuple(c for c, _ in SCHEMAS["clocks"])
 
 

@@ -113,8 +113,11 @@ def test_too_few_references_give_no_bound_and_bad_declarations_are_errors():
     assert math.isnan(e["crb_h_m"].iloc[0])
     with pytest.raises(ValueError, match="no node with id 9"):
         _row(refs=[0, 9], range_std=1.0)
-    with pytest.raises(ValueError, match="not both 0"):
-        _row(refs=[0, 1, 2])
+    with pytest.raises(ValueError, match="must be >= 0 and finite"):
+        _row(refs=[0, 1, 2], range_std=-1.0)
+    # noise-free ranges (a declared noise of 0): a zero bound, the geometry's GDOP
+    free = _row(refs=[0, 1, 2, 3]).iloc[0]
+    assert free["crb_h_m"] == 0.0 and math.isclose(free["gdop"], _row(refs=[0, 1, 2, 3], range_std=1.0).iloc[0]["gdop"])
 
 
 def test_rmse_h_and_rmse_over_crb():
