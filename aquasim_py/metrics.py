@@ -49,7 +49,10 @@ __all__ = [
     "packet_counts",
     "position_errors",
     "positions_at",
+    "positions_source",
     "rmse",
+    "rmse_h",
+    "rmse_over_crb",
     "rmse_per_node",
     "select_rows",
     "summarize",
@@ -143,6 +146,37 @@ def rmse(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: A
     """
     e = position_errors(estimates, nodes, **select)
     return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
+
+
+def rmse_h(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """Root-mean-square horizontal error sqrt(mean((x_hat - x)^2 + (y_hat - y)^2)) (m) over the
+    selected rows (``select``: see :func:`select_rows`); NaN when none."""
+    df = select_rows(estimates, nodes, **select)
+    if len(df) == 0:
+        return float("nan")
+    d, _ = _err_vectors(df)
+    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)))
+
+
+def rmse_over_crb(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
+    """sqrt(mean e_h^2) / sqrt(mean crb_h_m^2) over the selected rows with a finite ``crb_h_m``
+    (the rows that declared their references, :meth:`~aquasim_py.node.Node.log_estimate`):
+    the horizontal RMSE over the RMS of the bounds of the geometries the estimates used. 1 is
+    the bound of a one-shot unbiased fix from those ranges with the noise the node declared;
+    a filter that fuses earlier rounds may go below it. NaN without such rows, or when their
+    bounds are all 0 (noise-free declarations)."""
+    df = select_rows(estimates, nodes, **select)
+    if len(df) == 0 or "crb_h_m" not in df.columns:
+        return float("nan")
+    crb = pd.to_numeric(df["crb_h_m"], errors="coerce").to_numpy(float)
+    ok = np.isfinite(crb)
+    if not ok.any():
+        return float("nan")
+    bound = float(np.sqrt(np.mean(crb[ok] ** 2)))
+    if bound == 0.0:  # noise-free declarations: no ratio
+        return float("nan")
+    d, _ = _err_vectors(df[ok])
+    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) / bound)
 
 
 def mean_error(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
@@ -332,7 +366,9 @@ class _AfterWarmup(Mapping[str, Any]):
         return len(self._tables)
 
 
-def positions_at(positions: pd.DataFrame, node: ArrayLike, time: ArrayLike) -> NDArray[np.float64]:
+def positions_at(
+    positions: pd.DataFrame | Iterable[pd.DataFrame], node: ArrayLike, time: ArrayLike
+) -> NDArray[np.float64]:
     """True positions (n, 3) of ``node[i]`` at ``time[i]`` from the sampled ``positions`` table.
 
     Between samples: linear interpolation, exact for straight motion; for curved motion the
@@ -340,36 +376,95 @@ def positions_at(positions: pd.DataFrame, node: ArrayLike, time: ArrayLike) -> N
     accordingly). Before the first / after the last sample: extrapolation with that sample's
     velocity (``vx, vy, vz``; held constant if the table has none), since a run's last events
     (receptions still in flight) fall after its last sample. NaN for a node with no sample.
+
+    ``positions``: the table, or the table in consecutive chunks of rows (as
+    :func:`positions_source` gives for a streamed run, so that a long run's table is never
+    held whole), each node's rows in time order across the chunks (the order the kernel
+    samples them). Both give the same numbers, bit for bit: each query is interpolated
+    between the same two samples.
     """
     node = np.asarray(node, dtype=np.int64).ravel()
     time = np.asarray(time, dtype=float).ravel()
     out = np.full((node.size, 3), np.nan)
-    if node.size == 0 or len(positions) == 0:
+    if node.size == 0:
         return out
-    has_v = all(c in positions.columns for c in ("vx", "vy", "vz"))
-    pos = positions.sort_values(["node", "time"], kind="stable")
-    # the queries of each node, in query order (as np.flatnonzero(node == nid) gives them), from
-    # one stable sort instead of a pass over every query per node
-    order = np.argsort(node, kind="stable")
+    # the queries of each node in time order (stable), from one sort instead of a pass per node
+    order = np.lexsort((time, node))
     ids, starts = np.unique(node[order], return_index=True)
     queries = dict(zip(ids.tolist(), np.split(order, starts[1:])))
-    # one np.interp per node (not per query): the loop is over the few nodes, vectorized over queries
-    for nid, grp in pos.groupby("node", sort=False):
-        sel = queries.get(int(nid))
-        if sel is None:
+    if isinstance(positions, pd.DataFrame):
+        chunks: Iterable[pd.DataFrame] = [positions.sort_values(["node", "time"], kind="stable")]
+    else:
+        chunks = positions
+    # node -> (its last sample so far: one-row frame; how many of its queries are answered)
+    state: dict[int, tuple[pd.DataFrame, int]] = {}
+    has_v = True
+    for chunk in chunks:
+        if len(chunk) == 0:
             continue
-        t = grp["time"].to_numpy(float)
-        q = time[sel]
-        before, after = q < t[0], q > t[-1]
-        for k, col in enumerate(_XYZ):
-            x = grp[col].to_numpy(float)
-            val = np.interp(q, t, x)
-            if has_v:
-                v = grp[f"v{col}"].to_numpy(float)
-                val = np.where(before, x[0] + v[0] * (q - t[0]), val)
-                val = np.where(after, x[-1] + v[-1] * (q - t[-1]), val)
-            out[sel, k] = val
+        has_v = all(c in chunk.columns for c in ("vx", "vy", "vz"))
+        for nid, grp in chunk.groupby("node", sort=False):
+            sel = queries.get(int(nid))
+            if sel is None:
+                continue
+            first = int(nid) not in state
+            last, done = state.get(int(nid), (grp.iloc[:0], 0))
+            grp = pd.concat([last, grp]) if len(last) else grp
+            t = grp["time"].to_numpy(float)
+            # this chunk answers the queries up to its last sample (all of them, if it is the
+            # last chunk: answered after the loop) and, for the node's first, those before it
+            upto = done + int(np.searchsorted(time[sel[done:]], t[-1], side="right"))
+            state[int(nid)] = (grp.iloc[-1:], upto)
+            _interpolate(out, sel[done:upto], time, grp, t, before=first, after=False, has_v=has_v)
+    for nid, (last, done) in state.items():  # after every node's last sample: extrapolation
+        sel = queries[nid]
+        if done < len(sel):
+            _interpolate(out, sel[done:], time, last, last["time"].to_numpy(float), False, True, has_v)
     return out
+
+
+def _interpolate(
+    out: NDArray[np.float64],
+    sel: NDArray[np.int64],
+    time: NDArray[np.float64],
+    grp: pd.DataFrame,
+    t: NDArray[np.float64],
+    before: bool,
+    after: bool,
+    has_v: bool,
+) -> None:
+    """``out[sel]`` = one node's positions at ``time[sel]`` from its samples ``grp`` (times
+    ``t``): np.interp inside them, the first (``before``) / last (``after``) sample's velocity
+    outside."""
+    if not len(sel):
+        return
+    q = time[sel]
+    early = q < t[0] if before else np.zeros(q.size, dtype=bool)
+    late = q > t[-1] if after else np.zeros(q.size, dtype=bool)
+    for k, col in enumerate(_XYZ):
+        x = grp[col].to_numpy(float)
+        val = np.interp(q, t, x)
+        if has_v:
+            v = grp[f"v{col}"].to_numpy(float)
+            val = np.where(early, x[0] + v[0] * (q - t[0]), val)
+            val = np.where(late, x[-1] + v[-1] * (q - t[-1]), val)
+        out[sel, k] = val
+
+
+#: the columns of ``positions`` that :func:`positions_at` reads
+POSITION_COLUMNS: tuple[str, ...] = ("time", "node", "x", "y", "z", "vx", "vy", "vz")
+
+
+def positions_source(tables: Mapping[str, pd.DataFrame], chunk_rows: int = 4096) -> Any:
+    """What :func:`positions_at` should read from a run's ``tables``: the ``positions`` table in
+    chunks of ``chunk_rows`` rows from a streamed run's file (memory flat in the run's length),
+    else the table itself; None without one."""
+    if "positions" not in tables:
+        return None
+    chunks = getattr(tables, "chunks", None)
+    if chunks is not None:
+        return chunks("positions", POSITION_COLUMNS, chunk_rows, typed=True)
+    return tables["positions"]
 
 
 def summarize(
@@ -419,6 +514,10 @@ def summarize(
             loc["nmse"] = nmse(est, nodes, roles=roles)
             if nodes is not None:
                 loc["coverage"] = coverage(est, evaluated_nodes(nodes, roles))
+            loc["rmse_h_m"] = rmse_h(est, nodes, roles=roles)
+            ratio = rmse_over_crb(est, nodes, roles=roles)
+            if not math.isnan(ratio):  # only where some estimate declared its references
+                loc["rmse_over_crb"] = ratio
         return loc
 
     def sync() -> dict[str, float]:

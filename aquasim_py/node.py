@@ -378,10 +378,31 @@ class Node:
         self.__k.log(table, columns)
 
     def log_estimate(
-        self, x: float, y: float, z: float, *, confidence: float = math.nan, is_reference: bool = False, **extra: Any
+        self,
+        x: float,
+        y: float,
+        z: float,
+        *,
+        confidence: float = math.nan,
+        is_reference: bool = False,
+        refs: Iterable[int] | None = None,
+        range_std: float = 0.0,
+        range_rel_std: float = 0.0,
+        depth_known: bool = True,
+        **extra: Any,
     ) -> None:
-        """Log a position estimate (m) to ``estimates``; the kernel adds truth and error."""
-        self.__k.log_estimate(float(x), float(y), float(z), float(confidence), bool(is_reference), extra)
+        """Log a position estimate (m) to ``estimates``; the kernel adds truth and errors.
+
+        ``refs``: the node ids whose ranges this estimate used, with the ranging noise the node
+        assumed for them: variance ``range_std``^2 + (``range_rel_std`` x range)^2 (m^2; both 0:
+        noise-free, a zero bound), and ``depth_known``: z came from the depth gauge, the ranges fixed (x, y).
+        The kernel then adds the geometry's bound (``crb_h_m``, ``gdop``: from the references'
+        true positions, which the node never sees) and records the declaration (``refs``
+        as ids separated by spaces, ``range_std``, ``range_rel_std``)."""
+        geometry = None
+        if refs is not None:
+            geometry = (tuple(int(r) for r in refs), float(range_std), float(range_rel_std), bool(depth_known))
+        self.__k.log_estimate(float(x), float(y), float(z), float(confidence), bool(is_reference), extra, geometry)
 
     def log_clock(self, skew: float, offset: float, **extra: Any) -> None:
         """Log a clock estimate to ``clocks``: the node believes local = (1 + skew) t + offset.

@@ -187,6 +187,45 @@ def test_positions_at_answers_each_query_as_if_asked_alone():
     assert np.isnan(got[q_node == 8]).all() and np.isfinite(got[q_node != 8]).all()
 
 
+@settings(max_examples=40, deadline=None)
+@given(chunk=st.integers(1, 40), seed=st.integers(0, 2**16), on_samples=st.booleans())
+def test_positions_at_in_chunks_equals_the_whole_table(chunk, seed, on_samples):
+    """The table in consecutive chunks of any size (the rows in the order the kernel samples
+    them: time, then node) gives the whole table's answers bit for bit, including queries on a
+    sample time, at a chunk boundary and outside the samples."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 30.0, 1.5)
+    ids = np.array([0, 3, 4])
+    pos = pd.DataFrame(
+        {
+            "time": np.repeat(t, ids.size),
+            "node": np.tile(ids, t.size),
+            **{c: rng.normal(size=t.size * ids.size) for c in ("x", "y", "z", "vx", "vy", "vz")},
+        }
+    )
+    q_node = rng.choice([0, 3, 4, 9], size=50)
+    q_time = rng.choice(t, size=50) if on_samples else rng.uniform(-3.0, 33.0, size=50)
+    q_time[:3] = np.nan, -1.0, 40.0
+    whole = metrics.positions_at(pos, q_node, q_time)
+    parts = [pos.iloc[i : i + chunk] for i in range(0, len(pos), chunk)]
+    assert np.array_equal(metrics.positions_at(iter(parts), q_node, q_time), whole, equal_nan=True)
+
+
+def test_positions_source_reads_a_streamed_run_in_typed_chunks(tmp_path):
+    from aquasim_py.trace import TraceFiles
+
+    rng = np.random.default_rng(0)
+    pos = pd.DataFrame({"time": np.repeat(np.arange(10.0), 2), "node": np.tile([0, 1], 10)})
+    for c in ("x", "y", "z", "vx", "vy", "vz"):
+        pos[c] = rng.normal(size=20) * 1e3  # full-precision floats: the text must read back exactly
+    pos.to_csv(tmp_path / "positions.csv", index=False)
+    files = TraceFiles({"positions": tmp_path / "positions.csv"})
+    chunks = list(metrics.positions_source(files, chunk_rows=7))
+    assert [len(c) for c in chunks] == [7, 7, 6]
+    pd.testing.assert_frame_equal(pd.concat(chunks, ignore_index=True), pos)
+    assert metrics.positions_source({}) is None
+
+
 def test_summarize_adds_protocol_metrics_with_prefix(est):
     class Proto:
         name = "demo"

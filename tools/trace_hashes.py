@@ -10,6 +10,9 @@ run's ``variants.csv``, MSWPF's timing table) are skipped.
     python tools/trace_hashes.py --json after.json --compare before.json
     python tools/trace_hashes.py --rev HEAD --json head.json   # a commit, whatever the work tree holds
 
+``--columns`` hashes each CSV column and each metric alone, so that ``--compare`` tells a change
+that only adds columns or metrics (listed as new) from one that changes any (exit 1).
+
 ``--rev`` installs that revision into a temporary folder first (as tools/bench_scenarios.py
 does) and runs its scenarios with its code. ``--compare`` prints the files whose hash changed, appeared or disappeared and exits 1 if any did.
 """
@@ -17,6 +20,7 @@ does) and runs its scenarios with its code. ``--compare`` prints the files whose
 from __future__ import annotations
 
 import argparse
+import csv
 import hashlib
 import json
 import os
@@ -36,7 +40,7 @@ SKIP = {"variants.csv", "mswpf_timing.csv", ".aquasim-output.json"}
 WALL_CLOCK_METRICS = ("step_ms", "select_ms")
 
 
-def _summary_digest(path: Path) -> str:
+def _summary_digest(path: Path, with_metrics: bool = True) -> str:
     """sha256 of a run's summary without what is not a result of the simulation: the wall time,
     the package version, where the scenario file and the output were (paths that differ
     between checkouts and runs) and wall-clock metrics."""
@@ -47,23 +51,46 @@ def _summary_digest(path: Path) -> str:
     if isinstance(scenario, dict) and isinstance(scenario.get("output"), dict):
         scenario["output"].pop("directory", None)
     metrics = doc.get("metrics")
-    if isinstance(metrics, dict):
+    if not with_metrics:
+        doc.pop("metrics", None)
+    elif isinstance(metrics, dict):
         doc["metrics"] = {k: v for k, v in metrics.items() if not k.endswith(WALL_CLOCK_METRICS)}
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
-def hash_tree(out: Path) -> dict[str, str]:
-    """relative path -> sha256 of every trace file under ``out``."""
+def _column_digests(path: Path) -> dict[str, str]:
+    """``::column`` -> sha256 of one column's text in a CSV file (a ``summary.json``: ``::metric``
+    -> sha256 of each metric's value, ``::`` -> the rest of the summary's digest)."""
+    if path.name == "summary.json":
+        doc = json.loads(path.read_text())
+        out = {f"::{k}": hashlib.sha256(json.dumps(v).encode()).hexdigest() for k, v in doc.get("metrics", {}).items()}
+        return {k: v for k, v in out.items() if not k.endswith(WALL_CLOCK_METRICS)} | {
+            "::": _summary_digest(path, False)
+        }
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    header, body = (rows[0], rows[1:]) if rows else ([], [])
+    return {f"::{c}": hashlib.sha256("\n".join(r[j] for r in body).encode()).hexdigest() for j, c in enumerate(header)}
+
+
+def hash_tree(out: Path, columns: bool = False) -> dict[str, str]:
+    """relative path -> sha256 of every trace file under ``out`` (``columns``: ``path::column``
+    -> sha256 of each column, :func:`_column_digests`)."""
     hashes: dict[str, str] = {}
     for f in sorted(out.rglob("*")):
         if not f.is_file() or f.name in SKIP or f.suffix not in {".csv", ".json"}:
             continue
         rel = f.relative_to(out).as_posix()
+        if columns:
+            hashes.update({rel + k: v for k, v in _column_digests(f).items()})
+            continue
         hashes[rel] = _summary_digest(f) if f.name == "summary.json" else hashlib.sha256(f.read_bytes()).hexdigest()
     return hashes
 
 
-def run(scenario: Path, cli: list[str], env: dict[str, str] | None = None) -> tuple[dict[str, str], float]:
+def run(
+    scenario: Path, cli: list[str], env: dict[str, str] | None = None, columns: bool = False
+) -> tuple[dict[str, str], float]:
     """(file -> sha256, wall s) of one CLI run of ``scenario`` (``cli``: the command before it)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
@@ -80,7 +107,7 @@ def run(scenario: Path, cli: list[str], env: dict[str, str] | None = None) -> tu
         dt = time.perf_counter() - t0
         if proc.returncode != 0:
             raise SystemExit(f"{scenario.name}: exit {proc.returncode}\n{proc.stderr}")
-        return hash_tree(out), dt
+        return hash_tree(out, columns), dt
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -90,6 +117,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", type=Path, help="write {scenario: {file: sha256}} here")
     ap.add_argument("--compare", type=Path, help="a --json file of an earlier run to compare with")
     ap.add_argument("--rev", help="run this git revision's code and scenarios (installed into a temporary folder)")
+    ap.add_argument(
+        "--columns",
+        action="store_true",
+        help="hash each CSV column and each metric alone: --compare then fails only on a changed or "
+        "missing one, and lists new ones (a change that adds columns or metrics and keeps the others)",
+    )
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="trace-hashes-") as tmp:
         # an absolute path: the runs start in a temporary directory
@@ -105,22 +138,27 @@ def main(argv: list[str] | None = None) -> int:
         )
         table: dict[str, dict[str, str]] = {}
         for p in paths:
-            table[p.name], dt = run(p.resolve(), cli, env)
+            table[p.name], dt = run(p.resolve(), cli, env, args.columns)
             print(f"{p.name:45s} {len(table[p.name]):3d} files  {dt:7.1f} s", flush=True)
     if args.json:
         args.json.write_text(json.dumps(table, indent=1, sort_keys=True) + "\n")
     if args.compare is None:
         return 0
     old = json.loads(args.compare.read_text())
-    changed = 0
+    changed = added = 0
     for name in sorted(set(old) & set(table)):
         a, b = old[name], table[name]
         for f in sorted(set(a) | set(b)):
             if a.get(f) != b.get(f):
-                changed += 1
                 state = "new" if f not in a else "gone" if f not in b else "changed"
+                if args.columns and state == "new":
+                    added += 1
+                else:
+                    changed += 1
                 print(f"{state:8s} {name}/{f}")
-    print(f"{changed} file(s) differ" if changed else "all traces identical")
+    what = "column(s) / metric(s)" if args.columns else "file(s)"
+    print(f"{changed} {what} differ" if changed else "all traces identical", end="")
+    print(f", {added} new" if args.columns else "")
     return 1 if changed else 0
 
 

@@ -23,6 +23,7 @@ __all__ = [
     "pcrb_information",
     "pcrb_position",
     "range_crb_trace",
+    "range_geometry",
 ]
 
 Array = NDArray[np.float64]
@@ -138,20 +139,24 @@ def range_crb_trace(
     position: ArrayLike,
     anchors: ArrayLike,
     *,
-    std: float = 0.0,
-    rel_std: float = 0.0,
+    std: ArrayLike = 0.0,
+    rel_std: ArrayLike = 0.0,
     mask: ArrayLike | None = None,
     plane: bool = True,
+    index: tuple[int, ...] | None = None,
 ) -> Array:
     """CRB = tr I^-1 (m^2) of a position from ranges r_i = |x - a_i| + e_i to known anchors,
     e_i ~ N(0, std^2 + (rel_std |x - a_i|)^2) independent (distance-dependent when rel_std > 0:
     the variance term of :func:`fisher_information`).
 
-    ``position`` (..., 3), ``anchors`` (..., N, 3) (m); ``mask`` (..., N) True where the anchor
+    ``position`` (..., 3), ``anchors`` (..., N, 3) (m); ``std`` (m) and ``rel_std`` numbers or
+    arrays that broadcast against the ranges (..., N); ``mask`` (..., N) True where the anchor
     is present (absent ones carry no information), default all. ``plane``: the depth is known
-    (a depth gauge), the bound is on (x, y) only; else on (x, y, z). Broadcasts over leading
-    axes (one call for every estimate of a run); NaN where the anchors cannot fix the position
-    (singular information: fewer than 2 + 1 anchors, or all on one line).
+    (a depth gauge), the bound is on (x, y) only; else on (x, y, z). ``index``: the coordinates
+    whose bounds are summed (default every one estimated), e.g. ``(0, 1)`` for the horizontal
+    part of the 3-D bound. Broadcasts over leading axes (one call for every estimate of a run);
+    NaN where the anchors cannot fix the position (singular information: fewer than 2 + 1
+    anchors, or all on one line).
     """
     x = np.asarray(position, dtype=float)
     a = np.asarray(anchors, dtype=float)
@@ -159,7 +164,8 @@ def range_crb_trace(
     r = np.linalg.norm(d, axis=-1)
     if np.any(r <= 0):
         raise ValueError("an anchor coincides with the position")
-    if not (std > 0 or rel_std > 0):
+    std, rel_std = np.asarray(std, dtype=float), np.asarray(rel_std, dtype=float)  # (arrays broadcast as r)
+    if np.any((std <= 0) & (rel_std <= 0)):
         raise ValueError("std and rel_std cannot both be 0")
     u = d / r[..., None]
     if plane:
@@ -177,4 +183,31 @@ def range_crb_trace(
     ev = np.linalg.eigvalsh(info)
     ok = ev[..., 0] > 1e-9 * ev[..., -1]
     inv = np.linalg.inv(np.where(ok[..., None, None], info, np.eye(info.shape[-1])))
-    return np.where(ok, np.trace(inv, axis1=-2, axis2=-1), np.nan)
+    if index is None:
+        tr = np.trace(inv, axis1=-2, axis2=-1)
+    else:
+        tr = np.diagonal(inv, axis1=-2, axis2=-1)[..., list(index)].sum(axis=-1)
+    return np.where(ok, tr, np.nan)
+
+
+def range_geometry(
+    position: ArrayLike, anchors: ArrayLike, *, std: float = 0.0, rel_std: float = 0.0, depth_known: bool = True
+) -> tuple[Array, Array]:
+    """(horizontal CRB in m, GDOP) of a position fixed by ranges to ``anchors``, the columns the
+    kernel puts beside an estimate (``log_estimate(refs=...)``):
+
+    - ``crb_h_m`` = sqrt([I^-1]_xx + [I^-1]_yy): the bound on the RMS horizontal error of an
+      unbiased estimate from these ranges with the noise ``std`` / ``rel_std`` of
+      :func:`range_crb_trace`; I over (x, y) when ``depth_known`` (the depth gauge fixes z),
+      else over (x, y, z) (the horizontal part of the 3-D bound);
+    - ``gdop`` = the same with unit noise (std = 1 m, rel_std = 0): sqrt of the horizontal part
+      of (U^T U)^-1, U the unit vectors from the anchors to the position (their horizontal
+      components when ``depth_known``). Dimensionless; crb_h_m = std * gdop for constant noise.
+
+    NaN where the ranges cannot fix the position (:func:`range_crb_trace`)."""
+    # one call for both: the declared noise and unit noise, stacked on a leading axis
+    x = np.asarray(position, dtype=float)
+    a = np.asarray(anchors, dtype=float)
+    noise = np.array([[std, rel_std], [1.0, 0.0]]).reshape((2,) + (1,) * (a.ndim - 1) + (2,))
+    both = range_crb_trace(x, a, std=noise[..., 0], rel_std=noise[..., 1], plane=depth_known, index=(0, 1))
+    return np.sqrt(both[0]), np.sqrt(both[1])

@@ -201,9 +201,14 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         """Number of rows of table ``name`` (without reading it)."""
         return self._rows[name] if name in self._rows else len(self[name])
 
-    def chunks(self, name: str, columns: Sequence[str], chunk_rows: int = CHUNK_ROWS) -> Iterator[pd.DataFrame]:
+    def chunks(
+        self, name: str, columns: Sequence[str], chunk_rows: int = CHUNK_ROWS, *, typed: bool = False
+    ) -> Iterator[pd.DataFrame]:
         """Table ``name``'s ``columns`` (those it has), ``chunk_rows`` rows at a time: for a
-        statistic over a table too long to hold (the packet counts)."""
+        statistic over a table too long to hold (the packet counts). From a CSV file every
+        field comes as its text ("" missing), or with ``typed`` as :meth:`columns` parses it
+        (exact floats; a column's dtype inferred per chunk, so give only columns that are
+        never missing)."""
         if name in self._cache:
             df = self._cache[name]
             yield df[[c for c in columns if c in df.columns]]
@@ -220,6 +225,19 @@ class TraceFiles(Mapping[str, pd.DataFrame]):
         header = _csv_header(path)
         have = [c for c in columns if header is not None and c in header]
         if not have:
+            return
+        if typed:
+            kinds = dict(SCHEMAS.get(name, ()))
+            text = {c: str for c in have if kinds.get(c) == "c"}
+            yield from pd.read_csv(
+                path,
+                usecols=have,
+                dtype=text,
+                keep_default_na=False,
+                na_values=[""],
+                chunksize=chunk_rows,
+                **_READ_CSV_KW,
+            )
             return
         # every field as its text, "" missing: counts and comparisons need nothing more
         yield from pd.read_csv(

@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field
 
-from aquasim_py.metrics import positions_at
+from aquasim_py.metrics import positions_at, positions_source
 from aquasim_py.node import Node, Role, SensorUnavailable
 from aquasim_py.registry import register
 from aquasim_py.trace import table_columns
@@ -47,6 +47,9 @@ class BeaconNode(Node):
     trace_tables = ("ranges", "packets", "positions")  # what metrics / derived_tables / report read
     # read whole: kept as a streamed run writes them, not parsed back (metrics.columns_kept)
     trace_columns: ClassVar[dict[str, tuple[str, ...]]] = {"packets": _PACKET_COLUMNS}
+    # anchors never take the beacons they hear from each other: keep only the last few (the
+    # default 4096 per node grew a long run's memory by their packets, issue 35 item 8)
+    inbox_capacity: ClassVar[int | None] = 256
 
     class Params(BaseModel):
         model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
@@ -151,15 +154,20 @@ def true_ranges(tables: Mapping[str, pd.DataFrame], ranges: pd.DataFrame | None 
     ``packets`` table by uid, the positions interpolated from the ``positions`` table)."""
     r = table_columns(tables, "ranges", _RANGE_COLUMNS) if ranges is None else ranges
     packets = table_columns(tables, "packets", _PACKET_COLUMNS)
-    positions = tables.get("positions")
-    if r is None or len(r) == 0 or packets is None or positions is None:
+    if r is None or len(r) == 0 or packets is None or "positions" not in tables:
         return pd.DataFrame(columns=["uid", "node", "anchor", "t_tx", "t_rx", "true_range_m"])
     ev = packets["event"].astype(str)
     tx = packets.loc[ev == "tx", ["uid", "time"]].rename(columns={"time": "t_tx"})
     rx = packets.loc[ev == "rx", ["uid", "node", "time"]].rename(columns={"time": "t_rx"})
     df = r[["uid", "node", "anchor"]].merge(tx, on="uid", how="left").merge(rx, on=["uid", "node"], how="left")
-    p_tx = positions_at(positions, df["anchor"].to_numpy(), df["t_tx"].to_numpy(float))
-    p_rx = positions_at(positions, df["node"].to_numpy(), df["t_rx"].to_numpy(float))
+    # both ends in one pass over the positions (read in chunks from a streamed run's file)
+    n = len(df)
+    ends = positions_at(
+        positions_source(tables),
+        np.concatenate([df["anchor"].to_numpy(), df["node"].to_numpy()]),
+        np.concatenate([df["t_tx"].to_numpy(float), df["t_rx"].to_numpy(float)]),
+    )
+    p_tx, p_rx = ends[:n], ends[n:]
     df["true_range_m"] = np.linalg.norm(p_rx - p_tx, axis=1)
     return df
 

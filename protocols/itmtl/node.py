@@ -461,9 +461,10 @@ class ItmtlNode(ReqResNode):
             res_m = fix.rms_residual * p.mean_speed_mps
             sigma = max(fix.rms_residual, p.fix_std_floor_m / p.mean_speed_mps)
             R = fix.cov_unit * sigma**2
+            range_std_m = sigma * p.mean_speed_mps
             conf = fix_confidence(ref_conf, res_m, p.residual_scale_m)
         else:
-            R, conf, res_m = None, self.confidence * 0.9, np.nan
+            R, conf, res_m, range_std_m = None, self.confidence * 0.9, np.nan, 0.0
 
         if getattr(self, "_restart", False) and fix is not None:
             self.imm_filter, self._last_fix, self.v_est, self._n_fixes = None, None, None, 0
@@ -555,4 +556,8 @@ class ItmtlNode(ReqResNode):
                 residual_m=res_m,
                 fixed=fix is not None,
                 promoted_refs=int(sum(a.conf < 1.0 for a in ans)),
+                # a fix this round: its references, with the range noise its covariance R used
+                # (m); depth from the gauge
+                refs=[a.ref for a in ans] if fix is not None else None,
+                range_std=range_std_m,
             )

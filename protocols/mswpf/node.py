@@ -321,16 +321,18 @@ class MswpfNode(Node):
             for sid, s in sorted(wire.sensors.items()):
                 self._known[sid] = (s.believed, s.location_std)
         plan = {0: self._select_and_task(tracker, 0, wire, tracker.predicted, tracker.J_prior)}
+        yield from self._send_task(plan[0][2])
         if ahead == 2 and p.steps > 1:
             X1, J1 = tracker.lookahead(plan[0][1])
             plan[1] = self._select_and_task(tracker, 1, wire, X1, J1)
+            yield from self._send_task(plan[1][2])
         for k in range(p.steps):
             due = p.start_s + k * p.interval_s + p.fuse_delay_s
             t = self.local_time()
             if due > t:
                 yield self.sleep(due - t)
             started = time.perf_counter()
-            selected, infos = plan.pop(k)
+            selected, infos, _ = plan.pop(k)
             got = self._reports.pop(k, {})
             ids = [s for s in selected if s in got]
             rows = [selected.index(s) for s in ids]
@@ -351,17 +353,18 @@ class MswpfNode(Node):
                     X, J = tracker.lookahead(plan[k + 1][1])
                 plan[nxt] = self._select_and_task(tracker, nxt, wire, X, J)
                 select_s = time.perf_counter() - started
+                yield from self._send_task(plan[nxt][2])
             # wall time: not deterministic, so in its own table (kept out of the written traces)
             self.log("mswpf_timing", step=k, step_ms=1e3 * step_s, select_ms=1e3 * select_s)
 
     def _select_and_task(
         self, tracker: MswpfTracker, k: int, wire: _Wire | None, X: np.ndarray, J: np.ndarray
-    ) -> tuple[list[int], np.ndarray]:
-        """Select the sensors of step k from its predicted particles X / prior information J,
-        and send them the task."""
+    ) -> tuple[list[int], np.ndarray, _Task | None]:
+        """Select the sensors of step k from its predicted particles X / prior information J;
+        with ideal links hand them the task, else return it for :meth:`_send_task`."""
         ids_all = sorted(self._known)
         if not ids_all:
-            return [], np.zeros((0, tracker.model.n, tracker.model.n))
+            return [], np.zeros((0, tracker.model.n, tracker.model.n)), None
         pos = np.array([self._known[s][0] for s in ids_all])
         std = np.array([self._known[s][1] for s in ids_all])
         idx, infos = tracker.select(pos, std, X, J)
@@ -371,12 +374,16 @@ class MswpfNode(Node):
             task = _Task(k, tuple(selected), self._model, self._timing, particles=P)
             for sid in selected:
                 wire.sensors[sid].on_task(task)
-        else:
-            mean = P.mean(axis=0)
-            D = P - mean
-            task = _Task(k, tuple(selected), self._model, self._timing, mean=mean, cov=D.T @ D / len(P))
-            self.broadcast(TASK, task, self.params.task_bits)
-        return selected, infos
+            return selected, infos, None
+        mean = P.mean(axis=0)
+        D = P - mean
+        task = _Task(k, tuple(selected), self._model, self._timing, mean=mean, cov=D.T @ D / len(P))
+        return selected, infos, task
+
+    def _send_task(self, task: _Task | None) -> Generator[Any, Any, None]:
+        """Broadcast a step's task (link mode), waiting until its last bit has left."""
+        if task is not None:
+            yield self.broadcast(TASK, task, self.params.task_bits)
 
     def _log_step(
         self,

@@ -204,7 +204,7 @@ class SlmpNode(PeriodicBeaconNode):
             attempted=attempted,
             period_s=p.period_s,
             epoch_lag_s=now - epoch,
-            refs=" ".join(str(rec.packet.src) for rec in heard),
+            refs=[rec.packet.src for rec in heard],  # this period's ranges, with the noise model
             range_rel_std=p.noise_ratio,
         )
 

@@ -340,7 +340,7 @@ class StvfNode(PeriodicBeaconNode):
             fresh=fresh,
             period_s=p.period_s,
             epoch_lag_s=now - epoch,
-            refs=used,
+            refs=[int(i) for i in used.split()],  # the ranges Algorithm 1 used, with its noise model
             range_rel_std=p.noise_ratio,
         )
 
