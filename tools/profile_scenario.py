@@ -20,7 +20,6 @@ ones nobody reads are not kept).
 from __future__ import annotations
 
 import argparse
-import collections
 import cProfile
 import pstats
 import resource
@@ -108,7 +107,7 @@ def _area(filename: str) -> str | None:
 def areas(st: pstats.Stats) -> dict[str, float]:
     """Own CPU seconds per area, libraries' time charged up to the first caller in an area."""
     stats = st.stats  # type: ignore[attr-defined]
-    out: collections.Counter[str] = collections.Counter()
+    out: dict[str, float] = {}
     memo: dict[tuple[str, int, str], dict[str, float]] = {}
 
     def shares(func: tuple[str, int, str], seen: frozenset[tuple[str, int, str]]) -> dict[str, float]:
@@ -123,20 +122,18 @@ def areas(st: pstats.Stats) -> dict[str, float]:
         callers = stats[func][4]
         weights = {c: v[2] for c, v in callers.items() if c not in seen and c in stats}
         total = sum(weights.values())
+        res: dict[str, float] = {}
         if total <= 0.0:
-            res = {"unattributed (no caller in our code)": 1.0}
-        else:
-            res = collections.Counter()
-            for c, w in weights.items():
-                for k, v in shares(c, seen | {func}).items():
-                    res[k] += v * w / total
-            res = dict(res)
+            res["unattributed (no caller in our code)"] = 1.0
+        for c, w in weights.items():
+            for k, v in shares(c, seen | {func}).items():
+                res[k] = res.get(k, 0.0) + v * w / total
         memo[func] = res
         return res
 
     for func, (_cc, _nc, tt, _ct, _callers) in stats.items():
         for k, v in shares(func, frozenset()).items():
-            out[k] += tt * v
+            out[k] = out.get(k, 0.0) + tt * v
     return dict(out)
 
 
