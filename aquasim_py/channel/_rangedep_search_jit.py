@@ -88,13 +88,24 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
             else:
                 fa *= 0.5
             b, fb = m, fm
+    # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline reflects
+    # off one slope or the other) is not a root: _fill refuses it
+    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
+    return _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy)
+
+
+@_jit
+def _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy):
+    """Trace the converged ray of launch angle ``m`` (family ``code``) and write its fields to
+    out[row]; False (nothing written that counts) unless it reaches the receiver within
+    _ACCEPT_M in that family. ``h`` > 0: the step of the central difference d z_R / d theta0
+    (the ray-tube width); h = 0 leaves F_DZDTH NaN (a caller that needs no level)."""
     st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(
         rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy
     )
     if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
-        # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
-        # reflects off one slope or the other), not a root
         return False
+    fm = ze - zr
     # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
     out[row, F_TIME] = t + (zr - ze) * math.sin(thr) / cR
     out[row, F_THETA0] = m
@@ -105,22 +116,21 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
     out[row, F_ARC] = arc
     out[row, F_LOSS] = loss
     out[row, F_NTURN] = nturn
-    out[row, F_ZMISS] = ze - zr
+    out[row, F_ZMISS] = fm
     out[row, F_CR] = cR
     out[row, F_KINK] = kink
     out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
-    # ray-tube width: d z_end / d theta0 by a small central difference inside the family
-    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
-    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
-    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
-    if cp == code and cq == code:
-        out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
-    elif cp == code:
-        out[row, F_DZDTH] = (fp - fm) / h
-    elif cq == code:
-        out[row, F_DZDTH] = (fm - fq) / h
-    else:
-        out[row, F_DZDTH] = math.nan
+    out[row, F_DZDTH] = math.nan
+    if h > 0.0:
+        # ray-tube width: d z_end / d theta0 by a small central difference inside the family
+        fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
+        fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
+        if cp == code and cq == code:
+            out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
+        elif cp == code:
+            out[row, F_DZDTH] = (fp - fm) / h
+        elif cq == code:
+            out[row, F_DZDTH] = (fm - fq) / h
     return True
 
 
@@ -321,14 +331,19 @@ def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bp
 
 
 @_jit
-def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
-    """Follow known eigenrays to slightly moved end points: for each link l and each of its
-    arrivals q (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope
-    d z_R / d theta0 slope[l, q]), secant iterations from the old launch angle in the new
-    section, keeping the bounce sequence. Returns the corrected delays (L, Q), NaN where the
-    arrival could not be followed (its sequence changed, or no convergence in 12 steps)."""
+def follow_links(
+    starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol, tube
+):
+    """Follow known eigenrays to moved end points: for each link l and each of its arrivals q
+    (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope d z_R / d theta0
+    slope[l, q]), secant iterations on the depth miss from the old launch angle in the new
+    section, keeping the bounce sequence, to ``ztol``. Returns the arrival rows (L, Q, NF) (as
+    :func:`search` writes them; with ``tube`` False, F_DZDTH is left NaN and two rays per
+    arrival are saved) and whether each was followed (L, Q): not where its bounce sequence
+    changed or the secant did not converge in 12 steps (its row is then NaN)."""
     L, Q = theta0.shape
-    out = np.full((L, Q), np.nan)
+    out = np.full((L, Q, NF), np.nan)
+    ok_all = np.zeros((L, Q), np.bool_)
     dummy = np.empty((1, 3))
     for l in range(L):
         o0, o1 = starts[l], ends[l]
@@ -360,9 +375,8 @@ def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb
                 ok = abs(fa) <= ztol
             if not ok:
                 continue
-            st, ze, t, thr, _arc, _ns, _nb, c2, _lo, _nt, _np, cR, _k = trace(
-                rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy
-            )
-            if st == S_REACHED and c2 == cd:
-                out[l, q] = t + (zr[l] - ze) * math.sin(thr) / cR
-    return out
+            h = 1e-7 * max(1.0, abs(a)) if tube else 0.0
+            ok_all[l, q] = _fill(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], maxb, bpar, a, cd, h, out[l], q, dummy)
+            if not ok_all[l, q]:
+                out[l, q, :] = math.nan
+    return out, ok_all

@@ -29,10 +29,10 @@ def test_served_delays_within_bound_and_1e7() -> None:
     cache.get(ids, s, d)
     served = 0
     for _ in range(4):
-        radius = np.sqrt(2.0 * (1e-7 - 1e-12) / cache._kappa)
+        radius = cache.radius(ids)
         u = rng.normal(size=(n, 6))
         u /= np.linalg.norm(u, axis=1, keepdims=True)
-        f = (rng.uniform(0, 1, n) * np.where(np.isfinite(radius), radius, 0.0))[:, None]
+        f = (rng.uniform(0, 1, n) * radius)[:, None]
         s2, d2 = s + u[:, :3] * f, d + u[:, 3:] * f
         bound = cache.bound(ids, s2, d2)
         before = cache.stats.hits
