@@ -15,7 +15,8 @@ order of the answer are the link model's; what differs is the arrival of each li
    (:func:`.arrivals.first_detectable`), and that arrival's SNR is the reception's (a packet
    below ``snr_threshold_db`` is lost, "snr"). Where the direct path is blocked by the floor, or
    too weak, the stamp is a later (reflected) arrival: the range is biased late, as at sea. No
-   detectable arrival: lost, "undetected" (no arrival at all: "no_path");
+   detectable arrival: lost, "undetected" (no arrival at all: "no_path"). ``direct_only``
+   (an analysis switch) loses a reception stamped on a reflected arrival ("indirect");
 3. moving receivers: the stamp solves t_a = t0 + T(p_src(t0), p_rx(t_a)), T the delay of the
    first detectable arrival, iterated on the receiver's true trajectory until it moves by less
    than 1e-10 s. The first iterate starts from the straight-line time at the mean of the two
@@ -136,9 +137,12 @@ class ArrivalLinkModel(LinkModel):
         self, ids: list[int], times: NDArray[np.float64], paths: Iterable[Any], snr: NDArray[np.float64]
     ) -> Links:
         ids, heard, lost = super()._sorted_links(ids, times, paths, snr)
-        # no arrival detected although the link has some: its own reason
+        # no stamp although the link has arrivals: none detected ("none"), or (direct_only) a
+        # reflected one
         lost = [
-            (rid, "undetected", T, p, s) if reason == "no_path" and p.n_arrivals > 0 else (rid, reason, T, p, s)  # type: ignore[attr-defined]
+            (rid, "undetected" if p.label == "none" else "indirect", T, p, s)
+            if reason == "no_path" and p.n_arrivals > 0
+            else (rid, reason, T, p, s)
             for rid, reason, T, p, s in lost
         ]
         return ids, heard, lost
@@ -207,6 +211,9 @@ class ArrivalLinkModel(LinkModel):
         has = idx >= 0
         cls = np.where(has, arr.path_class[np.maximum(idx, 0)] if arr.delay.size else -1, -1).astype(np.int64)
         snr = np.where(has, snr_rows[np.maximum(idx, 0)] if arr.delay.size else np.nan, np.nan)
+        stamp = np.asarray(stamp, dtype=float).reshape(n)
+        if self.config.direct_only:  # the analysis switch: a reflected stamp is lost
+            stamp = np.where(np.isin(cls, _DIRECT), stamp, np.nan)
         # the first direct or refracted arrival of each link (rows are by link, then delay)
         direct = np.full(n, np.nan)
         rows = np.flatnonzero(np.isin(arr.path_class, _DIRECT))
@@ -214,7 +221,7 @@ class ArrivalLinkModel(LinkModel):
             links, first_row = np.unique(arr.link[rows], return_index=True)
             direct[links] = arr.delay[rows[first_row]]
         return [
-            np.asarray(stamp, dtype=float).reshape(n),
+            stamp,
             cls,
             np.diff(arr.offsets),
             arr.delay_spread().reshape(n),

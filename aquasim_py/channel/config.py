@@ -52,7 +52,9 @@ class ChannelConfig:
         (:mod:`.arrival_links`): the arrivals of a link are its eigenrays with at most
         ``max_bounces`` surface + bottom bounces, and the modem stamps the first whose SNR
         reaches ``detection_threshold_db`` (None: ``snr_threshold_db``, so the arrival it
-        synchronizes on is one it can decode from).
+        synchronizes on is one it can decode from). direct_only: an analysis switch, not a
+        modem: a reception whose stamped arrival is not a direct or refracted one is lost
+        ("indirect"), to measure what blocked and weak direct paths cost a protocol.
     snr_estimate_std_db: std (dB) of the Gaussian error of the receiver's SNR estimate, the
         ``Reception.snr_db`` a node gets (0 = the exact SNR); drawn by the kernel from the
         receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
@@ -83,6 +85,7 @@ class ChannelConfig:
     snr_estimate_std_db: float = 1.0
     max_bounces: int = 2
     detection_threshold_db: float | None = None
+    direct_only: bool = False
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):

@@ -65,10 +65,11 @@ PATH_NAMES = {
     int(PathKind.BOTTOM): "bottom",
 }
 
-#: a link that reaches its receiver: (receiver id, delay s, path name, SNR dB)
-Heard = tuple[int, float, str, float]
-#: a link that does not: (receiver id, "no_path" | "snr", delay s, path name, SNR dB)
-Lost = tuple[int, str, float, str, float]
+#: a link that reaches its receiver: (receiver id, delay s, path, SNR dB); path: its name, or
+#: a subclass's record of it (:class:`~.arrival_links.ArrivalPath`)
+Heard = tuple[int, float, Any, float]
+#: a link that does not: (receiver id, "no_path" | "snr" | a subclass's reason, delay s, path, SNR dB)
+Lost = tuple[int, str, float, Any, float]
 #: the links of one transmission: (ids in range, in any order; heard, by delay; lost)
 Links = tuple[list[int], list[Heard], list[Lost]]
 

@@ -227,6 +227,7 @@ def channel_config(sc: Scenario) -> Any:
         snr_estimate_std_db=c.snr_estimate_std_db,
         max_bounces=c.max_bounces,
         detection_threshold_db=c.detection_threshold_db,
+        direct_only=c.direct_only,
     )
 
 

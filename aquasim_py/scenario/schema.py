@@ -227,6 +227,10 @@ class ChannelSpec(Strict):
         description="SNR (dB) at which the modem detects an arrival and stamps it (the first such); "
         "default snr_threshold_db",
     )
+    direct_only: bool = Field(
+        False,
+        description="analysis switch: receptions stamped on a reflected arrival are lost ('indirect'); not a modem",
+    )
 
 
 # --------------------------------------------------------------------------- [[nodes]]

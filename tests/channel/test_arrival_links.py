@@ -191,3 +191,17 @@ def test_no_snr_stamps_the_first_arrival() -> None:
     rx = sim.trace.frames()["packets"].query("event == 'rx'")
     assert len(rx) == 1 and math.isnan(rx.snr_db.iloc[0])
     np.testing.assert_allclose(rx.tof, float(eigenray(SUMMER, WEAK_SRC, WEAK_DST).time), rtol=0, atol=1e-9)
+
+
+def test_direct_only_loses_reflected_stamps() -> None:
+    """The analysis switch: behind the seamount every reception is stamped on the surface
+    reflection, so with direct_only every one is lost, "indirect"; a link with a direct path
+    is not touched."""
+    cfg = ChannelConfig(collision="none", max_range_m=8000.0, direct_only=True)
+    p = _run(SEAMOUNT, cfg, SRC, {"positions": [DST]}, 30.0)
+    drops = p[p.event == "drop"]
+    assert not (p.event == "rx").any() and len(drops) == 2 and (drops.reason == "indirect").all()
+    assert (drops.path == "surface").all()
+    low = ChannelConfig(collision="none", direct_only=True, snr_threshold_db=-50.0, detection_threshold_db=-50.0)
+    p = _run(SHELF, low, WEAK_SRC, {"positions": [WEAK_DST]}, 30.0)
+    assert (p[p.event == "rx"].path == "refracted").sum() == 2
