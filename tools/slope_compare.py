@@ -11,7 +11,10 @@ site costs; the part of it that goes away when the reflected stamps are removed 
 blocked and weak direct paths cause (removing links also removes information, so the rest is an
 upper bound on what the front and the floor's other effects cost).
 
-Per link (the slope runs' receptions): the share stamped on each arrival class, and each
+Per link (the slope runs' receptions): the share stamped on each arrival class and kind
+(blocked: the link has no direct or refracted arrival; weak direct: it has one, earlier than the
+stamp, below the detection threshold; reflected first: a reflected arrival comes before every
+direct one), and each
 stamp's range bias in metres, 1495 m/s x (stamp - reference), against two references computed
 here independently of the channel: the straight chord's travel time in the true field (a
 quadrature of 1 / c along the chord, no rays) and what the nodes believe (the exact layered
@@ -80,8 +83,14 @@ def link_biases(tables: Any) -> pd.DataFrame:
     cast = ssp.Layered(params["ssp_depths_m"], params["ssp_speeds_mps"])
     rx["chord_bias_m"] = NOMINAL * (rx.tof.to_numpy() - chord)
     rx["belief_bias_m"] = NOMINAL * (rx.tof.to_numpy() - travel_time(cast, s, d, reflections="fallback"))
-    rx["kind"] = np.where(
-        rx.direct_tof.isna(), "blocked", np.where(rx.tof > rx.direct_tof + 1e-9, "weak direct", "direct")
+    # blocked: no direct or refracted arrival at all; weak direct: there is one, but an earlier
+    # one than the stamp went undetected; reflected first: a reflected arrival beat every direct one
+    direct = rx.path.isin(["direct", "refracted"]).to_numpy()
+    later = (rx.tof > rx.direct_tof + 1e-9).to_numpy()
+    rx["kind"] = np.select(
+        [rx.direct_tof.isna().to_numpy(), later, ~direct],
+        ["blocked", "weak direct", "reflected first"],
+        default="direct",
     )
     return rx
 

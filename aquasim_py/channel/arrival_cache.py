@@ -188,11 +188,11 @@ class ArrivalCache:
         if rest.size:
             done = self._follow(slots[rest], s[rest], d[rest])
             self.stats.follows += int(done.sum())
-            search = rest[~done]
-            self.stats.misses += int(search.size)
-            if search.size:
-                self._fill(slots[search], s[search], d[search])
-        fresh[rest] = True
+            rest = rest[~done]
+        if rest.size:
+            self.stats.misses += int(rest.size)
+            self._fill(slots[rest], s[rest], d[rest])
+        fresh[~(hit | same)] = True
         fresh |= same
         delay[fresh] = self._tab["delay"][slots[fresh]]
         return self._serve(slots, delay, fresh)
@@ -296,15 +296,7 @@ class ArrivalCache:
         )
         good = idx[ok]
         if good.size:
-            # the followed links' own Arrivals (their rows of got, in order)
-            keep = ok[got.link]
-            sel = Arrivals(
-                shape=(int(good.size),),
-                offsets=np.concatenate([[0], np.cumsum(np.diff(got.offsets)[ok])]).astype(np.int64),
-                link=np.repeat(np.arange(good.size), np.diff(got.offsets)[ok]).astype(np.int64),
-                **{f: getattr(got, f)[keep] for f in Arrivals._FIELDS if f != "link"},
-            )
-            self._store(slots[good], sel)
+            self._store(slots[good], _links_of(got, ok))
             self._sl[slots[good]], self._dl[slots[good]] = s[good], d[good]
             self._kappa[slots[good]] = np.inf  # the Taylor reference no longer matches the tables
         done[good] = True
@@ -318,9 +310,13 @@ class ArrivalCache:
     def _fill(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> None:
         """Search the links of ``slots`` at (s, d): their new reference (and, with the Taylor
         tier on, its gradients and bound)."""
-        arr = self._solve(s, d)
-        fits = self._store(slots, arr)
-        self._sa[slots], self._da[slots] = s, d
+        self._store(slots, self._solve(s, d))
+        self._reference(slots, s, d, s, d)
+
+    def _reference(self, slots: NDArray[np.int64], s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> None:
+        """The slots' last solutions, solved at (s, d), become their reference; (sa, da): where
+        their arrival set was last searched (the following tier's centre)."""
+        self._sa[slots], self._da[slots] = sa, da
         self._sl[slots], self._dl[slots] = s, d
         self._s0[slots], self._d0[slots] = s, d
         self._t0[slots] = self._tab["delay"][slots]
@@ -328,7 +324,7 @@ class ArrivalCache:
         self._kappa[slots] = np.inf
         if self.tol_s > 0.0:
             kappa, g = self._gradients(slots, s, d)
-            self._kappa[slots] = np.where(fits, kappa, np.inf)
+            self._kappa[slots] = np.where(self._fits[slots], kappa, np.inf)
             self._g[slots] = g
 
     def _gradients(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray, NDArray]:
@@ -353,7 +349,7 @@ class ArrivalCache:
         D = np.concatenate([d + side, d - side, d, d])
         th4 = np.tile(ths, (4, 1))
         rows, ok, _sec = rangedep.follow(
-            self.env, S, D, self.max_bounces, th4, np.tile(tab["dz_dlaunch"][slots], (4, 1)), np.tile(cb, (4, 1)), False
+            self.env, S, D, self.max_bounces, th4, np.tile(tab["dz_dlaunch"][slots], (4, 1)), np.tile(cb, (4, 1))
         )
         from . import _rangedep_search_jit as jit
 
@@ -434,3 +430,15 @@ class ArrivalCache:
             delay=take(delay),
             **fields,
         )
+
+
+def _links_of(got: Arrivals, ok: NDArray[np.bool_]) -> Arrivals:
+    """The links ``ok`` of ``got`` (one per row), as their own Arrivals, in order."""
+    keep = ok[got.link]
+    cnt = np.diff(got.offsets)[ok]
+    return Arrivals(
+        shape=(int(ok.sum()),),
+        offsets=np.concatenate([[0], np.cumsum(cnt)]).astype(np.int64),
+        link=np.repeat(np.arange(cnt.size), cnt).astype(np.int64),
+        **{f: getattr(got, f)[keep] for f in Arrivals._FIELDS if f != "link"},
+    )

@@ -185,7 +185,9 @@ def follow(
     link is not followed where one of its eigenrays changed its bounce sequence (a path about to
     vanish), or two of one sequence met or swapped their order (a fold, where following one may
     land on the other); its arrivals are then meaningless and must be searched again. A
-    followed link has exactly ``prev``'s eigenrays: one that appeared since is not found."""
+    followed link has exactly ``prev``'s eigenrays: one that appeared since is not found. The
+    ray-tube width (for the level) is the secant's last slope instead of a central difference:
+    within 1e-3 of it for moves of a metre away from caustics (a few thousandths of a dB)."""
     from . import _rangedep_search_jit as jit
 
     n = prev.offsets.size - 1
@@ -201,7 +203,7 @@ def follow(
     theta[rows_of, col] = prev.launch_angle
     slope[rows_of, col] = prev.dz_dlaunch
     code[rows_of, col] = prev.bounce_code
-    rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code, tube=True)
+    rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code)
     used = code >= 0
     whole = np.all(ok | ~used, axis=1)
     # a fold: an eigenray of a bounce sequence with others may have been followed onto one of

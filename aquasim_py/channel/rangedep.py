@@ -247,13 +247,12 @@ def follow(
     theta0: FloatArray,
     slope: FloatArray,
     code: NDArray[np.int64],
-    tube: bool = True,
 ) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
     """Known eigenrays (launch angles theta0 (n, Q), depth-miss slopes d z_R / d theta0, bounce
     sequences; code < 0 = none) followed to the links src -> dst: a few secant steps from the old
     angle each, instead of a search. Returns (rows (n, Q, NF) as :func:`solve` gives them, NaN
-    where not followed; followed (n, Q); the sections). ``tube`` False: no ray-tube width
-    (F_DZDTH NaN, two rays per arrival fewer)."""
+    where not followed, the ray-tube width the secant's last slope; followed (n, Q); the
+    sections)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
@@ -275,7 +274,6 @@ def follow(
         np.ascontiguousarray(slope, dtype=float),
         np.ascontiguousarray(code, dtype=np.int64),
         _ZTOL_M,
-        bool(tube),
     )
     return rows, ok, sec
 
@@ -289,9 +287,9 @@ def track(
     slope: FloatArray,
     code: NDArray[np.int64],
 ) -> FloatArray:
-    """Delays (n, Q) of known eigenrays followed to the links src -> dst (:func:`follow`
-    without the ray-tube width); NaN where one could not be followed."""
+    """Delays (n, Q) of known eigenrays followed to the links src -> dst (:func:`follow`); NaN
+    where one could not be followed."""
     from . import _rangedep_search_jit as jit
 
-    rows, _ok, _sec = follow(env, src, dst, max_bounces, theta0, slope, code, tube=False)
+    rows, _ok, _sec = follow(env, src, dst, max_bounces, theta0, slope, code)
     return rows[:, :, jit.F_TIME]

@@ -205,3 +205,43 @@ def test_direct_only_loses_reflected_stamps() -> None:
     low = ChannelConfig(collision="none", direct_only=True, snr_threshold_db=-50.0, detection_threshold_db=-50.0)
     p = _run(SHELF, low, WEAK_SRC, {"positions": [WEAK_DST]}, 30.0)
     assert (p[p.event == "rx"].path == "refracted").sum() == 2
+
+
+def test_reception_carries_the_stamp_only() -> None:
+    """A protocol's Reception behind the seamount holds the packet, the MAC stamp (the late
+    surface-reflected arrival, as the receiver's clock reads it), the SNR and the hydrophone
+    pressure, and nothing of the arrival structure: no delay, class, count or spread, neither
+    on the Reception nor on the Packet."""
+    from dataclasses import fields
+
+    from aquasim_py.node import Node
+    from aquasim_py.packet import Packet, Reception
+
+    got: list[Reception] = []
+
+    class Keeper(Node):
+        name = "keeper"
+
+        def run(self):
+            while True:
+                got.append((yield self.recv()))
+
+    sim = Simulation(
+        1,
+        ssp=ssp.Constant(C),
+        volume=BOX,
+        channel=ChannelConfig(collision="none", max_range_m=8000.0),
+        environment=SEAMOUNT,
+    )
+    sim.add_group(planned({0: [(1.0, None, 64)]}), 1, positions=[SRC])
+    sim.add_group(Keeper, 1, positions=[DST])
+    sim.run(10.0)
+    assert len(got) == 1
+    rec = got[0]
+    assert type(rec) is Reception and type(rec.packet) is Packet
+    assert [f.name for f in fields(Reception)] == ["packet", "rx_local", "snr_db", "pressure"]
+    assert [f.name for f in fields(Packet)] == ["uid", "src", "dst", "kind", "payload", "bits", "tx_local"]
+    assert not hasattr(rec, "__dict__") and not hasattr(rec.packet, "__dict__")  # slots: nothing added later
+    assert rec.packet.payload == {"from": 0}  # what the sender put in, nothing more
+    # the stamp is the surface reflection's (the clocks are ideal by default)
+    np.testing.assert_allclose(rec.rx_local - rec.packet.tx_local, _surface_image_time(SRC, DST), rtol=0, atol=1e-9)
