@@ -318,7 +318,16 @@ def runs():
 
 def test_family_metrics_equal_the_generic_ones(runs):
     variants, _ = runs["itmtl.toml"]
-    assert set(variants) == {"itmtl", "wsc", "tshl", "mu_sync", "mobi_sync", "paper"}
+    assert set(variants) == {
+        "itmtl",
+        "wsc",
+        "tshl",
+        "mu_sync",
+        "mobi_sync",
+        "itmtl_model_delay",
+        "wsc_model_delay",
+        "paper",
+    }
     pairs = [
         ("loc_rmse_m", "localization.rmse_m"),
         ("loc_final_rmse_m", "localization.final_rmse_m"),

@@ -676,3 +676,35 @@ def test_noisy_constant_velocity_steps_follow_the_cv_model() -> None:
     ref = q * T**3 / 3
     assert abs(float(C) - ref) < 4 * ref * math.sqrt(2 / 4000)
     assert np.all(m.position(7.0)[:, 2] == 50.0)  # not vertical: depth fixed
+
+
+class TestConfinedNoisyCV:
+    """confine_steps: the CV model conditioned on staying in the box, by rejection."""
+
+    def _make(self, box, seed, **kw):
+        from aquasim_py.mobility import NoisyConstantVelocity
+
+        return NoisyConstantVelocity(
+            np.array([[0.0, 0.0, 50.0]]), box, np.random.default_rng(seed), velocity=[10.0, 10.0, 0.0], q=1.0, **kw
+        )
+
+    def test_a_box_nothing_leaves_changes_nothing(self):
+        from aquasim_py.mobility import Box
+
+        big = Box([-1e6, -1e6, 0.0], [1e6, 1e6, 100.0])
+        free, held = self._make(big, 4), self._make(big, 4, confine_steps=80)
+        t = np.linspace(0.0, 79.0, 200)
+        assert held.redraws == 0
+        np.testing.assert_array_equal(held.position_at(np.zeros(200, int), t), free.position_at(np.zeros(200, int), t))
+
+    @pytest.mark.parametrize("seed", range(5))
+    def test_tracks_stay_in_the_box(self, seed):
+        from aquasim_py.mobility import Box
+
+        box = Box([-200.0, -200.0, 0.0], [400.0, 400.0, 100.0])
+        m = self._make(box, seed, confine_steps=40)
+        k = np.arange(41.0)
+        pos = m._raw_position_at(np.zeros(41, int), k)
+        assert box.contains(pos).all()
+        with pytest.raises(ValueError, match="stayed in"):
+            self._make(Box([-1.0, -1.0, 0.0], [1.0, 1.0, 100.0]), seed, confine_steps=40, max_redraws=3)

@@ -357,14 +357,15 @@ def test_scratch_files_go_with_the_result(tmp_path):
 
 
 def test_a_protocol_that_declares_what_it_reads_lets_the_rest_go(tmp_path):
-    """stvf reads estimates and nodes: with positions not requested, no positions file exists
-    anywhere and asking for it says why."""
+    """multilateration_all_refs reads estimates and nodes: with positions not requested, no
+    positions file exists anywhere and asking for it says why."""
     p = tmp_path / "s.toml"
     text = (Path(__file__).resolve().parents[1] / "scenarios" / "stvf_quick.toml").read_text()
     text = text.replace('tables = ["nodes", "estimates", "positions"]', 'tables = ["nodes"]')
     p.write_text(text)
     short = {"simulation.duration_s": 3.0, "metrics.warmup_s": 0.0}
-    res = run_scenario(p, variant="stvf", overrides=short, progress=False)
+    short |= {f"nodes.{g}.params.training_s": 1.0 for g in (0, 1)}
+    res = run_scenario(p, variant="multilateration_all_refs", overrides=short, progress=False)
     assert "positions" not in res.tables and "estimates" in res.tables
     with pytest.raises(TableNotKept):
         res.tables["positions"]
@@ -388,14 +389,14 @@ MEMORY_SCENARIO = textwrap.dedent(
     [[nodes]]
     name = "beacons"
     role = "anchor"
-    protocol = "multilateration_bound"
+    protocol = "multilateration_all_refs"
     placement = { kind = "explicit", positions = [[0.0, 231.0, 20.0], [200.0, -115.5, 20.0], [-200.0, -115.5, 20.0]] }
     params = { range_m = 260.0, period_s = 10.0, listen_s = 9.0, send_window_s = 5.0 }
     [[nodes]]
     name = "unknown"
     role = "ordinary"
     count = 4
-    protocol = "multilateration_bound"
+    protocol = "multilateration_all_refs"
     placement = { kind = "uniform", lo = [-15.0, -15.0, 15.0], hi = [15.0, 15.0, 25.0] }
     params = { range_m = 260.0, period_s = 10.0, listen_s = 9.0, send_window_s = 5.0 }
     [trace]

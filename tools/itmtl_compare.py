@@ -82,7 +82,7 @@ KEYS = (
     "res_collision_fraction",
     "short_round_fraction",
 )
-#: the paper's numbers by figure (ITMTL seed 004)
+#: the paper's numbers by figure (ITMTL)
 PAPER = {c.figure: c.paper for c in CLAIMS}
 
 

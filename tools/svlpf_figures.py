@@ -13,9 +13,9 @@ equal those of a run of that estimator alone, i.e. of the scenario's variant).
     # the diagnosis (eq 25) against the channel's obstructed links, per SNR estimate noise
     nice -n 10 python tools/svlpf_figures.py diagnosis --runs 10 --snr-std 0 1 3 6
 
-Configurations: ``excessive`` = scenarios/svlpf.toml (Table 3, Figs. 6-7: the excessive noise
+Configurations: ``excessive`` = scenarios/svlpf_obstructed.toml (Table 3, Figs. 6-7: the excessive noise
 on the obstructed links), ``gaussian`` = scenarios/svlpf_gaussian.toml (Table 2, Figs. 4-5),
-``every_link`` = scenarios/svlpf_every_link.toml (Scenario 2 read as 25 % noise on every link;
+``every_link`` = scenarios/svlpf.toml (Scenario 2 read as 25 % noise on every link;
 docs/svlpf.md).
 """
 
@@ -38,9 +38,9 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 ALSO = 'nodes.0.params.also=["toa_pf", "lssvr_pf", "consensus"]'
 CONFIGS: dict[str, tuple[str, list[str]]] = {
-    "excessive": ("scenarios/svlpf.toml", []),
+    "excessive": ("scenarios/svlpf_obstructed.toml", []),
     "gaussian": ("scenarios/svlpf_gaussian.toml", []),
-    "every_link": ("scenarios/svlpf_every_link.toml", []),
+    "every_link": ("scenarios/svlpf.toml", []),
 }
 NAMES = {"svlpf": "SVL-PF", "consensus": "Consensus Estimation", "lssvr_pf": "LSSVR-PF", "toa_pf": "ToA-PF"}
 #: the paper's Tables 2 and 3 (k = 10, 20, ..., 100), for the side-by-side print
@@ -165,7 +165,7 @@ def paired(d: pd.DataFrame) -> None:
 
 
 def diagnosis_run(snr_std: float, seed: int) -> pd.DataFrame:
-    """One run of scenarios/svlpf.toml (SVL-PF alone) with the receivers' SNR estimate noise
+    """One run of scenarios/svlpf_obstructed.toml (SVL-PF alone) with the receivers' SNR estimate noise
     std ``snr_std`` (dB): per frame, the flagged sensors against the selected sensors whose
     link from the target the channel obstructed (ground truth: the obstacle field rebuilt
     from the run's keyed streams, as the channel draws it)."""

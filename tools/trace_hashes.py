@@ -92,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rev", help="run this git revision's code and scenarios (installed into a temporary folder)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="trace-hashes-") as tmp:
-        cli, env, root = [args.cli], None, ROOT
+        # an absolute path: the runs start in a temporary directory
+        cli, env, root = [os.path.abspath(args.cli) if os.sep in args.cli else args.cli], None, ROOT
         if args.rev:
             side = install_revision(args.rev, Path(tmp) / "rev")
             cli, root = [side.python, "-c", CLI], side.root

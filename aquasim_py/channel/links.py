@@ -138,8 +138,7 @@ class LinkModel:
         in any order; heard; lost).
 
         heard: (receiver id, delay s, path name, SNR dB) of signals that reach the receiver,
-        sorted by delay (ids, not modems: a moving network makes these lists at every
-        transmission, and each receiver's modem object would be one more cold line);
+        sorted by delay;
         lost: (id, "no_path" | "snr", delay, path name, SNR) of those that do not. When no node
         moves the answer never changes, so it is cached per sender (recomputed if nodes are
         added; the loss model must be a pure function of the eigenray and the config).

@@ -31,12 +31,16 @@ def version_line() -> str:
     """``aquasim-py --version``: the package, Python and SimPy versions, and whether the optional
     compiled CSV writer (aquasim_py._fastcsv, built at install when a C compiler is there) is
     in use; without it the trace is written by its pure-Python reference, with the same bytes."""
+    from importlib import import_module
     from importlib.metadata import version
-    from importlib.util import find_spec
 
     from aquasim_py._version import __version__
 
-    fast = "compiled (aquasim_py._fastcsv)" if find_spec("aquasim_py._fastcsv") is not None else "pure Python"
+    try:  # the import the trace makes (aquasim_py.trace.csvfmt), without loading pandas for it
+        import_module("aquasim_py._fastcsv")
+        fast = "compiled (aquasim_py._fastcsv)"
+    except ImportError:
+        fast = "pure Python"
     return (
         f"aquasim-py {__version__} (Python {sys.version.split()[0]}, SimPy {version('simpy')}; "
         f"trace CSV writer: {fast})"

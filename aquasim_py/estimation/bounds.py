@@ -22,6 +22,7 @@ __all__ = [
     "measurement_information",
     "pcrb_information",
     "pcrb_position",
+    "range_crb_trace",
 ]
 
 Array = NDArray[np.float64]
@@ -112,3 +113,49 @@ def pcrb_position(Jseq: ArrayLike, index: ArrayLike = (0, 1, 2)) -> Array:
     C = spd_inverse(np.asarray(Jseq, dtype=float), "posterior information")
     idx = np.asarray(index, dtype=int)
     return np.sum(np.diagonal(C, axis1=-2, axis2=-1)[..., idx], axis=-1)
+
+
+def range_crb_trace(
+    position: ArrayLike,
+    anchors: ArrayLike,
+    *,
+    std: float = 0.0,
+    rel_std: float = 0.0,
+    mask: ArrayLike | None = None,
+    plane: bool = True,
+) -> Array:
+    """CRB = tr I^-1 (m^2) of a position from ranges r_i = |x - a_i| + e_i to known anchors,
+    e_i ~ N(0, std^2 + (rel_std |x - a_i|)^2) independent (distance-dependent when rel_std > 0:
+    the variance term of :func:`fisher_information`).
+
+    ``position`` (..., 3), ``anchors`` (..., N, 3) (m); ``mask`` (..., N) True where the anchor
+    is present (absent ones carry no information), default all. ``plane``: the depth is known
+    (a depth gauge), the bound is on (x, y) only; else on (x, y, z). Broadcasts over leading
+    axes (one call for every estimate of a run); NaN where the anchors cannot fix the position
+    (singular information: fewer than 2 + 1 anchors, or all on one line).
+    """
+    x = np.asarray(position, dtype=float)
+    a = np.asarray(anchors, dtype=float)
+    d = x[..., None, :] - a
+    r = np.linalg.norm(d, axis=-1)
+    if np.any(r <= 0):
+        raise ValueError("an anchor coincides with the position")
+    if not (std > 0 or rel_std > 0):
+        raise ValueError("std and rel_std cannot both be 0")
+    u = d / r[..., None]
+    if plane:
+        u = u[..., :2]
+    var = std**2 + (rel_std * r) ** 2
+    dvar = (2.0 * rel_std**2 * r)[..., None] * u
+    J = u
+    if mask is not None:
+        m = np.broadcast_to(np.asarray(mask, dtype=bool), r.shape)
+        J = np.where(m[..., None], J, 0.0)
+        dvar = np.where(m[..., None], dvar, 0.0)
+        var = np.where(m, var, 1.0)
+    info = fisher_information(J, var, dvar)
+    # singular where the smallest eigenvalue is negligible against the largest (collinear)
+    ev = np.linalg.eigvalsh(info)
+    ok = ev[..., 0] > 1e-9 * ev[..., -1]
+    inv = np.linalg.inv(np.where(ok[..., None, None], info, np.eye(info.shape[-1])))
+    return np.where(ok, np.trace(inv, axis1=-2, axis2=-1), np.nan)

@@ -254,6 +254,12 @@ class NoisyConstantVelocity(Mobility):
     line (the reported velocity is that segment's), so positions at the sample instants are
     exactly the model's; before ``start_s`` it rests at its initial position. Steps are drawn
     from ``rng`` in fixed blocks of 64, all nodes at once, as far as queries reach.
+
+    ``confine_steps`` > 0: the first that many steps of a node are drawn again (from the same
+    stream) until its track stays inside the box: the CV model conditioned on staying in the
+    scenario volume (rejection sampling, so each accepted track is an exact draw of the
+    conditioned model; e.g. a tracking paper's target that stays in its sensor field). Later
+    steps, if queried, continue unconditioned. ``max_redraws`` bounds the attempts per node.
     """
 
     _BLOCK = 64
@@ -269,6 +275,8 @@ class NoisyConstantVelocity(Mobility):
         dt: float = 1.0,
         start_s: float = 0.0,
         vertical: bool = False,
+        confine_steps: int = 0,
+        max_redraws: int = 100000,
     ) -> None:
         super().__init__(initial_positions, box, rng)
         self._steps_rng = _need_rng(rng, "NoisyConstantVelocity")
@@ -294,19 +302,48 @@ class NoisyConstantVelocity(Mobility):
         self._L = np.linalg.cholesky(q * np.array([[T**3 / 3.0, T**2 / 2.0], [T**2 / 2.0, T]]) + 1e-300 * np.eye(2))
         self._P = _Table(self._p0)
         self._V = _Table(v)
+        self.redraws = 0  # tracks drawn again by the confinement, all nodes
+        if int(confine_steps) < 0 or int(max_redraws) < 1:
+            raise ValueError(f"confine_steps must be >= 0 and max_redraws >= 1, got {confine_steps!r}, {max_redraws!r}")
+        if confine_steps:
+            self._confine(int(confine_steps), int(max_redraws))
 
-    def _draw_block(self) -> None:
-        b, n = self._BLOCK, self.n
-        z = self._steps_rng.standard_normal((b, n, 3, 2))
+    def _steps(self, z: Array, p: Array, v: Array) -> tuple[Array, Array]:
+        """States after each of the steps of standard normals ``z`` (b, n, 3, 2) from (p, v)."""
         w = z @ self._L.T  # (b, n, 3, [p, v])
         if not self.vertical:
             w[:, :, 2, :] = 0.0
-        p, v = self._P.last.copy(), self._V.last.copy()
-        ps, vs = np.empty((b, n, 3)), np.empty((b, n, 3))
-        for j in range(b):  # a recursion in time (over steps, not nodes)
+        ps, vs = np.empty(z.shape[:3]), np.empty(z.shape[:3])
+        for j in range(z.shape[0]):  # a recursion in time (over steps, not nodes)
             p = p + self.dt * v + w[j, :, :, 0]
             v = v + w[j, :, :, 1]
             ps[j], vs[j] = p, v
+        return ps, vs
+
+    def _confine(self, steps: int, max_redraws: int) -> None:
+        """Draw the first ``steps`` steps, each node's again until its track stays in the box."""
+        p0, v0 = self._P.last.copy(), self._V.last.copy()
+        ps, vs = self._steps(self._steps_rng.standard_normal((steps, self.n, 3, 2)), p0, v0)
+        out: NDArray[np.bool_] = np.asarray(~self.box.contains(ps).all(axis=0))  # (n,)
+        tries = 1
+        while out.any():
+            if tries >= max_redraws:
+                raise ValueError(
+                    f"no track of node(s) {np.flatnonzero(out).tolist()} stayed in {self.box!r} for "
+                    f"{steps} steps in {max_redraws} draws: a larger volume, fewer confine_steps or a smaller q"
+                )
+            idx = np.flatnonzero(out)
+            z = self._steps_rng.standard_normal((steps, idx.size, 3, 2))
+            ps[:, idx], vs[:, idx] = self._steps(z, p0[idx], v0[idx])
+            out[idx] = ~self.box.contains(ps[:, idx]).all(axis=0)
+            self.redraws += idx.size
+            tries += 1
+        self._P.append(ps)
+        self._V.append(vs)
+
+    def _draw_block(self) -> None:
+        z = self._steps_rng.standard_normal((self._BLOCK, self.n, 3, 2))
+        ps, vs = self._steps(z, self._P.last.copy(), self._V.last.copy())
         self._P.append(ps)
         self._V.append(vs)
 

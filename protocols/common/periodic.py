@@ -2,7 +2,12 @@
 
 Every ``period_s`` (local clock) references broadcast one beacon at a uniform random offset in
 [0, ``send_window_s``); unknown nodes listen until ``listen_s`` into the period, then localize
-from the beacons heard. Subclasses give the payload, the localization, and when to start.
+from the beacons heard. Subclasses say whether the node is a reference this period
+(:meth:`PeriodicBeaconNode.advertises`, decided at the period start), what a reference does
+right before it speaks (:meth:`~PeriodicBeaconNode.localize_reference`), the payload
+(:meth:`~PeriodicBeaconNode.beacon_payload`, composed at the send instant, so the position it
+carries is the sender's at the MAC transmit stamp the receivers measure from), the
+localization, and when to start.
 """
 
 from __future__ import annotations
@@ -12,11 +17,23 @@ from operator import itemgetter
 from typing import Any
 
 import simpy
+from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.node import Node
 from aquasim_py.packet import Reception
 
 _TURNS = "periodic_turns"  # key of the run's _Turns in Node.out_of_band
+
+
+class PeriodicParams(BaseModel):
+    """The period cycle's parameters (STVF Table 1 / Sec. 5.3 defaults)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    period_s: float = Field(1.0, gt=0, description="localization period (s)")
+    listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
+    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
+    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
 
 
 class _Turns:
@@ -51,7 +68,8 @@ class _Turns:
 
 class PeriodicBeaconNode(Node):
     """Node base for period-based beacon localization; ``params`` needs ``period_s``,
-    ``listen_s``, ``send_window_s`` and ``bits``, and ``setup`` must set ``is_beacon``."""
+    ``listen_s``, ``send_window_s`` and ``bits`` (:class:`PeriodicParams`), and ``setup``
+    must set ``is_beacon``."""
 
     beacon_kind: str = "beacon"
     is_beacon: bool
@@ -64,8 +82,15 @@ class PeriodicBeaconNode(Node):
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)
     drain_inbox = True
 
+    def advertises(self) -> bool:
+        """Whether this node is a reference this period (asked at the period start)."""
+        raise NotImplementedError
+
+    def localize_reference(self) -> None:
+        """A reference's own localization right before its beacon (default: none)."""
+
     def beacon_payload(self) -> Any:
-        """What this node broadcasts this period, or None if it is not a reference."""
+        """The beacon, composed at its send instant (no side effects)."""
         raise NotImplementedError
 
     def localize(self, heard: list[Any]) -> None:
@@ -82,13 +107,13 @@ class PeriodicBeaconNode(Node):
         k = 0
         while True:
             period_start = t_start + k * p.period_s
-            payload = self.beacon_payload()
-            if payload is not None:
+            if self.advertises():
                 # A random offset per period: all references sending at once would be deaf to
                 # each other (half-duplex modems); the paper's simulation has no MAC at all.
                 offset = self.rng.uniform(0.0, p.send_window_s)
                 yield self.sleep(max(0.0, period_start + offset - self.local_time()))
-                yield self.broadcast(self.beacon_kind, payload, p.bits)
+                self.localize_reference()
+                yield self.broadcast(self.beacon_kind, self.beacon_payload(), p.bits)
             if not self.is_beacon:
                 yield self.sleep(max(0.0, period_start + p.listen_s - self.local_time()))
                 received: list[Reception] = []

@@ -1,4 +1,4 @@
-"""ITMTL (seed 004): joint time synchronization and localization by iterative tracing, with
+"""ITMTL: joint time synchronization and localization by iterative tracing, with
 its baselines TSHL, MU-Sync and Mobi-Sync on the same Req/Res exchange (:mod:`.reqres`)."""
 
 from .mobi_sync import MobiSyncNode

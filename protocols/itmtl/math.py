@@ -1,8 +1,8 @@
 """ITMTL maths as pure functions (numpy/scipy, no SimPy): phases 1, 2a, 3 and the confidence.
 
 ITMTL: R. Gao, D. Qiao, M. Zhang, G. Xu et al., "Mobile target localization based on
-iterative tracing for underwater wireless sensor networks" (seed 004). The paper's equations
-were lost in extraction; this module follows the reconstruction in ``notes/papers.md``:
+iterative tracing for underwater wireless sensor networks". The paper's equations
+were lost in extraction; this module follows the reconstruction in docs/itmtl.md ("What the extracted text lost"):
 
 - phase 1 (eqs 1-6): hyperbolic TDOA with reference 1 as the pivot, linearized least squares
   in ``(x, y[, z], d_1)`` (:func:`aquasim_py.estimation.lsq.tdoa_ls`); initial clock ``alpha = 1``, ``beta = T1 - (t2_1 - d_1 / c)``;

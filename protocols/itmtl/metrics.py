@@ -154,6 +154,9 @@ def protocol_metrics(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str,
         out["promoted_share"] = 0.0
     out["coverage"] = generic.coverage(est, ids)
     out["coverage_upper_bound"] = coverage_upper_bound(tables)
+    # coverage against what the link graph allows (nodes that can reach enough references)
+    bound = out["coverage_upper_bound"]
+    out["coverage_of_bound"] = out["coverage"] / bound if bound > 0 else nan
     return out
 
 

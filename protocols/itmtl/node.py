@@ -1,8 +1,8 @@
-"""ITMTL: joint time synchronization and localization by iterative tracing (seed 004).
+"""ITMTL: joint time synchronization and localization by iterative tracing.
 
 R. Gao, D. Qiao, M. Zhang, G. Xu et al., mobile target localization based on iterative
 tracing for underwater wireless sensor networks. The equations of the paper were lost; the
-maths follows the reconstruction in ``notes/papers.md`` (see :mod:`aquasim_protocols.itmtl.math` and
+maths follows the reconstruction in docs/itmtl.md (see :mod:`aquasim_protocols.itmtl.math` and
 :mod:`aquasim_py.estimation.sync`).
 
 Roles: buoys and anchors answer Req messages (true time, known position); ordinary nodes run
@@ -43,7 +43,7 @@ from aquasim_py.estimation.imm import IMM
 from aquasim_py.estimation.lsq import multilaterate, tdoa_ls
 from aquasim_py.estimation.motion import ConstantVelocityModel, CoordinatedTurnModel
 from aquasim_py.estimation.promotion import promote
-from aquasim_py.estimation.sync import Exchanges, itmtl_sync, split_delays
+from aquasim_py.estimation.sync import Exchanges, fit_clock, itmtl_sync, regression_points, split_delays
 from aquasim_py.registry import register
 
 from .math import DelayModel, fix_confidence, initial_clock, position_fix
@@ -61,6 +61,11 @@ class ItmtlParams(ReqResParams):
         True, description="with >= min_refs buoy / anchor answers, use those alone (the paper's hierarchy)"
     )
     compensate: bool = Field(True, description="stratification compensation through the ray tracer (False = ITMTL-wsc)")
+    delay_source: Literal["round_trip", "model"] = Field(
+        "round_trip",
+        description="regression delays: the round trip split by the motion term (round_trip), or the "
+        "delay model (eq 17: ray-traced, or distance / c for wsc) at the round's position (model)",
+    )
     imm: bool = Field(True, description="IMM (CV KF + coordinated-turn EKF) filtering of the fixes; False = raw fixes")
     motion_split: bool = Field(True, description="relative-motion split of the round trip (False = half round trip)")
     motion_mode: Literal["relative", "separate"] = Field(
@@ -196,9 +201,31 @@ class ItmtlNode(ReqResNode):
         ex = self._exchanges(*self._rates())
         t = np.concatenate([ex.t2, ex.t3])
         fix_skew = float(t.max() - t.min()) < self.params.min_skew_span_s
-        fit = itmtl_sync(ex, self.alpha, fix_skew=fix_skew)
-        self.alpha, self.beta = fit.alpha, fit.beta
+        if self.params.delay_source == "model":
+            tau_f, tau_b = self._model_delays(ex)
+            self.alpha, self.beta = fit_clock(
+                *regression_points(ex, tau_f, tau_b), alpha_fixed=self.alpha if fix_skew else None
+            )
+        else:
+            fit = itmtl_sync(ex, self.alpha, fix_skew=fix_skew)
+            self.alpha, self.beta = fit.alpha, fit.beta
         self.synced = True
+
+    def _model_delays(self, ex: Exchanges) -> tuple[np.ndarray, np.ndarray]:
+        """Phase 2a with ``delay_source = "model"``: each exchange's forward delay from the delay
+        model (eq 17; ray-traced with compensation, distance / c without) between the reference
+        and the node's position estimate of that round, the backward one that plus the motion
+        term of eqs 19-23 (the round trip's S taken as 2 tau_f). Exchanges of rounds without a
+        position estimate keep the round-trip split."""
+        tau_f, tau_b = split_delays(ex, self.alpha)
+        pos = np.array([self._round_pos.get(r, np.full(3, np.nan)) for r in self._ex_round])
+        ok = np.all(np.isfinite(pos), axis=1)
+        if ok.any():
+            tf = self.model.delay(np.array(self._ref_pos)[ok], pos[ok])
+            hold = ex.t3[ok] - ex.t2[ok]
+            tau_f[ok] = tf
+            tau_b[ok] = tf + ex.k_node[ok] * (hold + 2.0 * tf) + ex.k_ref[ok] * hold
+        return tau_f, tau_b
 
     def position_std(self) -> float:
         """Std of this node's position estimate (m): the IMM's (or the last fix's) covariance;

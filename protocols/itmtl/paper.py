@@ -1,4 +1,4 @@
-"""The ITMTL paper's numbers (Gao et al., seed 004) beside the same statistics of our runs.
+"""The ITMTL paper's numbers (Gao et al.) beside the same statistics of our runs.
 
 ``aquasim-py scenarios/itmtl.toml`` runs ITMTL, ITMTL-wsc, TSHL, MU-Sync and Mobi-Sync on one
 network and seed; :func:`comparison` turns those runs into one row per claim of the paper

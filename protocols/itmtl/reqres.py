@@ -1,17 +1,19 @@
 """Shared Req/Res machinery of ITMTL and its baselines (not a protocol by itself).
 
-One SimPy process per node multiplexes three activities on a single receive loop, so no
-two processes compete for the modem's inbox:
+The exchange of the paper, one SimPy process per role (both wait on the node's modem, each
+for its own packet kind: ``recv(kinds=...)``):
 
-- reference side (buoys, anchors, promoted ordinary nodes): a ``sync_req`` received at local
-  ``T`` is answered in the reply slot the requester assigned to it with a ``sync_res`` to its
-  sender carrying ``t2`` (receive stamp, reference time), the reference's clock model (so
-  that the frame's MAC transmit stamp gives ``t3`` in reference time), position, velocity,
-  confidence and whether it is a buoy / anchor;
-- ordinary side: every ``round_period_s`` (local, plus a per-round uniform jitter) broadcast
-  ``sync_req``, collect the answers until the last slot can have arrived, ask the references
-  that did not answer once more (one retry), then hand the round to
-  :meth:`ReqResNode.process_round`;
+- :meth:`ReqResNode.responder`, on every node, answers while the node is a reference (buoys,
+  anchors, promoted ordinary nodes): a ``sync_req`` received at local ``T`` is answered
+  (:meth:`ReqResNode.reply`, a process per answer) in the reply slot the requester assigned
+  to it with a ``sync_res`` to its sender carrying ``t2`` (receive stamp, reference time), the
+  reference's clock model (so that the frame's MAC transmit stamp gives ``t3`` in reference
+  time), position, velocity, confidence and whether it is a buoy / anchor;
+- :meth:`ReqResNode.requester`, on ordinary nodes: every ``round_period_s`` (local, plus a
+  per-round uniform jitter) :meth:`~ReqResNode.request` broadcasts ``sync_req``,
+  :meth:`~ReqResNode.collect` takes the answers until the last slot can have arrived, the
+  references that did not answer are asked once more (one retry), and
+  :meth:`~ReqResNode.close_round` hands the round to :meth:`ReqResNode.process_round`;
 - TSHL's one-way beacons are the ``sync_res`` stamps themselves (``t3`` sent, ``T4`` received).
 
 The reply MAC (``mac = "slots"``, added: the paper gives no MAC). The Req lists the
@@ -33,7 +35,6 @@ references of any of them answer any of them).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Generator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
@@ -44,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from aquasim_py.channel.ssp import Constant, Isogradient, Layered, SoundSpeedProfile
 from aquasim_py.node import Node, Role, SensorUnavailable
+from aquasim_py.packet import Reception
 
 from . import metrics as itmtl_metrics
 
@@ -138,7 +140,6 @@ class ReqResNode(Node):
         self.alpha = 1.0  # this node's estimate of its clock: local = alpha t + beta
         self.beta = 0.0
         self.synced = self.is_reference
-        self._replies: list[tuple[float, int, dict[str, Any]]] = []  # (due local, dst, payload)
         # references heard: id -> (last round, last round trip S in local s, buoy / anchor)
         self._known: dict[int, tuple[int, float, bool]] = {}
 
@@ -234,132 +235,179 @@ class ReqResNode(Node):
         last = p.turnaround_s + (len(listed) + n_open) * slot + 2.0 * p.max_prop_delay_s
         return float(T1), float(T1) + last
 
+    # -- the exchange: one process per role -------------------------------------------------------
+
     def run(self) -> Generator[Any, Any, None]:
+        """Every node answers Reqs while it is a reference (:meth:`responder`, its own process);
+        an ordinary node also runs rounds (:meth:`requester`). Buoys and anchors never ask."""
         p = self.params
-        start = self.local_time()
-        next_round = start + (float(self.rng.uniform(0.0, p.first_round_s)) if p.first_round_s > 0 else 0.0)
-        current: Round | None = None
-        collect_end = math.inf
-        if self.is_reference:
-            next_round = math.inf
+        # Every node draws its first Req time, references too (they never use it): the draws
+        # that follow (slot choices, round jitter) then sit at the same places of a node's
+        # stream whatever its role.
+        first = self.local_time() + (float(self.rng.uniform(0.0, p.first_round_s)) if p.first_round_s > 0 else 0.0)
+        self.env.process(self.responder())
+        if not self.is_reference:
+            yield from self.requester(first)
+
+    # reference side
+
+    def responder(self) -> Generator[Any, Any, None]:
+        """Answer each Req heard while a reference, in the slot the requester assigned."""
         while True:
-            now = self.local_time()
-            due_reply = min((r[0] for r in self._replies), default=math.inf)
-            wake = min(next_round, collect_end, due_reply)
-            if wake <= now:
-                if due_reply <= now:
-                    yield from self._send_due_replies()
-                    continue
-                if collect_end <= now and current is not None:
-                    got = {a.ref for a in current.answers}
-                    missing = [j for j in current.asked if j not in got]
-                    # one retry: the listed references that did not answer, plus open slots if
-                    # the round is still short and was not closed by the hierarchy
-                    n_open = p.contention_slots if len(current.answers) < p.min_refs and current.open else 0
-                    if p.mac == "slots" and p.retry and not current.retried and (missing or n_open):
-                        current.retried = True
-                        T1r, collect_end = yield from self._send_req(current.index, missing, n_open, 1)
-                        current.T1s.append(T1r)
-                        continue
-                    for a in current.answers:
-                        self._known[a.ref] = (current.index, (a.T4 - a.T1) - (a.t3 - a.t2), a.anchor)
-                    self.log(
-                        "reqres_rounds",
-                        round=current.index,
-                        answers=len(current.answers),
-                        anchors=sum(a.anchor for a in current.answers),
-                        asked=len(current.asked),
-                        retried=current.retried,
-                        needed=p.min_refs,
-                    )
-                    self.process_round(current)
-                    current, collect_end = None, math.inf
-                    continue
-                if next_round <= now:
-                    self.round_index += 1
-                    listed, n_open = self._slot_plan(self.round_index)
-                    T1, collect_end = yield from self._send_req(self.round_index, listed, n_open)
-                    current = Round(self.round_index, T1, asked=listed, open=n_open > 0, T1s=[T1])
-                    jitter = float(self.rng.uniform(-0.5, 0.5)) * p.round_jitter_s if p.round_jitter_s > 0 else 0.0
-                    next_round = T1 + p.round_period_s + jitter
-                    continue
-            timeout = None if math.isinf(wake) else max(0.0, wake - now)
-            rec = yield self.recv(timeout=timeout, kinds=(REQ, RES))
-            if rec is None:
+            rec = yield self.recv(kinds=REQ)
+            if not self.answers_requests():
                 continue
-            pkt = rec.packet
-            if pkt.kind == REQ and self.answers_requests():
-                pl = pkt.payload
-                if "slots" in pl:
-                    if self.id in pl["slots"]:
-                        k = pl["slots"].index(self.id)
-                    elif pl["open"] > 0:
-                        k = len(pl["slots"]) + int(self.rng.integers(pl["open"]))
-                    else:
-                        continue  # closed Req: the requester has enough buoys / anchors
-                    hold = pl["turn_s"] + k * pl["slot_s"]
-                else:
-                    hold = p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
-                self.log("reqres_replies", requester=pkt.src, round=pl["round"], hold_s=hold)
-                self._replies.append(
-                    (rec.rx_local + hold, pkt.src, {"round": pl["round"], "try": pl["try"], "T2_local": rec.rx_local})
-                )
-            elif (
-                pkt.kind == RES and current is not None and pkt.dst == self.id and pkt.payload["round"] == current.index
-            ):
-                pl = pkt.payload
-                if any(a.ref == pkt.src for a in current.answers):
-                    continue  # a late first answer after the retry asked again: keep one
-                a_ref, b_ref = pl["clock"]
-                current.answers.append(
-                    Answer(
-                        pkt.src,
-                        current.T1s[pl["try"]],
-                        pl["t2"],
-                        (pkt.tx_local - b_ref) / a_ref,
-                        rec.rx_local,
-                        np.asarray(pl["pos"], float),
-                        np.asarray(pl["vel"], float),
-                        float(pl["conf"]),
-                        float(pl["pos_std"]),
-                        float(pl["vel_std"]),
-                        float(pl["time_std"]),
-                        bool(pl["anchor"]),
-                    )
-                )
+            pl = rec.packet.payload
+            hold = self.reply_hold(pl)
+            if hold is None:
+                continue  # closed Req: the requester has enough buoys / anchors
+            self.log("reqres_replies", requester=rec.packet.src, round=pl["round"], hold_s=hold)
+            self.env.process(self.reply(rec.packet.src, pl, rec.rx_local, hold))
+
+    def reply_hold(self, req: Mapping[str, Any]) -> float | None:
+        """Local seconds from a Req's reception to the Res (None: this reference may not
+        answer). ``mac = "slots"``: the listed slot, else a random open slot; ``"random"``:
+        a random hold."""
+        p = self.params
+        if "slots" not in req:
+            return p.hold_min_s + float(self.rng.uniform(0.0, p.hold_spread_s))
+        if self.id in req["slots"]:
+            k = req["slots"].index(self.id)
+        elif req["open"] > 0:
+            k = len(req["slots"]) + int(self.rng.integers(req["open"]))
+        else:
+            return None
+        return float(req["turn_s"] + k * req["slot_s"])
+
+    def reply(self, dst: int, req: Mapping[str, Any], T2_local: float, hold: float) -> Generator[Any, Any, None]:
+        """Send the Res ``hold`` local seconds after the Req's receive stamp ``T2_local``: ``t2``
+        (reference time), the clock model that turns the frame's MAC transmit stamp into ``t3``,
+        position and velocity at ``t2``, confidence and the announced uncertainties."""
+        yield self.sleep(max(0.0, T2_local + hold - self.local_time()))
+        t2 = self.ref_time(T2_local)
+        if self.is_anchor:
+            pos = self.own_position()
+            vel = self.own_velocity()
+        else:
+            pos = self.estimated_position_at(t2)
+            vel = self.estimated_velocity()
+        # t3 is the frame's own MAC transmit stamp (``Packet.tx_local``, set by the modem as
+        # the first bit leaves); the frame carries the clock model that turns it into
+        # reference time (identity for buoys and anchors).
+        payload = {
+            "round": req["round"],
+            "try": req["try"],
+            "t2": t2,
+            "clock": (self.alpha, self.beta),
+            "pos": tuple(map(float, pos)),
+            "vel": tuple(map(float, vel)),
+            "conf": float(self.confidence),
+            "pos_std": self.position_std(),
+            "vel_std": self.velocity_std(),
+            "time_std": self.time_std(t2),
+            "anchor": bool(self.is_anchor),
+        }
+        yield self.send(dst, RES, payload, self.params.res_bits)
 
     def answers_requests(self) -> bool:
         return self.is_reference
 
-    def _send_due_replies(self) -> Generator[Any, Any, None]:
-        now = self.local_time()
-        due = [r for r in self._replies if r[0] <= now]
-        self._replies = [r for r in self._replies if r[0] > now]
-        for _, dst, info in sorted(due, key=lambda r: r[0]):
-            t2 = self.ref_time(info["T2_local"])
-            if self.is_anchor:
-                pos = self.own_position()
-                vel = self.own_velocity()
-            else:
-                pos = self.estimated_position_at(t2)
-                vel = self.estimated_velocity()
-            # t3 is the frame's own MAC transmit stamp (``Packet.tx_local``, set by the modem as
-            # the first bit leaves); the frame carries the clock model that turns it into
-            # reference time (identity for buoys and anchors).
-            payload = {
-                "round": info["round"],
-                "try": info["try"],
-                "t2": t2,
-                "clock": (self.alpha, self.beta),
-                "pos": tuple(map(float, pos)),
-                "vel": tuple(map(float, vel)),
-                "conf": float(self.confidence),
-                "pos_std": self.position_std(),
-                "vel_std": self.velocity_std(),
-                "time_std": self.time_std(t2),
-                "anchor": bool(self.is_anchor),
-            }
-            yield self.send(dst, RES, payload, self.params.res_bits)
+    # ordinary side
+
+    def requester(self, first: float) -> Generator[Any, Any, None]:
+        """Rounds from local time ``first``: wait for the round's start, broadcast the Req,
+        collect the answers, ask the silent references once more, then hand the round to
+        :meth:`process_round`."""
+        p = self.params
+        next_round = first
+        while True:
+            yield from self.idle_until(next_round)
+            self.round_index += 1
+            rnd, collect_end = yield from self.request(self.round_index)
+            jitter = float(self.rng.uniform(-0.5, 0.5)) * p.round_jitter_s if p.round_jitter_s > 0 else 0.0
+            next_round = rnd.T1 + p.round_period_s + jitter
+            yield from self.collect(rnd, collect_end)
+            retry = self.retry_plan(rnd)
+            if retry is not None:
+                rnd.retried = True
+                T1r, collect_end = yield from self._send_req(rnd.index, *retry, attempt=1)
+                rnd.T1s.append(T1r)
+                yield from self.collect(rnd, collect_end)
+            self.close_round(rnd)
+
+    def idle_until(self, local: float) -> Generator[Any, Any, None]:
+        """Wait until local time ``local``; answers that come outside a round are dropped."""
+        while (now := self.local_time()) < local:
+            if (yield self.recv(timeout=local - now, kinds=RES)) is None:
+                return
+
+    def request(self, index: int) -> Generator[Any, Any, tuple[Round, float]]:
+        """Broadcast round ``index``'s Req to the references heard lately (closest first);
+        returns the round and the local end of its collection window."""
+        listed, n_open = self._slot_plan(index)
+        T1, collect_end = yield from self._send_req(index, listed, n_open)
+        return Round(index, T1, asked=listed, open=n_open > 0, T1s=[T1]), collect_end
+
+    def collect(self, rnd: Round, until: float) -> Generator[Any, Any, None]:
+        """Take the answers to ``rnd`` until local time ``until``."""
+        while (now := self.local_time()) < until:
+            rec = yield self.recv(timeout=until - now, kinds=RES)
+            if rec is None:
+                return
+            self.take_answer(rnd, rec)
+
+    def take_answer(self, rnd: Round, rec: Reception) -> None:
+        """Record a Res to this round's Req (or its retry), one per reference."""
+        pkt = rec.packet
+        pl = pkt.payload
+        if pkt.dst != self.id or pl["round"] != rnd.index or any(a.ref == pkt.src for a in rnd.answers):
+            return  # another round's, or a late first answer after the retry asked again: keep one
+        a_ref, b_ref = pl["clock"]
+        rnd.answers.append(
+            Answer(
+                pkt.src,
+                rnd.T1s[pl["try"]],
+                pl["t2"],
+                (pkt.tx_local - b_ref) / a_ref,
+                rec.rx_local,
+                np.asarray(pl["pos"], float),
+                np.asarray(pl["vel"], float),
+                float(pl["conf"]),
+                float(pl["pos_std"]),
+                float(pl["vel_std"]),
+                float(pl["time_std"]),
+                bool(pl["anchor"]),
+            )
+        )
+
+    def retry_plan(self, rnd: Round) -> tuple[list[int], int] | None:
+        """The one retry (``mac = "slots"``): the listed references that did not answer, plus
+        open slots if the round is still short and was not closed by the hierarchy; None when
+        there is nothing to ask (or the round was retried already)."""
+        p = self.params
+        if p.mac != "slots" or not p.retry or rnd.retried:
+            return None
+        got = {a.ref for a in rnd.answers}
+        missing = [j for j in rnd.asked if j not in got]
+        n_open = p.contention_slots if len(rnd.answers) < p.min_refs and rnd.open else 0
+        return (missing, n_open) if missing or n_open else None
+
+    def close_round(self, rnd: Round) -> None:
+        """Remember who answered (and their round trips, for the next slot plan), log the
+        round and hand it to :meth:`process_round`."""
+        p = self.params
+        for a in rnd.answers:
+            self._known[a.ref] = (rnd.index, (a.T4 - a.T1) - (a.t3 - a.t2), a.anchor)
+        self.log(
+            "reqres_rounds",
+            round=rnd.index,
+            answers=len(rnd.answers),
+            anchors=sum(a.anchor for a in rnd.answers),
+            asked=len(rnd.asked),
+            retried=rnd.retried,
+            needed=p.min_refs,
+        )
+        self.process_round(rnd)
 
     # -- subclasses -------------------------------------------------------------------------------
 
@@ -372,7 +420,7 @@ class ReqResNode(Node):
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return {**itmtl_metrics.protocol_metrics(tables, cls.name), **itmtl_metrics.mac_metrics(tables, cls.name)}
 
-    #: What the ITMTL paper (seed 004) reports for this protocol, quantity -> claim, listed by
+    #: What the ITMTL paper reports for this protocol, quantity -> claim, listed by
     #: the report of a single run (the variants runner prints them with our values: paper.py).
     paper: ClassVar[dict[str, str]] = {}
 

@@ -122,7 +122,7 @@ class MswpfNode(Node):
         q: float = Field(1.0, ge=0.0, description="CV process noise density (m^2/s^3)")
         n_particles: int = Field(1000, ge=10)
         source_level: float = Field(5e4, gt=0.0, description="S of h = S / D^k")
-        exponent: float = Field(1.0, gt=0.0, description="k of h = S / D^k")
+        exponent: float = Field(2.0, gt=0.0, description="k of h = S / D^k (eq 6 prints the squared distance: 2)")
         noise_std: float = Field(5.0, gt=0.0, description="measurement noise std r")
         levels: int = Field(8, ge=2, description="quantization levels L")
         threshold_scheme: Literal["pressure", "distance"] = "pressure"

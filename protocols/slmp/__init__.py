@@ -1,8 +1,8 @@
 """SLMP (Zhou et al., IEEE TMC 2011): scalable localization with mobility prediction, the
-baseline of the STVF paper; and ``multilateration_bound``, every-period multilateration on all
-references (an upper bound for multilateration, docs/stvf.md)."""
+baseline of the STVF paper; and ``multilateration_all_refs``, every-period multilateration on
+all references in range (a baseline, not a bound: docs/stvf.md)."""
 
-from .bound import MultilaterationBoundNode, MultilaterationBoundParams
+from .all_refs import MultilaterationAllRefsNode, MultilaterationAllRefsParams
 from .node import SlmpNode, SlmpParams
 
-__all__ = ["MultilaterationBoundNode", "MultilaterationBoundParams", "SlmpNode", "SlmpParams"]
+__all__ = ["MultilaterationAllRefsNode", "MultilaterationAllRefsParams", "SlmpNode", "SlmpParams"]

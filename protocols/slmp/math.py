@@ -1,5 +1,5 @@
 """Pure maths of SLMP, the baseline of the STVF paper (no SimPy), shared by ``slmp`` and
-``multilateration_bound``.
+``multilateration_all_refs``.
 
 SLMP: Z. Zhou, Z. Peng, J.-H. Cui, Z. Shi, A. Bagtzoglou, "Scalable localization with
 mobility prediction for underwater sensor networks", IEEE Trans. Mobile Computing 10(3),
@@ -86,13 +86,22 @@ class MobilityPredictor:
     ``window`` samples when ``window * (1 - overlap)`` new samples have arrived, or when the
     last one-step position prediction missed by more than ``threshold`` m. An unstable fit
     (roots outside the unit circle: noisy position estimates can give one) falls back to
-    the window's mean velocity.
+    the window's mean velocity. ``max_speed`` (m/s, None = no cap): a predicted velocity
+    faster than this is scaled down to it (a node drifting in a current moves no faster than
+    the current; a stable AR fit to noisy velocities can still predict tens of m/s).
     """
 
     def __init__(
-        self, dt: float, window: int = 60, overlap: float = 0.2, order: int = 15, threshold: float = 4.0
+        self,
+        dt: float,
+        window: int = 60,
+        overlap: float = 0.2,
+        order: int = 15,
+        threshold: float = 4.0,
+        max_speed: float | None = None,
     ) -> None:
         self.dt = float(dt)
+        self.max_speed = None if max_speed is None else float(max_speed)
         self.window = int(window)
         self.order = int(order)
         self.refit_every = max(1, int(round(self.window * (1.0 - overlap))))
@@ -140,13 +149,19 @@ class MobilityPredictor:
             self.refits += 1
 
     def velocity(self) -> Array:
-        """Predicted velocity (m/s) over the next period."""
+        """Predicted velocity (m/s) over the next period (at most ``max_speed``)."""
         v = self.velocities()
         if len(v) == 0:
             return np.zeros(2)
         if self.coef is not None and len(v) >= self.order:
-            return predict_velocities(v, self.coef, 1)[0]
-        return self.mean_velocity if self.mean_velocity is not None else v[-1]
+            out = predict_velocities(v, self.coef, 1)[0]
+        else:
+            out = self.mean_velocity if self.mean_velocity is not None else v[-1]
+        if self.max_speed is not None:
+            speed = float(np.hypot(out[0], out[1]))
+            if speed > self.max_speed:
+                out = out * (self.max_speed / speed)
+        return out
 
     def predict(self, t: float) -> Array | None:
         """Predicted position at time ``t`` (m): last position + predicted velocity x elapsed."""

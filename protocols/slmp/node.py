@@ -34,10 +34,10 @@ The ranging model is STVF's: one-way delays from MAC stamps (synchronized clocks
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from aquasim_py.estimation.errors import DegenerateGeometryError, InsufficientMeasurementsError
 from aquasim_py.estimation.lsq import multilaterate
@@ -45,7 +45,8 @@ from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from ..common.periodic import PeriodicBeaconNode
+from ..common.periodic import PeriodicBeaconNode, PeriodicParams
+from ..stvf.genie import crb_metrics
 from ..stvf.metrics import localization_metrics
 from .math import MobilityPredictor, in_range, prediction_residual, slmp_confidence
 
@@ -54,15 +55,9 @@ __all__ = ["SlmpNode", "SlmpParams"]
 KIND = "slmp_beacon"
 
 
-class SlmpParams(BaseModel):
+class SlmpParams(PeriodicParams):
     """SLMP parameters (STVF Sec. 5.3 defaults; SLMP's own where STVF is silent)."""
 
-    model_config = ConfigDict(extra="forbid")
-
-    period_s: float = Field(1.0, gt=0, description="localization period (s)")
-    listen_s: float = Field(0.9, gt=0, description="collection time after the period start (s)")
-    send_window_s: float = Field(0.5, ge=0, description="random send offset range per period (s)")
-    bits: int = Field(160, ge=1, description="beacon packet size (bits)")
     training_s: float = Field(100.0, ge=0, description="anchor training before ordinary nodes localize (s)")
     window_s: float = Field(60.0, gt=0, description="prediction window (s)")
     overlap: float = Field(0.2, ge=0, lt=1, description="overlap of neighbouring windows (fraction)")
@@ -73,6 +68,11 @@ class SlmpParams(BaseModel):
     min_refs: int = Field(3, ge=3, description="references needed for least squares (2-D after projection)")
     speed_mps: float = Field(1500.0, gt=0, description="nominal sound speed (m/s)")
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay")
+    estimate_epoch: Literal["measurement", "listen_end"] = Field(
+        "measurement",
+        description="a fix is the position at the mean receive stamp of its ranges (measurement) "
+        "or at the end of the listening window (listen_end: the former stamp)",
+    )
 
 
 @register
@@ -81,7 +81,7 @@ class SlmpNode(PeriodicBeaconNode):
     re-localize when the prediction misses."""
 
     name = "slmp"
-    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
+    trace_tables = ("estimates", "nodes", "positions")  # what metrics / derived_tables / report read
     Params = SlmpParams
     beacon_kind = KIND
 
@@ -99,39 +99,48 @@ class SlmpNode(PeriodicBeaconNode):
         self.confidence = 1.0 if self.is_beacon else 0.0
         self.is_reference = self.is_beacon
         self.relocalizations = 0
+        # an anchor's advertisement of this period (localize_reference): position, re-advertised
+        self._advert: tuple[np.ndarray, float, bool] | None = None
 
     # -- references ---------------------------------------------------------------------------
 
-    def beacon_payload(self) -> dict[str, Any] | None:
+    def advertises(self) -> bool:
+        """Anchors always; an ordinary node while its last localization made it a reference."""
+        return self.is_beacon or (self.is_reference and bool(self.predictor.times))
+
+    def localize_reference(self) -> None:
+        """Anchor node localization (SLMP's first level), at the send instant: the buoy fix
+        (``known_position()``) against the mobility pattern's prediction. What an anchor
+        advertises is the prediction while it stays within the threshold of the fix; a miss
+        re-advertises (the fix). The fix is a known location of the pattern either way."""
+        if not self.is_beacon:
+            return
         now = self.local_time()
+        fix = np.asarray(self.known_position(), float)
+        pred = self.predictor.predict(now)
+        miss = pred is None or float(np.linalg.norm(pred - fix[:2])) > self.threshold
+        self._advert = (fix[:2] if pred is None or miss else pred, float(fix[2]), bool(miss))
+        self.predictor.add(now, fix[:2])
+
+    def beacon_payload(self) -> dict[str, Any]:
+        """The beacon at its send instant: an anchor's advertisement, or an ordinary
+        reference's own prediction for now; with the pattern's predicted velocity."""
+        vel = self.predictor.velocity()
         if self.is_beacon:
-            fix = np.asarray(self.known_position(), float)
-            pred = self.predictor.predict(now)
-            # the advertised position is the mobility pattern's prediction while it stays
-            # within the threshold of the buoy fix; a miss re-advertises (the fix)
-            miss = pred is None or float(np.linalg.norm(pred - fix[:2])) > self.threshold
-            xy = fix[:2] if pred is None or miss else pred
-            self.predictor.add(now, fix[:2])
-            vel = self.predictor.velocity()
-            return {
-                "xy": (float(xy[0]), float(xy[1])),
-                "depth": float(fix[2]),
-                "eta": 1.0,
-                "vel": (float(vel[0]), float(vel[1])),
-                "update": bool(miss),
-            }
-        if self.is_reference and self.predictor.times:
-            own = self.predictor.predict(now)
+            assert self._advert is not None  # localize_reference ran just before
+            xy, depth, update = self._advert
+            eta = 1.0
+        else:
+            own = self.predictor.predict(self.local_time())
             assert own is not None
-            vel = self.predictor.velocity()
-            return {
-                "xy": (float(own[0]), float(own[1])),
-                "depth": self.depth(),
-                "eta": self.confidence,
-                "vel": (float(vel[0]), float(vel[1])),
-                "update": False,
-            }
-        return None
+            xy, depth, update, eta = own, self.depth(), False, self.confidence
+        return {
+            "xy": (float(xy[0]), float(xy[1])),
+            "depth": depth,
+            "eta": eta,
+            "vel": (float(vel[0]), float(vel[1])),
+            "update": update,
+        }
 
     def ready(self, elapsed_s: float) -> bool:
         """Ordinary nodes localize only after the anchors' mobility training."""
@@ -159,7 +168,12 @@ class SlmpNode(PeriodicBeaconNode):
         now = self.local_time()
         depth = self.depth()
         refs, r, eta = self.ranges(heard, depth)
-        pred = self.predictor.predict(now)
+        # the fix (or the prediction it is checked against) is the position when the ranges
+        # were measured: their mean receive stamp
+        epoch = now
+        if heard and p.estimate_epoch == "measurement":
+            epoch = float(np.mean([rec.rx_local for rec in heard]))
+        pred = self.predictor.predict(epoch)
         method = "predicted"
         xy: np.ndarray | None = pred
         miss = prediction_residual(pred, refs, r) if pred is not None and len(r) else float("nan")
@@ -173,13 +187,14 @@ class SlmpNode(PeriodicBeaconNode):
             return  # never localized yet and too few references
         if method == "least_squares" or (method == "predicted" and len(r)):
             # a fix, or a prediction the references confirmed: a known location of the pattern
-            self.predictor.add(now, xy)
+            self.predictor.add(epoch, xy)
         conf = slmp_confidence(eta, xy, refs, r) if len(r) >= p.min_refs else 0.0
         self.confidence = conf
         self.is_reference = conf >= p.delta
+        logged = xy + self.predictor.velocity() * (now - epoch)
         self.log_estimate(
-            xy[0],
-            xy[1],
+            logged[0],
+            logged[1],
             depth,
             confidence=conf,
             is_reference=self.is_reference,
@@ -188,6 +203,9 @@ class SlmpNode(PeriodicBeaconNode):
             miss_m=miss,
             attempted=attempted,
             period_s=p.period_s,
+            epoch_lag_s=now - epoch,
+            refs=" ".join(str(rec.packet.src) for rec in heard),
+            range_rel_std=p.noise_ratio,
         )
 
     def least_squares(self, refs: np.ndarray, r: np.ndarray) -> np.ndarray | None:
@@ -207,7 +225,7 @@ class SlmpNode(PeriodicBeaconNode):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
-        out = localization_metrics(tables, cls.name)
+        out = {**localization_metrics(tables, cls.name), **crb_metrics(tables, cls.name)}
         est = tables.get("estimates")
         if est is not None and len(est) and "method" in est.columns:
             e = est[est["protocol"] == cls.name]

@@ -24,7 +24,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -35,6 +35,8 @@ from aquasim_py.node import Role
 from aquasim_py.registry import register
 
 from ..common.periodic import PeriodicBeaconNode
+from ..common.track import EpochTrack
+from .genie import crb_metrics
 from .metrics import localization_metrics
 
 __all__ = ["StvfNode"]
@@ -43,6 +45,9 @@ KIND = "stvf_beacon"
 #: the beacon payload, a flat tuple of floats: position x, y (m), depth (m), confidence eta,
 #: horizontal velocity vx, vy (m/s)
 BEACON_FIELDS = ("x", "y", "depth", "eta", "vx", "vy")
+#: own-velocity window (s) of :class:`~aquasim_protocols.common.track.EpochTrack` (docs/stvf.md,
+#: "Beacon timing": chosen on held-out seeds)
+VELOCITY_WINDOW_S = 60.0
 _BATCH = "stvf_update_batch"  # key of the run's _UpdateBatch in Node.out_of_band
 
 
@@ -116,8 +121,14 @@ class StvfParams(BaseModel):
     c1: float = Field(0.7, ge=0, description="gamma weight of the reference confidence")
     c2: float = Field(0.2, ge=0, description="gamma weight of the normalized delay")
     c3: float = Field(0.1, ge=0, description="gamma weight of the normalized reference speed")
-    penalize_far_fast: bool = Field(True, description="gamma uses 1 - f_z, 1 - f_v (text) instead of eq 27 as printed")
-    absolute_error: bool = Field(True, description="eq 26 sums |error| per reference instead of the signed sum")
+    penalize_far_fast: bool = Field(
+        False,
+        description="eq 27: gamma = C1 eta + C2 f_z + C3 f_v as printed (false), or with (1 - f_z), (1 - f_v) "
+        "as the text motivating it reads (true: far and fast references ranked down)",
+    )
+    absolute_error: bool = Field(
+        False, description="eq 26: E sums the signed errors as printed (false), or |error| per reference (true)"
+    )
     transition_precision: float = Field(1 / 900, gt=0, description="Lambda = this * I (1/m^2)")
     wishart_scale: float = Field(5.0, gt=0, description="W = this * I")
     wishart_dof: float = Field(10.0, gt=0, description="n")
@@ -148,6 +159,17 @@ class StvfParams(BaseModel):
     send_window_s: float = Field(
         0.5, ge=0, description="references send at a uniform random offset in [0, this) of each period (s)"
     )
+    estimate_epoch: Literal["measurement", "listen_end"] = Field(
+        "measurement",
+        description="an estimate is the position at the mean receive stamp of its measurements "
+        "(measurement) or at the end of the listening window (listen_end: the former stamp)",
+    )
+    velocity_window_s: float = Field(
+        VELOCITY_WINDOW_S,
+        ge=0,
+        description="own velocity: least-squares slope of the estimates of this many seconds "
+        "(0: the last two, a one-period difference); carries an estimate to its beacon and log instants",
+    )
 
 
 @register
@@ -155,7 +177,7 @@ class StvfNode(PeriodicBeaconNode):
     """An STVF node: beacons (role anchor) broadcast; unknown nodes (ordinary) localize."""
 
     name = "stvf"
-    trace_tables = ("estimates", "nodes")  # what metrics / derived_tables / report read
+    trace_tables = ("estimates", "nodes", "positions")  # what metrics / derived_tables / report read
     #: run the updates of one instant as one batch (_UpdateBatch; same results, faster);
     #: False runs each node's update inline
     batch_updates = True
@@ -182,35 +204,42 @@ class StvfNode(PeriodicBeaconNode):
         self.confidence = 1.0 if self.is_beacon else 0.0
         self.mu: np.ndarray | None = None
         self.mu_precision: np.ndarray | None = None
-        self.last_fix: tuple[float, np.ndarray] | None = None  # (local time, (x, y))
-        self.speed_est = np.zeros(2)
+        self.track = EpochTrack(p.velocity_window_s)  # own estimates at their measurement epochs
         self.missed = 0
 
     # -- beacon side -------------------------------------------------------------------------
 
-    def beacon_payload(self) -> tuple[float, ...] | None:
-        """What this node broadcasts this period (``BEACON_FIELDS``), or None if it is not a
-        reference. A flat tuple of floats is immutable, so every receiver shares it
+    def advertises(self) -> bool:
+        """Beacon nodes always; an unknown node while its last localization (in the last
+        period) made it a reference (eta >= delta)."""
+        if self.is_beacon:
+            return True
+        return len(self.track) > 0 and self.confidence >= self.params.delta and self.missed == 0
+
+    def beacon_payload(self) -> tuple[float, ...]:
+        """The beacon (``BEACON_FIELDS``) at its send instant: a beacon node's position fix and
+        velocity sensor; a promoted node's estimate carried from its measurement epoch to now.
+        A flat tuple of floats is immutable, so every receiver shares it
         (``packet.copy_payload``) instead of getting its own copy."""
         if self.is_beacon:
             pos = np.asarray(self.known_position(), float)
             vel = np.asarray(self.velocity(), float)[:2]
             return (float(pos[0]), float(pos[1]), float(pos[2]), 1.0, float(vel[0]), float(vel[1]))
-        if self.last_fix is not None and self.confidence >= self.params.delta and self.missed == 0:
-            # the estimate is from the end of the last period: carry it to the send time
-            xy = self.last_fix[1] + self.speed_est * (self.local_time() - self.last_fix[0])
-            vx, vy = self.speed_est
-            return (float(xy[0]), float(xy[1]), self.depth(), self.confidence, float(vx), float(vy))
-        return None
+        xy = self.track.at(self.local_time())
+        vx, vy = self.track.velocity()
+        return (float(xy[0]), float(xy[1]), self.depth(), self.confidence, float(vx), float(vy))
 
     # -- localization ------------------------------------------------------------------------
 
-    def measurements(self, heard: list[Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
-        """(z ms projected, refs (n, 2), eta (n,), speed (n,), own depth) from receptions."""
+    def measurements(
+        self, heard: list[Any]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+        """(z ms projected, refs (n, 2), eta (n,), speed (n,), receive stamps (n,) local s, own
+        depth) from receptions."""
         p: StvfParams = self.params
         depth = self.depth()
         if not heard:
-            return np.empty(0), np.empty((0, 2)), np.empty(0), np.empty(0), depth
+            return np.empty(0), np.empty((0, 2)), np.empty(0), np.empty(0), np.empty(0), depth
         pay = np.array([r.packet.payload for r in heard], float)  # (n, 6): BEACON_FIELDS
         z = 1e3 * np.array([r.rx_local - r.packet.tx_local for r in heard])
         if p.noise_ratio > 0:
@@ -220,11 +249,11 @@ class StvfNode(PeriodicBeaconNode):
         refs = np.ascontiguousarray(pay[:, :2])
         eta = np.ascontiguousarray(pay[:, 3])
         speed = np.hypot(pay[:, 4], pay[:, 5])
-        return z, refs, eta, speed, depth
+        return z, refs, eta, speed, np.array([r.rx_local for r in heard]), depth
 
     def localize(self, heard: list[Any]) -> None:
         p: StvfParams = self.params
-        z, refs, eta, speed, depth = self.measurements(heard)
+        z, refs, eta, speed, t_rx, depth = self.measurements(heard)
         now = self.local_time()
         if z.size < p.n_ref:
             self.missed += 1
@@ -243,6 +272,9 @@ class StvfNode(PeriodicBeaconNode):
         gamma = vf.measurement_confidence(eta, z, speed, (p.c1, p.c2, p.c3), penalize=p.penalize_far_fast)
         sel = vf.select_references(gamma, p.n_ref)
         z, refs, eta = z[sel], refs[sel], eta[sel]
+        used = " ".join(str(heard[i].packet.src) for i in sel)
+        # the estimate is the position when its ranges were measured (their mean receive stamp)
+        epoch = float(t_rx[sel].mean()) if p.estimate_epoch == "measurement" else now
 
         if fix is not None:
             self.mu, self.mu_precision = vf.initial_prior(fix, p.initial_std_m)
@@ -251,7 +283,18 @@ class StvfNode(PeriodicBeaconNode):
             gaps = self.missed + 1
         assert self.mu is not None and self.mu_precision is not None
         transition = self.prior.transition / gaps
-        done = partial(self._localized, z=z, refs=refs, eta=eta, now=now, depth=depth, fresh=fresh, n_heard=len(heard))
+        done = partial(
+            self._localized,
+            z=z,
+            refs=refs,
+            eta=eta,
+            now=now,
+            epoch=epoch,
+            depth=depth,
+            fresh=fresh,
+            n_heard=len(heard),
+            used=used,
+        )
         # Deferred to the end of this instant, unless the next period starts at it (listen_s >=
         # period_s): the node then reads its own confidence for its beacon at this instant.
         if self.batch_updates and p.listen_s < p.period_s:
@@ -269,23 +312,25 @@ class StvfNode(PeriodicBeaconNode):
         refs: np.ndarray,
         eta: np.ndarray,
         now: float,
+        epoch: float,
         depth: float,
         fresh: bool,
         n_heard: int,
+        used: str,
     ) -> None:
-        """The rest of a localization once Algorithm 1's update ``out`` is in."""
+        """The rest of a localization once Algorithm 1's update ``out`` is in: the estimate is
+        recorded at its measurement ``epoch`` and logged carried to ``now``."""
         p: StvfParams = self.params
         self.mu, self.mu_precision = out.mu, out.mu_precision
         self.missed = 0
         xy = out.position
-        if self.last_fix is not None and not fresh and now > self.last_fix[0]:
-            self.speed_est = (xy - self.last_fix[1]) / (now - self.last_fix[0])
-        self.last_fix = (now, xy.copy())
+        self.track.add(epoch, xy)
         self.confidence = vf.localization_confidence(eta, xy, refs, z, out.speed, absolute=p.absolute_error)
         is_ref = promote(self.confidence, p.delta)
+        logged = self.track.at(now)
         self.log_estimate(
-            xy[0],
-            xy[1],
+            logged[0],
+            logged[1],
             depth,
             confidence=self.confidence,
             is_reference=is_ref,
@@ -294,6 +339,9 @@ class StvfNode(PeriodicBeaconNode):
             n_heard=n_heard,
             fresh=fresh,
             period_s=p.period_s,
+            epoch_lag_s=now - epoch,
+            refs=used,
+            range_rel_std=p.noise_ratio,
         )
 
     def first_fix(self, z: np.ndarray, refs: np.ndarray) -> np.ndarray | None:
@@ -309,4 +357,4 @@ class StvfNode(PeriodicBeaconNode):
 
     @classmethod
     def metrics(cls, tables: Mapping[str, Any]) -> dict[str, float]:
-        return localization_metrics(tables, cls.name, converge_within=5)
+        return {**localization_metrics(tables, cls.name, converge_within=5), **crb_metrics(tables, cls.name)}

@@ -303,23 +303,28 @@ def propagation_loss_db(r: ArrayLike, beta_db_per_km: float) -> Array:
     return 20.0 * np.log10(d) + beta_db_per_km * 1e-3 * d
 
 
-def diagnose(loss_db: ArrayLike, R: ArrayLike, *, p_hat: float, beta_db_per_km: float) -> NDArray[np.bool_]:
+def diagnose(
+    loss_db: ArrayLike, R: ArrayLike, *, p_hat: float, beta_db_per_km: float, excess: bool = False
+) -> NDArray[np.bool_]:
     """Eq 25: which distances carry excessive sensing noise, from the observed loss TIL - RIL.
 
-    As printed (TIL - RIL >= p tau(R), 0 < p <= 1) every link is flagged, since TIL - RIL is
-    about tau(R) itself. We read the left side as the loss in excess of the one the measured
-    distance predicts: flagged iff (TIL - RIL) - tau(R) >= p tau(R) (docs/svlpf.md).
+    As printed (``excess=False``): flagged iff TIL - RIL >= p tau(R), 0 < p <= 1, which flags
+    every link, since TIL - RIL is about tau(R) itself. ``excess=True`` (a repair) reads the
+    left side as the loss in excess of the one the measured distance predicts: flagged iff
+    (TIL - RIL) - tau(R) >= p tau(R) (docs/svlpf.md).
     """
     tau = propagation_loss_db(R, beta_db_per_km)
-    return np.asarray(loss_db, float) - tau >= p_hat * tau
+    loss = np.asarray(loss_db, float)
+    return (loss - tau if excess else loss) >= p_hat * tau
 
 
-def delta_weights(R: ArrayLike, mean_input: ArrayLike, flagged: ArrayLike) -> Array:
-    """Eq 26: delta_l = |R_l - S_l| / R_l for a flagged link, 1 otherwise; clipped to [0, 1]
-    (a weight on the measured value; the printed ratio exceeds 1 for R_l < S_l / 2)."""
+def delta_weights(R: ArrayLike, mean_input: ArrayLike, flagged: ArrayLike, *, clip: bool = False) -> Array:
+    """Eq 26: delta_l = |R_l - S_l| / R_l for a flagged link, 1 otherwise, as printed;
+    ``clip=True`` (a repair) clips it to [0, 1], a weight on the measured value (the printed
+    ratio exceeds 1 for R_l < S_l / 2)."""
     R = np.asarray(R, float)
     d = np.abs(R - np.asarray(mean_input, float)) / np.maximum(R, 1e-9)
-    return np.where(np.asarray(flagged, bool), np.clip(d, 0.0, 1.0), 1.0)
+    return np.where(np.asarray(flagged, bool), np.clip(d, 0.0, 1.0) if clip else d, 1.0)
 
 
 @dataclass(frozen=True)
@@ -340,15 +345,19 @@ def iterative_regression(
     eps_b: float = 1.0,
     eps_step: float = 0.2,
     max_iter: int = 50,
+    repaired: bool = False,
 ) -> RegressionResult:
     """Eqs 21 and 27: Z^(nu+1) = Q(Z^(nu)) until |Z^(nu+1) - b| >= eps_b and
-    |Z^(nu+1) - Z^(nu)| <= eps_step (Euclidean norms).
+    |Z^(nu+1) - Z^(nu)| <= eps_step (Euclidean norms); Z^(0) = f(R) (eq 20).
 
-    Our reading of Q (docs/svlpf.md): the regression input keeps delta_l of each measured
+    As printed (``repaired=False``), "Z^(nu+1) = Z^(nu)(delta R)": the observation function
+    evaluated at the reweighted data, Z^(nu+1) = f(delta R), which does not depend on nu (the
+    loop stops at the second step unless eq 27's first condition fails). ``repaired=True``
+    (our reading of Q, docs/svlpf.md): the regression input keeps delta_l of each measured
     distance and takes the rest from the distance the current observation predicts,
-    x^(nu+1) = delta R + (1 - delta) |Z^(nu) - s|, Z^(nu+1) = f(x^(nu+1)); Z^(0) = f(R).
-    With no link flagged (delta = 1) Q is constant and the loop stops after one step (unless
-    f(R) lies within eps_b of b, which eq 27 treats as premature: then max_iter applies).
+    x^(nu+1) = delta R + (1 - delta) |Z^(nu) - s|, Z^(nu+1) = f(x^(nu+1)). With no link flagged
+    (delta = 1) Q is constant either way and the loop stops after one step (unless f(R) lies
+    within eps_b of b, which eq 27 treats as premature: then max_iter applies).
     """
     R = np.asarray(R, float)
     S = np.asarray(sensors, float)
@@ -357,7 +366,7 @@ def iterative_regression(
     dist_b: list[float] = []
     steps: list[float] = []
     for it in range(1, max_iter + 1):
-        x = dl * R + (1.0 - dl) * np.linalg.norm(z[None, :] - S, axis=1)
+        x = dl * R + (1.0 - dl) * np.linalg.norm(z[None, :] - S, axis=1) if repaired else dl * R
         z_new = lssvr_predict(model, x)
         dist_b.append(float(np.linalg.norm(z_new - model.b)))
         steps.append(float(np.linalg.norm(z_new - z)))

@@ -54,6 +54,8 @@ REPORT = "svlpf_report"
 HELLO = "svlpf_hello"
 
 Algorithm = Literal["svlpf", "toa_pf", "lssvr_pf", "consensus"]
+#: PF likelihood std per estimator (m), chosen on held-out seeds (docs/svlpf.md, "PF noise")
+SIGMA = {"toa_pf": 8.0, "lssvr_pf": 4.0, "svlpf": 2.0}
 ALGORITHMS = ("svlpf", "toa_pf", "lssvr_pf", "consensus")
 
 
@@ -102,6 +104,16 @@ class SvlpfParams(BaseModel):
     )
     beta_db_per_km: float = Field(1.187, ge=0, description="beta of eq 24 (dB/km; Thorp at 10 kHz)")
     p_hat: float = Field(0.5, gt=0, le=1, description="gain of propagation loss (eq 25)")
+    diagnosis: Literal["printed", "excess"] = Field(
+        "printed",
+        description="eq 25: TIL - RIL >= p tau(R) as printed (flags every link), or the loss in excess of tau(R)",
+    )
+    delta_clip: bool = Field(False, description="eq 26: clip delta to [0, 1] (the printed ratio exceeds 1 for R < S/2)")
+    regression: Literal["printed", "repaired"] = Field(
+        "printed",
+        description="eq 21: Z = f(delta R) as printed, or the repaired iteration "
+        "x = delta R + (1 - delta) |Z - s| (docs/svlpf.md)",
+    )
     eps_b_m: float = Field(1.0, gt=0, description="eq 27: |Z - b| >= this (m)")
     eps_step_m: float = Field(0.2, gt=0, description="eq 27: |Z^(v+1) - Z^(v)| <= this (m)")
     max_iter: int = Field(50, ge=1)
@@ -110,8 +122,11 @@ class SvlpfParams(BaseModel):
     q_pos_m: float = Field(1.0, ge=0, description="CV model: position noise std per period (m; paper: unit variance)")
     q_vel_mps: float = Field(0.1, ge=0, description="CV model: velocity noise std per period (m/s)")
     init_speed_mps: float = Field(1.0, ge=0, description="initial particle velocities uniform in +-this per axis")
-    sigma_range_m: float = Field(4.0, gt=0, description="sigma of eq 29 (m)")
-    sigma_obs_m: float = Field(4.0, gt=0, description="sigma of eq 31 (m)")
+    # The paper gives no sigma: each estimator's is chosen on held-out seeds by one rule for all
+    # (docs/svlpf.md, "PF noise"; tools/svlpf_sigma.py)
+    sigma_toa_pf_m: float = Field(SIGMA["toa_pf"], gt=0, description="toa_pf: sigma of eq 29 (m)")
+    sigma_lssvr_pf_m: float = Field(SIGMA["lssvr_pf"], gt=0, description="lssvr_pf: sigma of eq 31 (m)")
+    sigma_svlpf_m: float = Field(SIGMA["svlpf"], gt=0, description="svlpf: sigma of eq 31 (m)")
     # consensus baseline
     consensus_group: int = Field(4, ge=1, description="sensors per subnetwork")
     consensus_iters: int = Field(20, ge=0, description="average-consensus rounds")
@@ -348,21 +363,31 @@ class _Estimator:
             self.predict(p, node.region_lo, node.region_hi, t_req)
             assert self.X is not None
             if algo == "toa_pf":
-                loglik = sv.range_loglik(self.X, S, Rs, p.sigma_range_m)  # eq 29
+                loglik = sv.range_loglik(self.X, S, Rs, p.sigma_toa_pf_m)  # eq 29
             else:
                 model = node.lssvr_model(ids, S)
                 if algo == "svlpf":
                     loss = p.source_level_db - (snr + p.noise_band_db)  # TIL - RIL (eq 23)
-                    flagged = sv.diagnose(loss, Rs, p_hat=p.p_hat, beta_db_per_km=p.beta_db_per_km)
+                    flagged = sv.diagnose(
+                        loss, Rs, p_hat=p.p_hat, beta_db_per_km=p.beta_db_per_km, excess=p.diagnosis == "excess"
+                    )
                     flagged_ids = [ids[j] for j in np.flatnonzero(flagged)]
-                    delta = sv.delta_weights(Rs, model.mean_input, flagged)
+                    delta = sv.delta_weights(Rs, model.mean_input, flagged, clip=p.delta_clip)
                     res = sv.iterative_regression(
-                        model, Rs, S, delta, eps_b=p.eps_b_m, eps_step=p.eps_step_m, max_iter=p.max_iter
+                        model,
+                        Rs,
+                        S,
+                        delta,
+                        eps_b=p.eps_b_m,
+                        eps_step=p.eps_step_m,
+                        max_iter=p.max_iter,
+                        repaired=p.regression == "repaired",
                     )
                     z, iterations, converged = res.z, res.iterations, res.converged
                 else:
                     z = sv.lssvr_predict(model, Rs)  # eq 20
-                loglik = sv.observation_loglik(self.X, z, p.sigma_obs_m)  # eq 31
+                sigma = p.sigma_svlpf_m if algo == "svlpf" else p.sigma_lssvr_pf_m
+                loglik = sv.observation_loglik(self.X, z, sigma)  # eq 31
             est = self.update(loglik)
         return {
             "algorithm": algo,

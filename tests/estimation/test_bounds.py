@@ -127,3 +127,61 @@ def test_information_with_mixed_units_is_not_called_singular() -> None:
     np.testing.assert_allclose(spd_inverse(A) * np.outer(s, s), np.linalg.inv(C), rtol=1e-12)
     with pytest.raises(SingularMatrixError):
         spd_inverse(np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0]))
+
+
+class TestRangeCRB:
+    """range_crb_trace against closed forms: N anchors evenly spaced on a circle of radius R
+    around the position give I = (N / 2) (1 / sigma^2 + var'^2 / (2 sigma^4)) per axis."""
+
+    @pytest.mark.parametrize("n", [3, 4, 7])
+    def test_circle_constant_noise(self, n):
+        from aquasim_py.estimation.bounds import range_crb_trace
+
+        ang = 2 * np.pi * np.arange(n) / n + 0.3
+        R, sigma = 40.0, 1.5
+        a = np.stack([R * np.cos(ang), R * np.sin(ang), np.full(n, 12.0)], axis=1)
+        x = np.array([0.0, 0.0, 12.0])
+        assert range_crb_trace(x, a, std=sigma) == pytest.approx(4 * sigma**2 / n, rel=1e-12)
+
+    @pytest.mark.parametrize("rho", [0.02, 0.1])
+    def test_circle_distance_dependent_noise(self, rho):
+        from aquasim_py.estimation.bounds import range_crb_trace
+
+        n, R = 5, 60.0
+        ang = 2 * np.pi * np.arange(n) / n
+        a = np.stack([R * np.cos(ang), R * np.sin(ang), np.zeros(n)], axis=1)
+        # var = rho^2 R^2, d var / dx = 2 rho^2 R u: I = (n / 2) (1 + 2 rho^2) / (rho^2 R^2) per axis
+        expect = 4 * rho**2 * R**2 / (n * (1 + 2 * rho**2))
+        assert range_crb_trace(np.zeros(3), a, rel_std=rho) == pytest.approx(expect, rel=1e-12)
+
+    def test_mask_and_degenerate_rows(self):
+        from aquasim_py.estimation.bounds import range_crb_trace
+
+        a = np.array([[[10.0, 0, 0], [0, 10.0, 0], [-10.0, 0, 0], [0, -10.0, 0]]] * 2)
+        mask = np.array([[True, True, True, True], [True, False, True, False]])  # row 2: one line
+        out = range_crb_trace(np.zeros((2, 3)), a, std=1.0, mask=mask)
+        assert out[0] == pytest.approx(1.0) and np.isnan(out[1])
+        # an absent anchor changes nothing: 3 present of 4 = the 3 alone
+        three = range_crb_trace(np.zeros(3), a[0, :3], std=1.0)
+        assert range_crb_trace(np.zeros(3), a[0], std=1.0, mask=[True, True, True, False]) == pytest.approx(three)
+
+    def test_monte_carlo_ml_reaches_the_bound(self):
+        """Gauss-Newton ML on many noisy draws: its MSE approaches the CRB (small noise)."""
+        from aquasim_py.estimation.bounds import range_crb_trace
+        from aquasim_py.estimation.lsq import multilaterate
+
+        rng = np.random.default_rng(3)
+        a = np.array([[0.0, 0, 20], [70.0, 10, 25], [20.0, 60, 22], [60.0, 70, 18]])
+        x = np.array([35.0, 30.0, 21.0])
+        rho = 0.01
+        d = np.linalg.norm(x - a, axis=1)
+        errs = []
+        for _ in range(4000):
+            r = d * (1 + rho * rng.standard_normal(4))
+            rh = np.sqrt(np.maximum(r**2 - (a[:, 2] - x[2]) ** 2, 0))
+            est = multilaterate(a[:, :2], rh, refine=5)
+            errs.append(np.sum((est - x[:2]) ** 2))
+        mse = float(np.mean(errs))
+        crb = float(range_crb_trace(x, a, rel_std=rho))
+        # ML is efficient to first order; 4000 draws: the MSE's standard error is ~3 %
+        assert mse == pytest.approx(crb, rel=0.1)

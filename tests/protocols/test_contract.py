@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ROOT / "scenarios"
 PROTOCOLS_DIR = str(ROOT / "protocols")
 
-# protocol -> (shipped scenario, --set overrides that make it tiny or switch to the protocol)
+# protocol -> (shipped scenario[#variant], --set overrides that make it tiny or switch to the protocol)
 _ITMTL = ["simulation.duration_s=70.0"]
 
 
@@ -70,12 +70,13 @@ CASES: dict[str, tuple[str, list[str]]] = {
             "nodes.1.params={training_s=1.0}",
         ],
     ),
-    "multilateration_bound": (
+    "genie_multilateration": ("stvf_quick.toml#genie_multilateration", ["simulation.duration_s=22.0"]),
+    "multilateration_all_refs": (
         "stvf_quick.toml",
         [
             "simulation.duration_s=4.0",
-            'nodes.0.protocol="multilateration_bound"',
-            'nodes.1.protocol="multilateration_bound"',
+            'nodes.0.protocol="multilateration_all_refs"',
+            'nodes.1.protocol="multilateration_all_refs"',
             "nodes.0.params={training_s=1.0}",
             "nodes.1.params={training_s=1.0}",
         ],
@@ -145,7 +146,10 @@ def _watch(run: Any, code_files: tuple[str, ...]) -> list[str]:
 def _run(name: str, out: Path, watch: bool = False) -> list[str]:
     """Build and run the case, write its traces to ``out``; returns the truth calls seen."""
     file, overrides = CASES[name]
+    file, _, variant = file.partition("#")
     sc = scenario.load(SCENARIOS / file, overrides=overrides)
+    if variant:
+        sc = scenario.resolve(sc, variant=variant)
     sim = scenario.build(sc)
     until = sc.simulation.duration_s
     leaks = _watch(lambda: sim.run(until=until), (PROTOCOLS_DIR,)) if watch else (sim.run(until=until) or [])

@@ -280,3 +280,27 @@ def test_ideal_fusion_weights_are_eq27_of_eq23_on_the_fc_particles(monkeypatch: 
 
             ref = ent(P.mean(axis=0)) - ent(P).mean()
             assert mi_s == pytest.approx(ref, rel=1e-6, abs=1e-9)
+
+
+def test_shipped_scenarios_default_to_the_literal_reading():
+    """Eq 6 as printed (k = 2, S = 5 x 10^4) and the paper's CV truth (q = 1, kept in the
+    field) in every MSWPF scenario; the former pair survives as the *_former variants."""
+    import tomllib
+    from pathlib import Path
+
+    from aquasim_protocols.mswpf.node import MswpfNode
+
+    assert MswpfNode.Params().exponent == 2.0
+    root = Path(__file__).resolve().parents[2] / "scenarios"
+    for path in sorted(root.glob("mswpf_*.toml")):
+        raw = tomllib.loads(path.read_text())
+        assert raw["channel"]["pressure_exponent"] == 2.0, path.name
+        assert raw["channel"]["pressure_source_level"] == 5e4, path.name
+        fc, target = raw["nodes"][1], raw["nodes"][2]
+        assert fc["params"]["exponent"] == 2.0 and fc["params"]["source_level"] == 5e4, path.name
+        assert target["mobility"]["q"] == 1.0 and target["mobility"]["confine_steps"] > 0, path.name
+    two = tomllib.loads((root / "mswpf_2d.toml").read_text())["variants"]
+    for w in ("gw", "ew", "bw"):
+        former = two[f"{w}_former"]
+        assert former["nodes.1.params.exponent"] == former["channel.pressure_exponent"] == 1.0
+        assert former["nodes.2.mobility.q"] == 0.0

@@ -41,7 +41,7 @@ def _tables(monkeypatch: pytest.MonkeyPatch, drain: bool, sets: list[str]) -> tu
         [],  # STVF
         # SLMP and the bound after a short anchor training (both localize from 4 s on)
         [f"nodes.{g}.{k}" for g in (0, 1) for k in ("protocol=slmp", "params.training_s=4.0")],
-        [f"nodes.{g}.{k}" for g in (0, 1) for k in ("protocol=multilateration_bound", "params.training_s=4.0")],
+        [f"nodes.{g}.{k}" for g in (0, 1) for k in ("protocol=multilateration_all_refs", "params.training_s=4.0")],
     ],
     ids=["stvf", "slmp", "bound"],
 )

@@ -93,13 +93,13 @@ _SMALL = [
 ]
 
 
-def test_bound_quick_run():
-    """multilateration_bound (the former ``slmp``): every period, all references."""
-    frames = _run([s.replace("=slmp", "=multilateration_bound") for s in _SMALL] + ["simulation.duration_s=10.0"])
+def test_all_refs_quick_run():
+    """multilateration_all_refs (the former ``slmp``): every period, all references."""
+    frames = _run([s.replace("=slmp", "=multilateration_all_refs") for s in _SMALL] + ["simulation.duration_s=10.0"])
     e = frames["estimates"]
     assert len(e) and (e["time"] >= 3.0).all()  # nothing during the training
     assert set(e["method"]) <= {"multilateration", "self"}
-    m = get("multilateration_bound").metrics(frames)
+    m = get("multilateration_all_refs").metrics(frames)
     assert m["coverage_ever"] > 0.9
     err = np.hypot(e.x - e.true_x, e.y - e.true_y)
     assert np.median(err) < 10.0
@@ -160,7 +160,7 @@ def test_prediction_residual_hand_computed():
     assert got == pytest.approx(np.sqrt((1 + 4) / 2))
 
 
-def test_bound_keeps_a_fix_at_the_edge_of_range():
+def test_all_refs_keeps_a_fix_at_the_edge_of_range():
     """A static node 79.9 m from one of four beacons (range 80 m, ranging error 2 % of the
     delay, about 1.6 m there): about half its fixes land beyond 80 m from that beacon by noise
     alone. They are good fixes and must be kept (the former gate, 80 m flat, refused them and
@@ -168,8 +168,8 @@ def test_bound_keeps_a_fix_at_the_edge_of_range():
     beacons = "[[10.0, 100.0, 25.0], [89.9, 50.0, 25.0], [89.9, 150.0, 25.0], [130.0, 100.0, 25.0]]"
     frames = _run(
         [
-            "nodes[0].protocol=multilateration_bound",
-            "nodes[1].protocol=multilateration_bound",
+            "nodes[0].protocol=multilateration_all_refs",
+            "nodes[1].protocol=multilateration_all_refs",
             "nodes[0].count=4",
             "nodes[1].count=1",
             f'nodes[0].placement={{kind="explicit", positions={beacons}}}',
@@ -199,7 +199,7 @@ def test_in_range_gate_allows_ranging_noise_only():
 
 
 def test_slmp_least_squares_keeps_fixes_at_the_edge_of_range():
-    """SLMP's plain least squares with the same gate as the bound: a node 79.9 m from one of
+    """SLMP's plain least squares with the same gate as multilateration_all_refs: a node 79.9 m from one of
     four references (range 80 m, ranging error 2 % of the range, 1.6 m there) gets a fix beyond
     80 m from it in about half of the noise draws. Those are good fixes and must be kept (the
     former flat 80-m gate refused about half of them); a fix no node in range could have is

@@ -69,10 +69,11 @@ def test_diagnosis_flags_exactly_the_obstructed_selected_links():
     obstructed = {3, 6, 12}
     links = "[" + ", ".join(f"[1, {i}]" for i in sorted(obstructed)) + "]"
     frames, _ = _run(
-        "scenarios/svlpf.toml",
+        "scenarios/svlpf_obstructed.toml",
         "channel.obstacles.probability=0.0",
         f"channel.obstacles.links={links}",
         "simulation.duration_s=30.9",
+        'nodes.0.params.diagnosis="excess"',
     )
     sv = frames["svlpf"]
     expect = [obstructed & _ids(s) for s in sv["selected"]]
@@ -81,8 +82,17 @@ def test_diagnosis_flags_exactly_the_obstructed_selected_links():
     assert sv["n_flagged"].tolist() == [len(e) for e in expect]
 
 
+def test_diagnosis_as_printed_flags_every_selected_link():
+    frames, _ = _run("scenarios/svlpf.toml")
+    sv = frames["svlpf"]
+    assert [_ids(f) for f in sv["flagged"]] == [_ids(s) for s in sv["selected"]]
+
+
 def test_no_obstacles_means_no_flags_and_the_lssvr_observation():
-    frames, m = _run("scenarios/svlpf_gaussian.toml", 'nodes.0.params.also=["lssvr_pf"]')
+    """With the repaired diagnosis (eq 25 on the excess loss): the printed one flags all."""
+    frames, m = _run(
+        "scenarios/svlpf_gaussian.toml", 'nodes.0.params.also=["lssvr_pf"]', 'nodes.0.params.diagnosis="excess"'
+    )
     assert m["svlpf.mean_flagged"] == 0.0
     sv = frames["svlpf"]
     a, b = sv[sv["algorithm"] == "svlpf"], sv[sv["algorithm"] == "lssvr_pf"]
@@ -93,6 +103,6 @@ def test_no_obstacles_means_no_flags_and_the_lssvr_observation():
 
 @pytest.mark.skipif(not hasattr(aquasim_py, "run_scenario"), reason="variants land with run_scenario")
 def test_variants_run_each_algorithm():
-    for v in ("svlpf", "toa_pf", "lssvr_pf", "consensus"):
+    for v in ("svlpf", "toa_pf", "lssvr_pf", "consensus_own", "svlpf_repaired"):
         r = aquasim_py.run_scenario(ROOT / "scenarios/svlpf.toml", variant=v, overrides=SHORT)
         assert r.metrics["svlpf.frames"] == 5

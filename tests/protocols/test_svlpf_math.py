@@ -74,13 +74,18 @@ def test_diagnosis_flags_exactly_the_links_given_excess_loss(r, flags, noise):
     # observed loss TIL - RIL: the true path's eq-24 loss plus 30 dB on the obstructed links
     loss = sv.propagation_loss_db(r, beta) + 30.0 * m
     # |20 log10(r / R)| <= 3.1 dB << p tau(R) >= 0.5 * 20 log10(3.5) = 5.4 dB <= 30 - 3.1 dB
-    np.testing.assert_array_equal(sv.diagnose(loss, R, p_hat=0.5, beta_db_per_km=beta), m)
+    np.testing.assert_array_equal(sv.diagnose(loss, R, p_hat=0.5, beta_db_per_km=beta, excess=True), m)
+    # as printed, TIL - RIL >= p tau(R) holds on every link (the loss is about tau itself)
+    assert sv.diagnose(loss, R, p_hat=0.5, beta_db_per_km=beta).all()
 
 
 def test_delta_weights_eq26():
     R = np.array([40.0, 20.0, 30.0])
-    d = sv.delta_weights(R, np.array([50.0, 50.0, 50.0]), np.array([True, True, False]))
+    flags = np.array([True, True, False])
+    d = sv.delta_weights(R, np.array([50.0, 50.0, 50.0]), flags, clip=True)
     np.testing.assert_allclose(d, [10 / 40, 1.0, 1.0])  # 30/20 > 1 is clipped; unflagged = 1
+    printed = sv.delta_weights(R, np.array([50.0, 50.0, 50.0]), flags)
+    np.testing.assert_allclose(printed, [10 / 40, 30 / 20, 1.0])
 
 
 # ------------------------------------------------------------------------- iterative regression
@@ -96,12 +101,22 @@ def test_iterative_regression_stops_at_the_first_iterate_meeting_eq27():
     R = np.linalg.norm(S - x, axis=1)
     R[1] *= 1.6  # a distorted link
     delta = sv.delta_weights(R, m.mean_input, np.array([False, True, False, False, False]))
-    res = sv.iterative_regression(m, R, S, delta, eps_b=1.0, eps_step=0.2, max_iter=200)
+    res = sv.iterative_regression(m, R, S, delta, eps_b=1.0, eps_step=0.2, max_iter=200, repaired=True)
     assert res.converged and res.iterations == len(res.steps)
     meets = (res.dist_b >= 1.0) & (res.steps <= 0.2)
     assert meets[-1] and not meets[:-1].any()
     # the repaired observation is closer to the truth than the plain LSSVR one (eq 20)
     assert np.linalg.norm(res.z - x) < np.linalg.norm(sv.lssvr_predict(m, R) - x)
+
+
+def test_iterative_regression_as_printed_is_the_observation_at_delta_r():
+    """Eq 21 as printed: Z^(nu+1) = f(delta R) whatever nu; eq 27 stops it once a step is 0."""
+    S, m = _subset_model()
+    R = np.linalg.norm(S - np.array([55.0, 45.0, 50.0]), axis=1)
+    delta = np.array([1.0, 0.4, 1.0, 1.0, 1.0])
+    res = sv.iterative_regression(m, R, S, delta, eps_b=1.0, eps_step=0.2, max_iter=50)
+    np.testing.assert_array_equal(res.z, sv.lssvr_predict(m, delta * R))
+    assert res.converged and res.iterations <= 2 and res.steps[-1] == 0.0
 
 
 def test_iterative_regression_does_not_stop_near_b_eq27_guard():
