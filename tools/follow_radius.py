@@ -67,7 +67,8 @@ def main() -> None:
             _, fd = first_detectable(fol, 170.0, 72.0, 10.0)
             _, ed = first_detectable(ex, 170.0, 72.0, 10.0)
             f, e = np.nan_to_num(fd, nan=np.inf), np.nan_to_num(ed, nan=np.inf)
-            differs = ok & ~((f == e) | (np.abs(f - e) <= 1e-9))
+            with np.errstate(invalid="ignore"):  # inf - inf: neither has a detectable arrival
+                differs = ok & ~((f == e) | (np.abs(f - e) <= 1e-9))
             sets = np.array(
                 [
                     ok[i]

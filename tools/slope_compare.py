@@ -95,12 +95,53 @@ def link_biases(tables: Any) -> pd.DataFrame:
     return rx
 
 
+def _half_width(x: pd.Series) -> float:
+    """95 % Student-t half-width of the mean of ``x`` (NaN dropped)."""
+    from scipy import stats
+
+    x = x.dropna()
+    if x.size < 2:
+        return float("nan")
+    return float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / np.sqrt(x.size))
+
+
+def summarize(df: pd.DataFrame, summary: pd.DataFrame) -> None:
+    """Print the per-configuration means, the paired differences between configurations (same
+    seed, same network) with their 95 % intervals over seeds, and the slope runs' receptions by
+    stamp kind with their range biases."""
+    print("\nper protocol and configuration, mean over seeds (95 % Student-t half-width over seeds):")
+    for proto, names in METRICS.items():
+        sub = df[df.protocol == proto]
+        for k in (*names, "receptions", "indirect_drops"):
+            cells = {}
+            for c in CONFIGS:
+                x = sub[sub.config == c][k]
+                cells[c] = f"{x.mean():.4g} +- {_half_width(x):.2g} (n={x.notna().sum()})"
+            print(proto, k, cells)
+    print("\npaired differences (same seed), mean and 95 % half-width over seeds:")
+    for proto, names in METRICS.items():
+        wide = df[df.protocol == proto].pivot(index="seed", columns="config")
+        for k in names:
+            for a, b in (("slope", "flat"), ("direct only", "flat"), ("slope", "direct only")):
+                dx = wide[(k, a)] - wide[(k, b)]
+                print(f"{proto} {k}: {a} - {b} = {dx.mean():.4g} +- {_half_width(dx):.2g} (n={dx.notna().sum()})")
+    print("\nslope runs, receptions by stamp kind and class; range bias (m, mean / std) vs chord and belief:")
+    print(summary.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--json", type=Path)
+    ap.add_argument(
+        "--summarize", type=Path, help="print the tables of an earlier run's --json file instead of running"
+    )
     args = ap.parse_args()
+    if args.summarize:
+        doc = json.loads(args.summarize.read_text())
+        summarize(pd.DataFrame(doc["runs"]), pd.DataFrame(doc["links"]))
+        return
     rows = []
     links = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
@@ -122,14 +163,6 @@ def main() -> None:
                 print(json.dumps(row), flush=True)
     df = pd.DataFrame(rows)
     lk = pd.concat(links, ignore_index=True)
-    print("\nper protocol and configuration, mean over seeds (95 % half-width over seeds):")
-    for proto, names in METRICS.items():
-        g = df[df.protocol == proto].groupby("config", sort=False)
-        for k in (*names, "receptions", "indirect_drops"):
-            mean, sd, n = g[k].mean(), g[k].std(ddof=1), g[k].count()
-            half = 1.96 * sd / np.sqrt(n)
-            print(proto, k, {c: f"{mean[c]:.4g} +- {half[c]:.2g}" for c in mean.index})
-    print("\nslope runs, receptions by stamp kind and class; range bias (m, mean / std) vs chord and belief:")
     summary = (
         lk.groupby(["protocol", "kind", "path"])
         .agg(
@@ -142,7 +175,7 @@ def main() -> None:
         .reset_index()
     )
     summary["share"] = summary.n / summary.groupby("protocol").n.transform("sum")
-    print(summary.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    summarize(df, summary)
     if args.json:
         doc = {"runs": df.to_dict(orient="records"), "links": summary.to_dict(orient="records")}
         args.json.write_text(json.dumps(doc, indent=1, default=float) + "\n")
