@@ -37,9 +37,9 @@ def test_flat_twin_is_the_same_network_in_the_centre_profile() -> None:
 def test_slope_run_stamps_blocked_links_late() -> None:
     """60 s of the ITMTL variant: the packets table carries the arrival columns; some
     receptions have no direct arrival (blocked by the shelf break and the downward-refracting
-    summer profile) and are stamped on a reflected one whose delay exceeds the straight
-    chord's travel time through the true sound-speed field (a quadrature of 1 / c, no rays) by
-    more than 10 m of range: late first-arrival stamps."""
+    summer profile) and are stamped on a reflected one; each stamped on a surface bounce
+    exceeds the straight chord's travel time through the true sound-speed field (a quadrature of
+    1 / c, no rays) by more than 10 m of range: late first-arrival stamps."""
     res = run_scenario(
         SCENARIOS / "slope.toml",
         variant="itmtl",
@@ -68,5 +68,8 @@ def test_slope_run_stamps_blocked_links_late() -> None:
         late.append(C_NOMINAL * (r.tof - chord))
     late = np.asarray(late)
     assert (late > 10.0).sum() >= 2
-    # those are the surface-reflected ones: the bounce adds tens of metres
-    assert set(blocked.path[late > 10.0]) <= {"surface", "surface-bottom"}
+    # a surface bounce adds tens of metres on every such link (a bottom reflection may be early or
+    # late against the chord: it travels in the faster slope water below the cold pool the chord
+    # crosses, docs/channel.md "The slope scenario")
+    surf = blocked.path.isin(["surface", "surface-bottom"]).to_numpy()
+    assert surf.any() and np.all(late[surf] > 10.0)
