@@ -28,6 +28,7 @@ from pydantic import BaseModel
 
 from .channel.acoustic import AcousticChannel
 from .channel.config import ChannelConfig, LossModel
+from .channel.environment import Environment
 from .channel.ssp import Constant, SoundSpeedProfile
 from .mobility import Mobility
 from .node import Node, Role, Sensors
@@ -111,7 +112,9 @@ class Simulation:
     ``seed`` so the run can be repeated). ssp: the sound-speed profile (default 1500 m/s
     constant). volume: the scenario's ``mobility.Box`` (used to build default static mobility).
     channel: :class:`ChannelConfig`. trace: :class:`TraceConfig`. loss_model: SNR model for the
-    channel (default: ``aquasim_py.channel.loss`` when present, else no SNR).
+    channel (default: ``aquasim_py.channel.loss`` when present, else no SNR). environment: a
+    range-dependent :class:`~aquasim_py.channel.environment.Environment` the channel traces
+    instead of ``ssp`` (every arrival of a link, :mod:`aquasim_py.channel.arrival_links`).
     """
 
     def __init__(
@@ -123,6 +126,7 @@ class Simulation:
         trace: TraceConfig | None = None,
         *,
         loss_model: LossModel | None = None,
+        environment: Environment | None = None,
     ) -> None:
         ss = np.random.SeedSequence(seed)
         self.seed: int = int(ss.entropy)  # type: ignore[arg-type]
@@ -139,7 +143,7 @@ class Simulation:
             self.env,
             self,
             self.trace.table("packets"),
-            self.ssp,
+            self.ssp if environment is None else environment,
             self.channel_config,
             loss_model=loss_model,
             streams=self.rng,

@@ -103,8 +103,9 @@ class RadioPort(Protocol):
 
 
 class PacketLog(Protocol):
-    """The ``packets`` trace table: the channel appends rows in :data:`PACKET_FIELDS` order."""
+    """The ``packets`` trace table: the channel appends rows in :data:`PACKET_FIELDS` order (a
+    range-dependent channel: those and its own columns after them, named in ``columns``)."""
 
-    def append(self, values: tuple[Any, ...]) -> None:
-        """Append one row (a tuple of the :data:`PACKET_FIELDS`, in that order)."""
+    def append(self, values: tuple[Any, ...], columns: tuple[str, ...] | None = None) -> None:
+        """Append one row: a tuple of the :data:`PACKET_FIELDS` in that order, or of ``columns``."""
         ...

@@ -13,6 +13,8 @@ Run directory (``summary.json`` and the trace tables):
 - ``sync_vs_time.png``: clock error (estimated minus true time) of each node over time;
 - ``error_cdf.png``: empirical CDF of the localization error;
 - ``packets.png``: packet outcomes (received, and each drop reason) per time bin;
+- ``environment.png`` (a range-dependent environment): the sound-speed section and floor under
+  one link with its eigenrays (:mod:`aquasim_py.plot_environment`);
 - a tracker's tracks (MSWPF, SVL-PF, Ramezani tracking) scored by Stone Soup, OSPA and GOSPA
   beside our RMSE (:mod:`aquasim_py.tracks`; the ``stonesoup`` extra).
 
@@ -227,13 +229,17 @@ _CSS = (
 )
 
 
-def _run_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tuple[str, str, list[Path]]:
-    from aquasim_py import tracks
+def _run_body(
+    directory: Path, out: Path, metrics: Sequence[str] | None, link: tuple[int, int] | None = None
+) -> tuple[str, str, list[Path]]:
+    from aquasim_py import plot_environment, tracks
 
     summary = json.loads((directory / "summary.json").read_text())
     t = trace.load(directory)
     out.mkdir(parents=True, exist_ok=True)
     images = _run_plots(t, out)
+    if (env_plot := plot_environment.report_plot(summary, t, out, link)) is not None:
+        images.append(env_plot)
     title = f"aquasim-py run: {summary.get('scenario_file', directory.name)}"
     shown = sweep_report.pick(summary.get("metrics", {}), metrics, keep_all=True)
     body = "<h2>Metrics</h2>" + tables.metrics_table(shown, "metrics (units per row)").html()
@@ -277,10 +283,17 @@ def _forget_plots(out: Path, prefix: str) -> None:
             (out / name).unlink(missing_ok=True)
 
 
-def write_report(directory: str | Path, out: str | Path | None = None, metrics: Sequence[str] | None = None) -> Path:
+def write_report(
+    directory: str | Path,
+    out: str | Path | None = None,
+    metrics: Sequence[str] | None = None,
+    link: tuple[int, int] | None = None,
+) -> Path:
     """Plots and ``report.html`` (images embedded) for a run, a variants run or a sweep
     directory; returns the HTML path. ``metrics``: shell patterns of the metrics to show
-    (default: all of a run's; for sweeps and variants all but the packet counts).
+    (default: all of a run's; for sweeps and variants all but the packet counts). ``link``:
+    (sender, receiver) whose rays a range-dependent run's ``environment.png`` draws (default
+    :func:`aquasim_py.plot_environment.choose_link`).
 
     Raises :class:`ReportError` when ``directory`` holds none of ``summary.json``,
     ``variants.csv`` or ``sweep.csv``.
@@ -291,7 +304,7 @@ def write_report(directory: str | Path, out: str | Path | None = None, metrics: 
     out = Path(out) if out is not None else directory
     out.mkdir(parents=True, exist_ok=True)
     if (directory / "summary.json").is_file():
-        title, body, _ = _run_body(directory, out, metrics)
+        title, body, _ = _run_body(directory, out, metrics, link)
     elif (directory / "sweep.csv").is_file():
         _forget_plots(out, "sweep_")
         title, body, _ = _sweep_body(directory, out, metrics)

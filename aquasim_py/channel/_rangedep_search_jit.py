@@ -88,13 +88,40 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
             else:
                 fa *= 0.5
             b, fb = m, fm
-    st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = trace(
-        rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy
-    )
-    if st != S_REACHED or cd != code or not abs(ze - zr) <= _ACCEPT_M:
-        # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline
-        # reflects off one slope or the other), not a root
+    # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline reflects
+    # off one slope or the other) is not a root: _fill refuses it
+    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
+    return _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy)
+
+
+@_jit
+def _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy):
+    """Trace the converged ray of launch angle ``m`` (family ``code``) and write its fields to
+    out[row]; False (nothing written that counts) unless it reaches the receiver within
+    _ACCEPT_M in that family. ``h``: the step of the central difference d z_R / d theta0 (the
+    ray-tube width)."""
+    res = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
+    if res[0] != S_REACHED or res[7] != code or not abs(res[1] - zr) <= _ACCEPT_M:
         return False
+    _write_row(rr, zz, cc, zs, zr, R, m, res, out, row)
+    fm = res[1] - zr
+    # ray-tube width: d z_end / d theta0 by a small central difference inside the family
+    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
+    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
+    if cp == code and cq == code:
+        out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
+    elif cp == code:
+        out[row, F_DZDTH] = (fp - fm) / h
+    elif cq == code:
+        out[row, F_DZDTH] = (fm - fq) / h
+    return True
+
+
+@_jit
+def _write_row(rr, zz, cc, zs, zr, R, m, res, out, row):
+    """out[row] from the walk ``res`` (:func:`trace`'s tuple) of the eigenray launched at ``m``
+    (F_DZDTH left NaN)."""
+    _st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = res
     # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
     out[row, F_TIME] = t + (zr - ze) * math.sin(thr) / cR
     out[row, F_THETA0] = m
@@ -109,27 +136,18 @@ def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, zt
     out[row, F_CR] = cR
     out[row, F_KINK] = kink
     out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
-    # ray-tube width: d z_end / d theta0 by a small central difference inside the family
-    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
-    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
-    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
-    if cp == code and cq == code:
-        out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
-    elif cp == code:
-        out[row, F_DZDTH] = (fp - fm) / h
-    elif cq == code:
-        out[row, F_DZDTH] = (fm - fq) / h
-    else:
-        out[row, F_DZDTH] = math.nan
-    return True
+    out[row, F_DZDTH] = math.nan
 
 
 @_jit
-def _cusp_angles(rr, zz, cc, zs):
+def _cusp_angles(rr, zz, cc, bb, zs):
     """Launch angles next to those of the rays that would turn exactly at a depth node in the
     source's profile (cos th = c(z_s) / c(z_node), up towards shallower nodes, down towards
     deeper ones): there the depth miss has a kink and a family may fold (two eigenrays a
-    fraction of a fan spacing apart). Two samples, 1e-7 on either side of each."""
+    fraction of a fan spacing apart). Two samples, 1e-7 on either side of each. Only nodes
+    above the deepest floor ``bb`` of the section (no ray turns below it); the surface node
+    too (the ray that grazes it: the edge between the rays that turn below it and those that
+    bounce)."""
     J, K = rr.size, zz.size
     j = 0
     while j < J - 2 and rr[j + 1] <= 0.0:
@@ -138,7 +156,10 @@ def _cusp_angles(rr, zz, cc, zs):
     cs = _speed_src(rr, zz, cc, zs, 0.0)  # R unused
     out = np.empty(2 * K)
     n = 0
-    for k in range(1, K - 1):
+    deepest = bb.max()
+    for k in range(0, K - 1):
+        if zz[k] >= deepest:
+            break  # a ray cannot turn below the floor: it reflects off it first
         ck = cc[j, k] + w * (cc[j + 1, k] - cc[j, k])
         if ck > cs and zz[k] != zs:
             a = math.acos(cs / ck)
@@ -160,12 +181,28 @@ def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, ou
     between them (a fold of the family may hide two roots); regula falsi inside each family
     where the miss changes sign. Returns the number of arrival rows written to ``out``."""
     dummy = np.empty((1, 3))
-    cusp = _cusp_angles(rr, zz, cc, zs)
-    th = np.empty(nfan + cusp.size)
+    cusp = np.sort(_cusp_angles(rr, zz, cc, bb, zs))
+    # the rays that turn between two depth nodes form a band of launch angles; where one is
+    # narrower than the fan's spacing there, a fold inside it (two eigenrays) would fall between
+    # samples: two more samples inside it (a summer mixed layer turns its rays in a 0.1 deg band)
+    dw = 2.0 * wmax / nfan
+    extra = np.empty(2 * cusp.size)
+    ne = 0
+    for i in range(0, cusp.size - 2, 2):
+        lo, hi = cusp[i + 1], cusp[i + 2]  # the inner samples of two neighbouring cusps
+        if (lo > 0.0) != (hi > 0.0) or hi - lo <= 1e-12:
+            continue
+        spacing = dw * H / R * math.cos(0.5 * (lo + hi)) ** 2
+        if hi - lo < spacing:
+            extra[ne] = lo + (hi - lo) / 3.0
+            extra[ne + 1] = lo + 2.0 * (hi - lo) / 3.0
+            ne += 2
+    th = np.empty(nfan + cusp.size + ne)
     for i in range(nfan):
         w = -wmax + 2.0 * wmax * (i + 0.5) / nfan
         th[i] = math.atan(w * H / R)
-    th[nfan:] = cusp
+    th[nfan : nfan + cusp.size] = cusp
+    th[nfan + cusp.size :] = extra[:ne]
     th = np.sort(th)
     nfan = th.size
     f = np.empty(nfan)
@@ -321,14 +358,18 @@ def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bp
 
 
 @_jit
-def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
-    """Follow known eigenrays to slightly moved end points: for each link l and each of its
-    arrivals q (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope
-    d z_R / d theta0 slope[l, q]), secant iterations from the old launch angle in the new
-    section, keeping the bounce sequence. Returns the corrected delays (L, Q), NaN where the
-    arrival could not be followed (its sequence changed, or no convergence in 12 steps)."""
+def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
+    """Follow known eigenrays to moved end points: for each link l and each of its arrivals q
+    (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope d z_R / d theta0
+    slope[l, q]), secant iterations on the depth miss from the old launch angle in the new
+    section, keeping the bounce sequence, to ``ztol``. Returns the arrival rows (L, Q, NF) (as
+    :func:`search` writes them, the ray-tube width F_DZDTH the secant's last slope, or the
+    given one where no step was needed) and whether each was followed (L, Q): not where its
+    bounce sequence changed or the secant did not converge in 12 steps (its row is then NaN).
+    Each arrival costs one walk per secant evaluation (usually two or three), none more."""
     L, Q = theta0.shape
-    out = np.full((L, Q), np.nan)
+    out = np.full((L, Q, NF), np.nan)
+    ok_all = np.zeros((L, Q), np.bool_)
     dummy = np.empty((1, 3))
     for l in range(L):
         o0, o1 = starts[l], ends[l]
@@ -337,32 +378,30 @@ def track_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb
         rr, cc, bb = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1]
         for q in range(Q):
             cd = code[l, q]
-            if cd < 0 or not math.isfinite(theta0[l, q]):
+            s = slope[l, q]
+            if cd < 0 or not math.isfinite(theta0[l, q]) or not (math.isfinite(s) and s != 0.0):
                 continue
             a = theta0[l, q]
-            fa, ca = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy)
-            if ca != cd:
+            res = trace(rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy)
+            if res[0] != S_REACHED or res[7] != cd:
                 continue
-            s = slope[l, q]
-            if not (math.isfinite(s) and s != 0.0):
-                continue
+            fa = res[1] - zr[l]
             ok = abs(fa) <= ztol
             for _ in range(12):
                 if ok:
                     break
                 b = a - fa / s
-                fb, cb = _miss(rr, zz, cc, bb, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy)
-                if cb != cd:
+                rb = trace(rr, zz, cc, bb, floor, zs[l], b, R[l], maxb, bpar, False, dummy)
+                if rb[0] != S_REACHED or rb[7] != cd:
                     break
+                fb = rb[1] - zr[l]
                 if fb != fa and b != a:
                     s = (fb - fa) / (b - a)
-                a, fa = b, fb
+                a, fa, res = b, fb, rb
                 ok = abs(fa) <= ztol
             if not ok:
                 continue
-            st, ze, t, thr, _arc, _ns, _nb, c2, _lo, _nt, _np, cR, _k = trace(
-                rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy
-            )
-            if st == S_REACHED and c2 == cd:
-                out[l, q] = t + (zr[l] - ze) * math.sin(thr) / cR
-    return out
+            _write_row(rr, zz, cc, zs[l], zr[l], R[l], a, res, out[l], q)
+            out[l, q, F_DZDTH] = s
+            ok_all[l, q] = True
+    return out, ok_all

@@ -32,6 +32,7 @@ import simpy
 from ..packet import Packet
 from ..radio import NetworkView, PacketLog, RadioPort
 from .config import ChannelConfig, LossModel, default_loss_model
+from .environment import Environment
 from .links import LinkModel
 from .modem import Modem, Signal, verdict
 
@@ -64,7 +65,11 @@ class AcousticChannel:
 
     env: the SimPy environment. network: ground truth of the nodes (:class:`~aquasim_py.radio.
     NetworkView`). packets: the ``packets`` trace table (:class:`~aquasim_py.radio.PacketLog`).
-    ssp, config, loss_model, streams: the link model's (:class:`~.links.LinkModel`). Each
+    ssp, config, loss_model, streams: the link model's (:class:`~.links.LinkModel`); ``ssp`` may
+    be an :class:`~.environment.Environment`: a range-dependent one gets every arrival of each
+    link and the modem's stamp at the first detected (:class:`~.arrival_links.ArrivalLinkModel`,
+    whose numbers the ``packets`` rows carry after the schema's columns), a range-independent
+    one its profile's link model, as a profile would. Each
     node's :class:`~aquasim_py.radio.RadioPort` is attached with :meth:`attach` (ids 0, 1, ...
     in order); a node transmits with :meth:`transmit`.
     """
@@ -74,7 +79,7 @@ class AcousticChannel:
         env: simpy.Environment,
         network: NetworkView,
         packets: PacketLog,
-        ssp: SoundSpeedProfile,
+        ssp: SoundSpeedProfile | Environment,
         config: ChannelConfig,
         loss_model: LossModel | None = None,
         streams: Callable[..., np.random.Generator] | None = None,
@@ -82,13 +87,21 @@ class AcousticChannel:
         self._env = env
         self._net = network
         self.config = config
-        self.links = LinkModel(
-            network, ssp, config, loss_model if loss_model is not None else default_loss_model(), streams
-        )
+        loss = loss_model if loss_model is not None else default_loss_model()
+        # a row tuple in the table's column order
+        self._row: Callable[[tuple[Any, ...]], None] = packets.append
+        if isinstance(ssp, Environment) and not ssp.range_independent:
+            from .arrival_links import ArrivalLinkModel, arrival_row_writer
+
+            self.links: LinkModel = ArrivalLinkModel(network, ssp, config, loss, streams)
+            self._row = arrival_row_writer(packets.append)
+        else:
+            self.links = LinkModel(
+                network, ssp.profile() if isinstance(ssp, Environment) else ssp, config, loss, streams
+            )
         self._modems: list[Modem] = []
         self._jitter_std = float(config.jitter_std_s)
         self._uid = 0
-        self._row = packets.append  # a row tuple in the table's column order
         self._max_duration = 0.0  # the longest packet so far (s)
         # overlaps matter only with a collision model
         self._track = config.collision in ("destructive", "capture")
@@ -96,8 +109,8 @@ class AcousticChannel:
         self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
 
     @property
-    def ssp(self) -> SoundSpeedProfile:
-        """The sound-speed profile the links are traced in."""
+    def ssp(self) -> SoundSpeedProfile | None:
+        """The sound-speed profile the links are traced in (None in a range-dependent environment)."""
         return self.links.ssp
 
     # -- nodes ------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ from . import rangedep
 from .environment import Environment
 from .loss import thorp_absorption_db_per_km
 
-__all__ = ["ArrivalClass", "Arrivals", "arrivals", "detection_snr_db", "first_detectable"]
+__all__ = ["ArrivalClass", "Arrivals", "arrivals", "detection_snr_db", "first_detectable", "follow"]
 
 FloatArray = NDArray[np.float64]
 _CAUSTIC_CAP_DB = 6.0
@@ -161,18 +161,83 @@ def arrivals(
     """Every eigenray from ``src`` to ``dst`` ((..., 3), m; broadcast) with at most
     ``max_bounces`` surface + bottom bounces, in increasing delay per link (see the module
     docstring for the level). Links with an end outside the water have none."""
-    from . import _rangedep_search_jit as jit
-
     shape = np.broadcast_shapes(np.shape(src)[:-1], np.shape(dst)[:-1])
     sec = rangedep.sections(env, src, dst)
     rows, cnt = rangedep.solve(env, sec, max_bounces)
-    n = cnt.size
-    cap = rows.shape[1]
-    used = np.arange(cap)[None, :] < cnt[:, None]
+    used = np.arange(rows.shape[1])[None, :] < cnt[:, None]
+    return _assemble(sec, rows, used, shape, frequency_khz, spreading)
+
+
+def follow(
+    env: Environment,
+    prev: Arrivals,
+    src: ArrayLike,
+    dst: ArrayLike,
+    *,
+    max_bounces: int = 2,
+    frequency_khz: float = 10.0,
+    spreading: str | float = "ray",
+) -> tuple[Arrivals, NDArray[np.bool_]]:
+    """The arrivals ``prev`` (of n links, each solved at nearby end points) followed to the end
+    points ``src``, ``dst`` ((n, 3), m): each eigenray from its launch angle by a few secant
+    steps on the depth miss, keeping its bounce sequence (:func:`.rangedep.follow`), instead of a
+    search. Returns (the arrivals, (n,) whether every arrival of the link was followed): a
+    link is not followed where one of its eigenrays changed its bounce sequence (a path about to
+    vanish), or two of one sequence met or swapped their order (a fold, where following one may
+    land on the other); its arrivals are then meaningless and must be searched again. A
+    followed link has exactly ``prev``'s eigenrays: one that appeared since is not found. The
+    ray-tube width (for the level) is the secant's last slope instead of a central difference:
+    within 1e-3 of it for moves of a metre away from caustics (a few thousandths of a dB)."""
+    from . import _rangedep_search_jit as jit
+
+    n = prev.offsets.size - 1
+    s = np.asarray(src, dtype=float).reshape(n, 3)
+    d = np.asarray(dst, dtype=float).reshape(n, 3)
+    cnt = np.diff(prev.offsets)
+    q = int(cnt.max(initial=0))
+    rows_of = np.repeat(np.arange(n), cnt)
+    col = np.arange(prev.delay.size) - prev.offsets[:-1][rows_of]
+    theta = np.full((n, max(q, 1)), np.nan)
+    slope = np.full((n, max(q, 1)), np.nan)
+    code = np.full((n, max(q, 1)), -1, np.int64)
+    theta[rows_of, col] = prev.launch_angle
+    slope[rows_of, col] = prev.dz_dlaunch
+    code[rows_of, col] = prev.bounce_code
+    rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code)
+    used = code >= 0
+    whole = np.all(ok | ~used, axis=1)
+    # a fold: an eigenray of a bounce sequence with others may have been followed onto one of
+    # them; each must have stayed within half the gap to its nearest sibling (then no two can
+    # meet or swap)
+    th_new = rows[:, :, jit.F_THETA0]
+    same = (code[:, :, None] == code[:, None, :]) & used[:, :, None] & used[:, None, :]
+    same &= ~np.eye(same.shape[1], dtype=bool)[None]
+    gap = np.min(np.where(same, np.abs(theta[:, :, None] - theta[:, None, :]), np.inf), axis=2)
+    with np.errstate(invalid="ignore"):
+        moved = np.abs(th_new - theta)
+    whole &= ~np.any(used & ~(moved < 0.5 * gap), axis=1)
+    out = _assemble(sec, rows, used & whole[:, None], (n,), frequency_khz, spreading)
+    return out, whole
+
+
+def _assemble(
+    sec: rangedep.Sections,
+    rows: FloatArray,
+    used: NDArray[np.bool_],
+    shape: tuple[int, ...],
+    frequency_khz: float,
+    spreading: str | float,
+) -> Arrivals:
+    """Arrivals from raw eigenray rows (n, cap, NF) of the sections ``sec``, the rows ``used``
+    (n, cap) of each link; sorted by delay per link, with their levels."""
+    from . import _rangedep_search_jit as jit
+
+    n = rows.shape[0]
+    cnt = used.sum(axis=1)
     t = np.where(used, rows[:, :, jit.F_TIME], np.inf)
     order = np.argsort(t, axis=1, kind="stable")
     rows = np.take_along_axis(rows, order[:, :, None], axis=1)
-    flat = rows[used]  # row-major: link by link, sorted by delay
+    flat = rows[np.take_along_axis(used, order, axis=1)]  # row-major: link by link, sorted by delay
     link = np.repeat(np.arange(n), cnt)
     offsets = np.zeros(n + 1, np.int64)
     offsets[1:] = np.cumsum(cnt)

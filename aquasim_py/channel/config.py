@@ -48,6 +48,13 @@ class ChannelConfig:
     sound_speed_std_mps, sound_speed_corr_s: sound-speed uncertainty (channel/uncertainty.py):
         std (m/s) of the path-mean speed around the profile, and its per-link correlation time
         (s; 0 = independent per packet). std 0 leaves the channel exactly as without it.
+    max_bounces, detection_threshold_db: a range-dependent environment only
+        (:mod:`.arrival_links`): the arrivals of a link are its eigenrays with at most
+        ``max_bounces`` surface + bottom bounces, and the modem stamps the first whose SNR
+        reaches ``detection_threshold_db`` (None: ``snr_threshold_db``, so the arrival it
+        synchronizes on is one it can decode from). direct_only: an analysis switch, not a
+        modem: a reception whose stamped arrival is not a direct or refracted one is lost
+        ("indirect"), to measure what blocked and weak direct paths cost a protocol.
     snr_estimate_std_db: std (dB) of the Gaussian error of the receiver's SNR estimate, the
         ``Reception.snr_db`` a node gets (0 = the exact SNR); drawn by the kernel from the
         receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
@@ -76,6 +83,9 @@ class ChannelConfig:
     sound_speed_std_mps: float = 0.0
     sound_speed_corr_s: float = 0.0
     snr_estimate_std_db: float = 1.0
+    max_bounces: int = 2
+    detection_threshold_db: float | None = None
+    direct_only: bool = False
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -92,6 +102,12 @@ class ChannelConfig:
             raise ValueError("ChannelConfig.sound_speed_std_mps and sound_speed_corr_s must be >= 0")
         if not (math.isfinite(self.snr_estimate_std_db) and self.snr_estimate_std_db >= 0.0):
             raise ValueError(f"ChannelConfig.snr_estimate_std_db must be >= 0, got {self.snr_estimate_std_db!r}")
+        if not (isinstance(self.max_bounces, int) and 0 <= self.max_bounces <= 20):
+            raise ValueError(f"ChannelConfig.max_bounces must be an integer in 0..20, got {self.max_bounces!r}")
+        if self.detection_threshold_db is not None and not math.isfinite(self.detection_threshold_db):
+            raise ValueError(
+                f"ChannelConfig.detection_threshold_db must be finite, got {self.detection_threshold_db!r}"
+            )
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,

@@ -65,10 +65,11 @@ PATH_NAMES = {
     int(PathKind.BOTTOM): "bottom",
 }
 
-#: a link that reaches its receiver: (receiver id, delay s, path name, SNR dB)
-Heard = tuple[int, float, str, float]
-#: a link that does not: (receiver id, "no_path" | "snr", delay s, path name, SNR dB)
-Lost = tuple[int, str, float, str, float]
+#: a link that reaches its receiver: (receiver id, delay s, path, SNR dB); path: its name, or
+#: a subclass's record of it (:class:`~.arrival_links.ArrivalPath`)
+Heard = tuple[int, float, Any, float]
+#: a link that does not: (receiver id, "no_path" | "snr" | a subclass's reason, delay s, path, SNR dB)
+Lost = tuple[int, str, float, Any, float]
 #: the links of one transmission: (ids in range, in any order; heard, by delay; lost)
 Links = tuple[list[int], list[Heard], list[Lost]]
 
@@ -78,7 +79,8 @@ _DELAY = itemgetter(1)  # heard entries: (receiver id, delay, path, snr)
 class LinkModel:
     """The links of each transmission of a network (see the module docstring).
 
-    network: ground truth of the nodes. ssp: the sound-speed profile. config: the channel's
+    network: ground truth of the nodes. ssp: the sound-speed profile (None only for a subclass
+    that traces its own medium, :class:`~.arrival_links.ArrivalLinkModel`). config: the channel's
     parameters. loss_model: SNR per receiver from the eigenrays. streams: the run's keyed
     random streams (``Simulation.rng``), for the link-level hooks (obstacles, sound-speed
     uncertainty), each drawing from streams of its own.
@@ -87,7 +89,7 @@ class LinkModel:
     def __init__(
         self,
         network: NetworkView,
-        ssp: SoundSpeedProfile,
+        ssp: SoundSpeedProfile | None,
         config: ChannelConfig,
         loss_model: LossModel,
         streams: Callable[..., np.random.Generator] | None = None,
@@ -180,17 +182,26 @@ class LinkModel:
             if v_near is not None:
                 v_cand = v_near[1:][keep]
         if cand.size:
-            times, paths, snr = self.arrivals(t0, p_src, cand, p_cand, v_cand)
+            times, paths, snr = self.arrivals(t0, p_src, cand, p_cand, v_cand, src=src)
             if self._sound_speed is not None:  # path-mean speed taken at the mid depth
-                times = self._sound_speed.apply(times, t0, src, cand, self.ssp.speed((p_src[2] + p_cand[:, 2]) / 2))
+                times = self._sound_speed.apply(times, t0, src, cand, self._mid_speed(p_src, p_cand))
             if self._obstacles is not None:  # obstacle hook: excess delay added, extra loss subtracted
                 times, snr = self._obstacles.apply(src, cand, times, snr)
-            out = self._sorted_links(cand.tolist(), times, map(PATH_NAMES.__getitem__, paths.tolist()), snr)
+            out = self._sorted_links(cand.tolist(), times, self._path_names(paths), snr)
         else:
             out = ([], [], [])
         if static:
             self._static_links[src] = (n, out)
         return out
+
+    def _mid_speed(self, p_src: NDArray[np.float64], p_rx: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Sound speed (m/s) the uncertainty hook takes as each link's path mean: at the mid depth."""
+        assert self.ssp is not None
+        return self.ssp.speed((p_src[2] + p_rx[:, 2]) / 2)
+
+    def _path_names(self, paths: Any) -> Iterable[Any]:
+        """The packets table's ``path`` values of the links' path kinds."""
+        return map(PATH_NAMES.__getitem__, paths.tolist())
 
     def _sorted_links(
         self, ids: list[int], times: NDArray[np.float64], paths: Iterable[str], snr: NDArray[np.float64]
@@ -266,11 +277,14 @@ class LinkModel:
         cand: NDArray[np.intp],
         p_rx: NDArray[np.float64],
         v_rx: NDArray[np.float64] | None = None,
+        src: int = -1,
     ) -> tuple[NDArray[np.float64], NDArray[np.int8], NDArray[np.float64]]:
         """Arrival delays (s), path kinds and SNR (dB) at the candidates (moving-receiver fixed point).
 
-        v_rx: the candidates' velocities (m/s) at t0 if already known (else asked for)."""
+        v_rx: the candidates' velocities (m/s) at t0 if already known (else asked for). src:
+        the sender's id (unused here; a subclass may key its links by it)."""
         ssp = self.ssp
+        assert ssp is not None
         refl = self.config.reflections
         net = self._net
         fast = None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from array import array
 from bisect import bisect_left, bisect_right
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -19,8 +19,9 @@ from ..radio import RadioPort
 
 __all__ = ["Modem", "Signal", "verdict"]
 
-#: a signal at a receiver: (arrival, end (true s), snr_db, receiver id, packet, tof (s), path, dst)
-Signal = tuple[float, float, float, int, Packet, float, str, int]
+#: a signal at a receiver: (arrival, end (true s), snr_db, receiver id, packet, tof (s), path, dst);
+#: path: its name, or a range-dependent link's record (:class:`~.arrival_links.ArrivalPath`)
+Signal = tuple[float, float, float, int, Packet, float, Any, int]
 
 
 class Modem:

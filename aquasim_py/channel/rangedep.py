@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .environment import Environment
 
-__all__ = ["MIN_RANGE_M", "Sections", "sections", "solve", "trace_rays", "track"]
+__all__ = ["MIN_RANGE_M", "Sections", "follow", "sections", "solve", "trace_rays", "track"]
 
 FloatArray = NDArray[np.float64]
 
@@ -239,7 +239,7 @@ def trace_rays(
     return paths, cnt, sec
 
 
-def track(
+def follow(
     env: Environment,
     src: ArrayLike,
     dst: ArrayLike,
@@ -247,15 +247,17 @@ def track(
     theta0: FloatArray,
     slope: FloatArray,
     code: NDArray[np.int64],
-) -> FloatArray:
-    """Delays (n, Q) of known eigenrays (launch angles theta0 (n, Q), depth-miss slopes, bounce
-    sequences; code < 0 = none) followed to the links src -> dst (secant steps from the old
-    angle, a few rays each instead of a search); NaN where one could not be followed."""
+) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
+    """Known eigenrays (launch angles theta0 (n, Q), depth-miss slopes d z_R / d theta0, bounce
+    sequences; code < 0 = none) followed to the links src -> dst: a few secant steps from the old
+    angle each, instead of a search. Returns (rows (n, Q, NF) as :func:`solve` gives them, NaN
+    where not followed, the ray-tube width the secant's last slope; followed (n, Q); the
+    sections)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
     starts, ends, r, z, c, fz, floor, zs, zr, R = _kernel_args(env, sec)
-    return jit.track_links(
+    rows, ok = jit.follow_links(
         starts,
         ends,
         r,
@@ -273,3 +275,21 @@ def track(
         np.ascontiguousarray(code, dtype=np.int64),
         _ZTOL_M,
     )
+    return rows, ok, sec
+
+
+def track(
+    env: Environment,
+    src: ArrayLike,
+    dst: ArrayLike,
+    max_bounces: int,
+    theta0: FloatArray,
+    slope: FloatArray,
+    code: NDArray[np.int64],
+) -> FloatArray:
+    """Delays (n, Q) of known eigenrays followed to the links src -> dst (:func:`follow`); NaN
+    where one could not be followed."""
+    from . import _rangedep_search_jit as jit
+
+    rows, _ok, _sec = follow(env, src, dst, max_bounces, theta0, slope, code)
+    return rows[:, :, jit.F_TIME]

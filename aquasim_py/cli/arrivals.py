@@ -52,7 +52,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file (its [environment] and [channel])")
     p.add_argument("--from", dest="src", metavar="X,Y,Z", type=_point, required=True, help="source (m)")
     p.add_argument("--to", dest="dst", metavar="X,Y,Z", type=_point, required=True, help="receiver (m)")
-    p.add_argument("--max-bounces", type=_bounces, default=2, help="surface + bottom bounces per arrival (default 2)")
+    p.add_argument(
+        "--max-bounces",
+        type=_bounces,
+        default=None,
+        help="surface + bottom bounces per arrival (default: the scenario's [channel] max_bounces, 2 unless set)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     return p
 
@@ -85,6 +90,8 @@ def command(argv: Sequence[str]) -> int:
                 f"{name} {pt[0]:g},{pt[1]:g},{pt[2]:g}: depth outside the water (0 to {floor:g} m there)"
             )
     ch = sc.channel
+    if args.max_bounces is None:
+        args.max_bounces = ch.max_bounces
     arr = arrivals(env, args.src, args.dst, max_bounces=args.max_bounces, frequency_khz=ch.frequency_khz)
     rows = arr.records()
     for r in rows:

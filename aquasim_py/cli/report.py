@@ -15,6 +15,7 @@ EXAMPLES = """examples:
   aquasim-py report out/ramezani_localization_sweep-sweep           # a sweep: a line per other grid value
   aquasim-py report out/ramezani_localization_sweep-sweep --metrics '*.rmse_m,*.sqrt_mean_crb_m'
   aquasim-py report out/itmtl --out /tmp/rep   # write the report elsewhere
+  aquasim-py report out/slope/itmtl --link 4,6 # a range-dependent run: the rays of link 4 -> 6
 """
 
 
@@ -30,26 +31,43 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("directory", metavar="DIR", help="a run's or a sweep's output directory")
     p.add_argument("--out", metavar="DIR", help="where to write the plots and report.html (default: DIR)")
     common.add_metrics(p)
+    p.add_argument(
+        "--link",
+        metavar="SRC,DST",
+        type=_link,
+        help="a range-dependent run: the link whose rays environment.png draws (default: the most heard "
+        "link without a direct path, else the most heard)",
+    )
     return p
 
 
-def _report_into(directory: Path, out: Path, metrics: Sequence[str] | None = None) -> Path:
+def _link(text: str) -> tuple[int, int]:
+    try:
+        a, b = (int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two node ids SRC,DST, got {text!r}") from None
+    return a, b
+
+
+def _report_into(
+    directory: Path, out: Path, metrics: Sequence[str] | None = None, link: tuple[int, int] | None = None
+) -> Path:
     """Write the report of ``directory`` into ``out`` and list its files in ``out``'s manifest."""
     from aquasim_py.outdir import record_files
     from aquasim_py.report import write_report
 
-    html = write_report(directory, out, metrics)
+    html = write_report(directory, out, metrics, link)
     record_files(out, sorted(p.name for p in out.iterdir() if p.suffix == ".png" or p == html))
     return html
 
 
-def reports_for(out: Path, metrics: Sequence[str] | None = None) -> list[Path]:
+def reports_for(out: Path, metrics: Sequence[str] | None = None, link: tuple[int, int] | None = None) -> list[Path]:
     """Report every run under ``out``: the run or sweep itself, or for a run with variants
     each variant directory (``out/NAME/summary.json``) and then the cross-variant report of
     ``out``; returns the report.html paths."""
     if (out / "summary.json").is_file() or (out / "sweep.csv").is_file():
-        return [_report_into(out, out, metrics)]
-    paths = [_report_into(d, d, metrics) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
+        return [_report_into(out, out, metrics, link)]
+    paths = [_report_into(d, d, metrics, link) for d in sorted(out.iterdir()) if (d / "summary.json").is_file()]
     if (out / "variants.csv").is_file():
         paths.append(_report_into(out, out, metrics))
     return paths
@@ -66,7 +84,7 @@ def command(argv: Sequence[str]) -> int:
     try:
         metrics = common.metric_patterns(args.metrics)
         if args.out is None:
-            paths = reports_for(directory, metrics)
+            paths = reports_for(directory, metrics, args.link)
             if not paths:
                 raise ReportError(
                     f"{directory}: neither a run (summary.json), a variants run (variants.csv) nor a sweep "
@@ -77,7 +95,7 @@ def command(argv: Sequence[str]) -> int:
             # never write over a user's files (the report has no --overwrite)
             refuse_foreign(dest, None, "--out", hint="give an empty or new directory")
             dest.mkdir(parents=True, exist_ok=True)
-            paths = [_report_into(directory, dest, metrics)]
+            paths = [_report_into(directory, dest, metrics, args.link)]
     except ReportError as e:
         raise common.UsageError(str(e)) from None
     for p in paths:

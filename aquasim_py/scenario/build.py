@@ -225,6 +225,9 @@ def channel_config(sc: Scenario) -> Any:
         sound_speed_std_mps=c.sound_speed_std_mps,
         sound_speed_corr_s=c.sound_speed_corr_s,
         snr_estimate_std_db=c.snr_estimate_std_db,
+        max_bounces=c.max_bounces,
+        detection_threshold_db=c.detection_threshold_db,
+        direct_only=c.direct_only,
     )
 
 
@@ -243,6 +246,12 @@ def _obstacles(o: Any) -> Any:
     )
 
 
+def _environment(sc: Scenario, ssp: Any) -> Any:
+    """The scenario's Environment (its depth profile ``ssp`` where the sound speed is one)."""
+    profile = None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else ssp
+    return ocean.make_environment(sc, profile)
+
+
 def build(sc: Scenario) -> Any:
     """A ready-to-run :class:`~aquasim_py.kernel.Simulation` for a validated scenario.
 
@@ -258,26 +267,22 @@ def build(sc: Scenario) -> Any:
     from aquasim_py.trace import TraceConfig
 
     file = sc.path
-    if ocean.range_dependent(sc):
-        raise ScenarioError(
-            file,
-            "environment",
-            "a range-dependent environment (bathymetry, section or grid sound speed) is not simulated by the "
-            "channel yet; list a link's arrivals with `aquasim-py arrivals`",
-        )
     vol = sc.environment.volume
     box = Box(vol.lo, vol.hi)
     try:
         cfg = channel_config(sc)
     except ValueError as e:
         raise ScenarioError(file, "channel", str(e)) from None
+    ssp = make_ssp(sc)
     sim = Simulation(
         sc.simulation.seed,
-        make_ssp(sc),
+        ssp,
         box,
         cfg,
         TraceConfig(position_interval=sc.trace.position_interval_s),
         loss_model=no_snr if sc.channel.loss_model == "none" else None,
+        # a bathymetry, a section or a grid: the channel traces the environment (every arrival)
+        environment=_environment(sc, ssp) if ocean.range_dependent(sc) else None,
     )
     for i, g in enumerate(sc.nodes):
         assert g.name is not None and g.count is not None

@@ -40,7 +40,10 @@ from aquasim_py.scenario.ocean_schema import (
     SectionSSP,
 )
 
-__all__ = ["centre_profile", "make_environment", "range_dependent"]
+__all__ = ["ARRIVAL_KEYS", "centre_profile", "make_environment", "range_dependent"]
+
+#: the ``[channel]`` keys of a range-dependent channel (aquasim_py.channel.arrival_links)
+ARRIVAL_KEYS = ("max_bounces", "detection_threshold_db", "direct_only")
 
 
 def range_dependent(sc: Any) -> bool:

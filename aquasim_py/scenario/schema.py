@@ -217,6 +217,20 @@ class ChannelSpec(Strict):
     snr_estimate_std_db: NonNegFloat = Field(
         1.0, description="std of the receiver's SNR estimate error (dB) in Reception.snr_db; 0 = exact"
     )
+    # a range-dependent environment only (aquasim_py.channel.arrival_links); left out of the
+    # resolved scenario of a range-independent one unless set (Scenario.to_dict)
+    max_bounces: Annotated[int, Field(ge=0, le=20)] = Field(
+        2, description="surface + bottom bounces of the arrivals a range-dependent channel lists"
+    )
+    detection_threshold_db: float | None = Field(
+        None,
+        description="SNR (dB) at which the modem detects an arrival and stamps it (the first such); "
+        "default snr_threshold_db",
+    )
+    direct_only: bool = Field(
+        False,
+        description="analysis switch: receptions stamped on a reflected arrival are lost ('indirect'); not a modem",
+    )
 
 
 # --------------------------------------------------------------------------- [[nodes]]

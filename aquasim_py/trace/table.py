@@ -50,8 +50,9 @@ class Table:
         self._n = 0
         self.columns: dict[str, Column] = {c: Column(k) for c, k in schema}
         self._schema = tuple(self.columns)
-        # the columns of the row tuples in _buf, in order: the schema, a prefix of self.columns;
-        # a table without one: every column, as its last complete row named them (append)
+        # the columns of the row tuples in _buf, in order: the schema, a prefix of self.columns,
+        # or every column as the last complete row named them (append; of a schema table, the
+        # schema's first)
         self._buf_keys = self._schema
         self._buf: list[tuple[Any, ...]] = []
         # _buf_keys while they name every column (a row of them can be buffered), else None
@@ -305,7 +306,9 @@ class Table:
                 if key not in row:
                     col.fill_missing()
         self._n += 1
-        if not self._schema and len(row) == len(cols):  # later rows like this one are buffered
+        # later rows like this one are buffered: a row of every column (of a schema table: the
+        # schema's first, in order, then extra ones, e.g. a range-dependent channel's)
+        if len(row) == len(cols) and (not self._schema or tuple(keys[: len(self._schema)]) == self._schema):
             self._buf_keys = tuple(keys)
         self._fast_keys = self._buf_keys if len(self._buf_keys) == len(cols) else None
         self._maybe_spill()

@@ -10,7 +10,7 @@ import pytest
 
 from aquasim_py import channel
 from aquasim_py.cli import main
-from aquasim_py.scenario import ScenarioError, load
+from aquasim_py.scenario import load
 from aquasim_py.scenario.build import build, make_ssp
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -80,12 +80,26 @@ def test_shelfbreak_link_across_the_slope(tmp_path, capsys) -> None:
     assert rc == 0 and "delay s" in out.splitlines()[0]
 
 
-def test_range_dependent_scenario_is_not_run_yet(tmp_path) -> None:
+def test_range_dependent_scenario_builds_with_its_arrival_keys(tmp_path) -> None:
+    """A range-dependent scenario is simulated (the channel traces its environment) and its
+    resolved scenario names the arrival keys it ran with; a range-independent one leaves them
+    out unless set."""
     f = tmp_path / "slope.toml"
     f.write_text(SLOPE)
     sc = load(f)
-    with pytest.raises(ScenarioError, match="range-dependent"):
-        build(sc)
+    sim = build(sc)
+    assert type(sim.channel.links).__name__ == "ArrivalLinkModel"
+    ch = sc.to_dict()["channel"]
+    assert ch["max_bounces"] == 2 and ch["detection_threshold_db"] is None
+    flat = load(ROOT / "scenarios" / "beacon.toml")
+    assert "max_bounces" not in flat.to_dict()["channel"]
+    assert "detection_threshold_db" not in flat.to_dict()["channel"]
+    assert (
+        load(ROOT / "scenarios" / "beacon.toml", overrides=["channel.max_bounces=3"]).to_dict()["channel"][
+            "max_bounces"
+        ]
+        == 3
+    )
 
 
 _BATHY = '[environment.bathymetry]\nmodel = "grid"\nfile = "package:shelfbreak"\nvariable = "bathymetry"\n'

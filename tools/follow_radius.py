@@ -1,0 +1,96 @@
+"""How far the arrivals of a link can be followed instead of searched: the measurement behind
+``ArrivalCache.follow_m`` (aquasim_py.channel.arrival_cache) and the channel's 1 m.
+
+On the shelf-break network of tools/bench_arrivals.py (nodes in 3 km x 3 km across the front
+and the slope, every ordered pair a link, 2 bounces), each link is searched, both ends are moved
+by ``r`` in random directions, and its arrivals are both followed there (arrivals.follow) and
+searched there again. Per radius: the share of links followed (the others fall back to a
+search), and among the followed ones those whose modem stamp (the first arrival above 10 dB
+SNR at a 170 dB source, 72 dB of noise in the band) differs from the new search's, split by
+which is earlier: "follow later" = the search found an earlier detectable arrival that
+following missed (a path appeared within r), "search later" = following kept one the search
+missed (the search is not exhaustive either, docs/channel.md), and how many links' arrival
+sets differ.
+
+    python tools/follow_radius.py --seeds 4 --nodes 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def main() -> None:
+    from bench_arrivals import network, pairs  # tools/, beside this script
+
+    from aquasim_py.channel.arrivals import arrivals, first_detectable, follow
+    from aquasim_py.channel.data import shelfbreak
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--nodes", type=int, default=20)
+    ap.add_argument("--radii", default="0.1,0.3,1,3,10")
+    args = ap.parse_args()
+    radii = [float(v) for v in args.radii.split(",")]
+    env = shelfbreak()
+    tot = {r: np.zeros(6) for r in radii}  # links, followed, stamp differs, follow later, search later, set differs
+    t_search = t_follow = 0.0
+    n_search = n_follow = 0
+    for seed in range(1, args.seeds + 1):
+        rng = np.random.default_rng(seed)
+        pos = network(env, args.nodes, rng)
+        si, di, _ids = pairs(args.nodes)
+        s, d = pos[si], pos[di]
+        base = arrivals(env, s, d, max_bounces=2)
+        for r in radii:
+            u = rng.normal(size=s.shape)
+            v = rng.normal(size=s.shape)
+            s2 = s + u / np.linalg.norm(u, axis=1, keepdims=True) * r
+            d2 = d + v / np.linalg.norm(v, axis=1, keepdims=True) * r
+            for p in (s2, d2):  # stay in the water
+                p[:, 2] = np.clip(p[:, 2], 1.0, env.depth(p[:, 0], p[:, 1]) - 1.0)
+            t0 = time.perf_counter()
+            fol, ok = follow(env, base, s2, d2, max_bounces=2)
+            t_follow += time.perf_counter() - t0
+            n_follow += s.shape[0]
+            t0 = time.perf_counter()
+            ex = arrivals(env, s2, d2, max_bounces=2)
+            t_search += time.perf_counter() - t0
+            n_search += s.shape[0]
+            _, fd = first_detectable(fol, 170.0, 72.0, 10.0)
+            _, ed = first_detectable(ex, 170.0, 72.0, 10.0)
+            f, e = np.nan_to_num(fd, nan=np.inf), np.nan_to_num(ed, nan=np.inf)
+            with np.errstate(invalid="ignore"):  # inf - inf: neither has a detectable arrival
+                differs = ok & ~((f == e) | (np.abs(f - e) <= 1e-9))
+            sets = np.array(
+                [
+                    ok[i]
+                    and sorted(fol.bounce_code[fol.offsets[i] : fol.offsets[i + 1]])
+                    != sorted(ex.bounce_code[ex.offsets[i] : ex.offsets[i + 1]])
+                    for i in range(s.shape[0])
+                ]
+            )
+            tot[r] += [
+                s.shape[0],
+                ok.sum(),
+                differs.sum(),
+                (differs & (f > e)).sum(),
+                (differs & (f < e)).sum(),
+                sets.sum(),
+            ]
+    print(f"search {1e3 * t_search / n_search:.2f} ms/link, follow {1e3 * t_follow / n_follow:.2f} ms/link (all links)")
+    print("radius m | links | followed | stamp differs | follow later | search later | sets differ")
+    for r in radii:
+        a = tot[r]
+        print(f"{r:8g} | {a[0]:5.0f} | {a[1] / a[0]:8.3f} | {a[2]:13.0f} | {a[3]:12.0f} | {a[4]:12.0f} | {a[5]:11.0f}")
+
+
+if __name__ == "__main__":
+    main()
