@@ -81,7 +81,15 @@ def test_without_the_builtins_an_unknown_protocol_says_why(tmp_path: Path) -> No
         "from aquasim_py import registry\n"
         "try:\n    registry.get('beacon')\nexcept registry.UnknownProtocolError as e:\n    print(e)\n"
     )
-    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": os.pathsep.join(_site_packages())}
+    # the dependencies without this project: a non-editable install (CI's no-compiler lane) has
+    # aquasim_protocols in site-packages, which would load the built-ins
+    deps = tmp_path / "deps"
+    deps.mkdir()
+    for sp in _site_packages():
+        for entry in Path(sp).iterdir():
+            if not entry.name.startswith(("aquasim", "__editable__")) and not (deps / entry.name).exists():
+                (deps / entry.name).symlink_to(entry)
+    env = {"PATH": os.environ.get("PATH", ""), "PYTHONPATH": str(deps)}
     out = subprocess.run(
         [sys.executable, "-S", "-c", code], check=False, cwd=ROOT, env=env, capture_output=True, text=True
     )
