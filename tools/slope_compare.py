@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from scipy.integrate import trapezoid  # numpy's own is numpy >= 2 only
 
 ROOT = Path(__file__).resolve().parents[1]
 SLOPE = ROOT / "scenarios" / "slope.toml"
@@ -77,7 +78,7 @@ def link_biases(tables: Any) -> pd.DataFrame:
     env = shelfbreak()
     u = np.linspace(0.0, 1.0, 2001)
     pts = s[:, None, :] + (d - s)[:, None, :] * u[None, :, None]
-    chord = np.trapezoid(1.0 / env.speed(pts[..., 0], pts[..., 1], pts[..., 2]), u, axis=1)
+    chord = trapezoid(1.0 / env.speed(pts[..., 0], pts[..., 1], pts[..., 2]), u, axis=1)
     chord *= np.linalg.norm(d - s, axis=1)
     params = load(SLOPE).nodes[1].params
     cast = ssp.Layered(params["ssp_depths_m"], params["ssp_speeds_mps"])
