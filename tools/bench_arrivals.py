@@ -8,11 +8,13 @@ the floor at most; every ordered pair is a link (9 900), arrivals up to ``--max-
 Timed, after a warm-up (numba compilation) on other links:
 
 1. ``solve``: every link solved once by the exact search (aquasim_py.channel.arrivals);
-2. ``cache``: the nodes drift (each in its own fixed direction at ``--speed`` m/s) and every link
-   is evaluated every ``--step`` s for ``--steps`` steps through ArrivalCache (1e-7 s bound):
-   the rate, the share served from the cache, the served error against the exact search on a
-   sample of links (checked <= the bound); then every link once more at the same positions
-   (``cache_repeat``: the served path, as for the repeated evaluations of one packet's link);
+2. ``cache``: filled once (every link searched and expanded), then for each of ``--speeds``
+   (m/s) and each following mode (one leg, ``follow_back``) from a copy of it: the nodes drift
+   (each in its own fixed direction) and every link is evaluated every ``--step`` s for
+   ``--steps`` steps through ArrivalCache (1e-7 s bound): the rate, the shares of the tiers,
+   and on ``--check`` served links per step the Taylor tier's error against the same eigenrays
+   followed exactly (and its ratio to the bound) and whether the arrival set equals a new
+   search's;
 3. ``bellhop``: BELLHOP (pelagic, arrivals run, ``--beams`` beams, its default step) on
    ``--bellhop-links`` of the same links, one run per link (each link has its own section; the
    range-dependent sound speed as BELLHOP's 'Q' option), and its delay errors against ours
@@ -28,6 +30,7 @@ at least 0.5 at 1000x its timing accuracy).
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
@@ -53,13 +56,75 @@ def pairs(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return i[keep], j[keep], (i * n + j)[keep]
 
 
+def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
+    """Every link every ``args.step`` s for ``args.steps`` steps, the nodes drifting at ``vel``
+    (m/s) from ``pos`` through the filled ``cache``; the results under ``key``."""
+    from aquasim_py.channel.arrivals import arrivals, follow
+
+    mb = args.max_bounces
+    evals, t_drift = 0, 0.0
+    worst, worst_ratio, checked, sets_differ, compared = 0.0, 0.0, 0, 0, 0
+    st = cache.stats
+    hits0, fol0, mis0 = st.hits, st.follows, st.misses
+    for k in range(1, args.steps + 1):
+        p = pos + vel * (k * args.step)
+        bound = cache.bound(ids, p[si], p[di])
+        served = np.flatnonzero(np.isfinite(bound))
+        sample = served[:: max(1, served.size // args.check)][: args.check]
+        ref = cache.last(ids[sample])  # the Taylor references of a sample of the served links
+        t0 = time.perf_counter()
+        got = cache.get(ids, p[si], p[di])
+        t_drift += time.perf_counter() - t0
+        evals += ids.size
+        if not sample.size:
+            continue
+        # served delays against the same eigenrays followed exactly to the new ends (the
+        # error the bound is about), and the arrival sets against a new search
+        fol, ok = follow(env, ref, p[si[sample]], p[di[sample]], max_bounces=mb)
+        new = arrivals(env, p[si[sample]], p[di[sample]], max_bounces=mb)
+        for q, link in enumerate(sample):
+            g = slice(got.offsets[link], got.offsets[link + 1])
+            f = slice(fol.offsets[q], fol.offsets[q + 1])
+            e = slice(new.offsets[q], new.offsets[q + 1])
+            compared += 1
+            sets_differ += int(sorted(got.bounce_code[g]) != sorted(new.bounce_code[e]))
+            if not ok[q] or g.stop == g.start:
+                continue
+            og = np.lexsort((got.launch_angle[g], got.bounce_code[g]))
+            of = np.lexsort((fol.launch_angle[f], fol.bounce_code[f]))
+            err = float(np.max(np.abs(got.delay[g][og] - fol.delay[f][of])))
+            worst, worst_ratio, checked = max(worst, err), max(worst_ratio, err / bound[link]), checked + 1
+    total = st.hits - hits0 + st.follows - fol0 + st.misses - mis0
+    out = {
+        "links_per_s": evals / t_drift,
+        "taylor_share": (st.hits - hits0) / total,
+        "follow_share": (st.follows - fol0) / total,
+        "search_share": (st.misses - mis0) / total,
+        "checked_links": checked,
+        "worst_served_error_s": worst,
+        "worst_error_over_bound": worst_ratio,
+        "sets_differ_from_search": f"{sets_differ} of {compared}",
+    }
+    for name, v in out.items():
+        res[key + name] = v
+    print(f"drift {np.linalg.norm(vel, axis=1).max():g} m/s", flush=True)
+    for name, v in out.items():
+        print(f"  {name:32s} {v:.4g}" if isinstance(v, float) else f"  {name:32s} {v}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--nodes", type=int, default=100)
     ap.add_argument("--max-bounces", type=int, default=2)
-    ap.add_argument("--speed", type=float, default=0.05, help="node drift speed (m/s)")
+    ap.add_argument(
+        "--speeds",
+        type=lambda v: [float(x) for x in v.split(",")],
+        default=[0.005, 0.05, 0.3],
+        help="node drift speeds (m/s), comma separated: one drift run each from the same filled cache",
+    )
     ap.add_argument("--step", type=float, default=1.0, help="time between evaluations of every link (s)")
-    ap.add_argument("--steps", type=int, default=6)
+    ap.add_argument("--steps", type=int, default=10, help="drift steps after the fill")
+    ap.add_argument("--check", type=int, default=200, help="served links checked per step")
     ap.add_argument("--beams", type=int, default=2001)
     ap.add_argument("--bellhop-links", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
@@ -80,6 +145,9 @@ def main() -> None:
     # warm-up: compile the kernels on a few other links
     warm = network(env, 4, np.random.default_rng(99))
     arrivals(env, warm[:2], warm[2:], max_bounces=mb)
+    w = ArrivalCache(env, 2, max_bounces=mb)
+    for dz in (0.0, 0.1, 0.7):
+        w.get([0, 1], warm[:2] + dz, warm[2:] - dz)
     res: dict[str, object] = {"nodes": n, "links": int(ids.size), "max_bounces": mb}
 
     def show(*keys: str) -> None:
@@ -89,65 +157,32 @@ def main() -> None:
 
     t0 = time.perf_counter()
     ex = arrivals(env, pos[si], pos[di], max_bounces=mb)
-    dt = time.perf_counter() - t0
-    res["solve_links_per_s"] = ids.size / dt
+    t_solve = time.perf_counter() - t0
+    res["solve_links_per_s"] = ids.size / t_solve
     res["arrivals_per_link"] = float(ex.delay.size / ids.size)
     res["links_without_arrival"] = int((np.diff(ex.offsets) == 0).sum())
     show("nodes", "links", "max_bounces", "solve_links_per_s", "arrivals_per_link", "links_without_arrival")
 
     cache = ArrivalCache(env, n * n, max_bounces=mb)
-    vel = rng.normal(size=(n, 3))
-    vel[:, 2] *= 0.1
-    vel *= args.speed / np.linalg.norm(vel, axis=1, keepdims=True)
-    evals = 0
-    t_cache = 0.0
-    p = pos.copy()
-    worst, worst_ratio = 0.0, 0.0
-    for k in range(args.steps):
-        p = pos + vel * (k * args.step)
-        t0 = time.perf_counter()
-        hits0 = cache.stats.hits
-        bound = cache.bound(ids, p[si], p[di])
-        got = cache.get(ids, p[si], p[di])
-        t_cache += time.perf_counter() - t0
-        evals += ids.size
-        if k > 0 and cache.stats.hits > hits0:
-            # check served links against the exact search (a sample of 200)
-            served = np.flatnonzero(np.isfinite(bound) & (bound <= 1e-7))[:200]
-            sub = got.offsets
-            exact = arrivals(env, p[si[served]], p[di[served]], max_bounces=mb)
-            for q, link in enumerate(served):
-                a, b = sub[link], sub[link + 1]
-                c0, c1 = exact.offsets[q], exact.offsets[q + 1]
-                if b - a == c1 - c0 and b > a:
-                    e = float(np.max(np.abs(got.delay[a:b] - exact.delay[c0:c1])))
-                    worst = max(worst, e)
-                    worst_ratio = max(worst_ratio, e / bound[link])
-    res["cache_links_per_s"] = evals / t_cache
-    # the served path alone: the same positions again (every cacheable link a hit)
-    h0, m0 = cache.stats.hits, cache.stats.misses
+    # the cold fill: every link searched, its Taylor expansion made
     t0 = time.perf_counter()
-    cache.get(ids, p[si], p[di])
-    dt = time.perf_counter() - t0
-    res["cache_repeat_links_per_s"] = ids.size / dt
-    res["cache_repeat_hit_rate"] = (cache.stats.hits - h0) / max(1, cache.stats.hits - h0 + cache.stats.misses - m0)
-    res["cache_hit_rate"] = cache.stats.hit_rate
-    res["cache_uncacheable_misses"] = cache.stats.uncacheable
-    res["cache_worst_served_error_s"] = worst
-    res["cache_worst_error_over_bound"] = worst_ratio
-    res["drift_mps"], res["step_s"], res["steps"] = args.speed, args.step, args.steps
-    show(
-        "cache_links_per_s",
-        "cache_repeat_links_per_s",
-        "cache_repeat_hit_rate",
-        "cache_hit_rate",
-        "cache_uncacheable_misses",
-        "cache_worst_served_error_s",
-        "cache_worst_error_over_bound",
-        "drift_mps",
-        "step_s",
-        "steps",
-    )
+    cache.get(ids, pos[si], pos[di])
+    t_fill = time.perf_counter() - t0
+    res["cache_fill_links_per_s"] = ids.size / t_fill
+    res["cache_fill_uncacheable_links"] = cache.stats.uncacheable
+    res["cache_fill_taylor_links"] = int((cache.radius(ids) > 0).sum())
+    res["step_s"], res["drift_steps"] = args.step, args.steps
+    show("cache_fill_links_per_s", "cache_fill_uncacheable_links", "cache_fill_taylor_links", "step_s", "drift_steps")
+    heading = rng.normal(size=(n, 3))
+    heading[:, 2] *= 0.1
+    heading /= np.linalg.norm(heading, axis=1, keepdims=True)
+    for back in (False, True):
+        for speed in args.speeds:
+            copied = copy.deepcopy(cache)
+            copied.follow_back = back
+            tag = f"drift_{speed:g}{'_back' if back else ''}_"
+            print("follow_back" if back else "follow (one leg)", end=" ")
+            drift(env, copied, pos, heading * speed, si, di, ids, args, res, tag)
 
     try:
         import bellhop_ref  # type: ignore[import-not-found]
@@ -155,7 +190,7 @@ def main() -> None:
         ok, why = bellhop_ref.available()
     except ImportError as e:  # pragma: no cover
         ok, why = False, str(e)
-    if ok:
+    if ok and args.bellhop_links > 0:
         pick = rng.choice(ids.size, size=min(args.bellhop_links, ids.size), replace=False)
         sec = sections(env, pos[si[pick]], pos[di[pick]])
         bottom = (env.bottom.sound_speed_mps, env.bottom.density, env.bottom.attenuation_db_per_wavelength)
@@ -181,10 +216,15 @@ def main() -> None:
         res["bellhop_delay_error_max_s"] = float(np.max(errs)) if errs else None
         res["bellhop_share_within_1e-4_s"] = float(np.mean(np.asarray(errs) <= 1e-4)) if errs else None
         res["bellhop_compared_arrivals"] = len(errs)
-        res["ratio_solve_over_bellhop"] = res["solve_links_per_s"] / res["bellhop_links_per_s"]  # type: ignore[operator]
-        res["ratio_cache_over_bellhop"] = res["cache_links_per_s"] / res["bellhop_links_per_s"]  # type: ignore[operator]
+        bellhop_rate = pick.size / tb
+        res["ratio_solve_over_bellhop"] = ids.size / t_solve / bellhop_rate
+        for speed in args.speeds:
+            for mode in ("", "_back"):
+                rate = res[f"drift_{speed:g}{mode}_links_per_s"]
+                assert isinstance(rate, float)
+                res[f"ratio_drift_{speed:g}{mode}_over_bellhop"] = rate / bellhop_rate
     else:
-        res["bellhop"] = f"skipped: {why}"
+        res["bellhop"] = f"skipped: {why}" if not ok else "skipped: --bellhop-links 0"
 
     show(*[key for key in res if key.startswith(("bellhop", "ratio"))])
     if args.json:

@@ -4,7 +4,9 @@
 On the shelf-break network of tools/bench_arrivals.py (nodes in 3 km x 3 km across the front
 and the slope, every ordered pair a link, 2 bounces), each link is searched, both ends are moved
 by ``r`` in random directions, and its arrivals are both followed there (arrivals.follow) and
-searched there again. Per radius: the share of links followed (the others fall back to a
+searched there again (``--back``: a moved source's move followed backwards from the receiver
+where following it forwards loses an eigenray, as ``ArrivalCache(follow_back=True)`` does). Per
+radius: the share of links followed (the others fall back to a
 search), and among the followed ones those whose modem stamp (the first arrival above 10 dB
 SNR at a 170 dB source, 72 dB of noise in the band) differs from the new search's, split by
 which is earlier: "follow later" = the search found an earlier detectable arrival that
@@ -12,7 +14,7 @@ following missed (a path appeared within r), "search later" = following kept one
 missed (the search is not exhaustive either, docs/channel.md), and how many links' arrival
 sets differ.
 
-    python tools/follow_radius.py --seeds 4 --nodes 20
+    python tools/follow_radius.py --seeds 4 --nodes 20 [--back]
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=4)
     ap.add_argument("--nodes", type=int, default=20)
     ap.add_argument("--radii", default="0.1,0.3,1,3,10")
+    ap.add_argument("--back", action="store_true", help="follow a moved source backwards where forwards fails")
     args = ap.parse_args()
     radii = [float(v) for v in args.radii.split(",")]
     env = shelfbreak()
@@ -57,7 +60,7 @@ def main() -> None:
             for p in (s2, d2):  # stay in the water
                 p[:, 2] = np.clip(p[:, 2], 1.0, env.depth(p[:, 0], p[:, 1]) - 1.0)
             t0 = time.perf_counter()
-            fol, ok = follow(env, base, s2, d2, max_bounces=2)
+            fol, ok = follow(env, base, s2, d2, max_bounces=2, src_from=s if args.back else None)
             t_follow += time.perf_counter() - t0
             n_follow += s.shape[0]
             t0 = time.perf_counter()

@@ -365,8 +365,9 @@ def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, max
     section, keeping the bounce sequence, to ``ztol``. Returns the arrival rows (L, Q, NF) (as
     :func:`search` writes them, the ray-tube width F_DZDTH the secant's last slope, or the
     given one where no step was needed) and whether each was followed (L, Q): not where its
-    bounce sequence changed or the secant did not converge in 12 steps (its row is then NaN).
-    Each arrival costs one walk per secant evaluation (usually two or three), none more."""
+    bounce sequence changed (a secant step that leaves it is halved up to six times first) or the
+    secant did not converge in 12 steps (its row is then NaN). Each arrival costs one walk per
+    secant evaluation (usually two or three)."""
     L, Q = theta0.shape
     out = np.full((L, Q, NF), np.nan)
     ok_all = np.zeros((L, Q), np.bool_)
@@ -392,6 +393,13 @@ def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, max
                     break
                 b = a - fa / s
                 rb = trace(rr, zz, cc, bb, floor, zs[l], b, R[l], maxb, bpar, False, dummy)
+                # a step that leaves the bounce sequence is shortened (the family may be narrower
+                # than the step), up to 1/64 of it
+                for _h in range(6):
+                    if rb[0] == S_REACHED and rb[7] == cd:
+                        break
+                    b = a + 0.5 * (b - a)
+                    rb = trace(rr, zz, cc, bb, floor, zs[l], b, R[l], maxb, bpar, False, dummy)
                 if rb[0] != S_REACHED or rb[7] != cd:
                     break
                 fb = rb[1] - zr[l]

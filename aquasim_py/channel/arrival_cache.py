@@ -1,53 +1,70 @@
-"""Per-link arrival cache over positions: a Taylor expansion with an error bound near the point
-where a link was searched, the exact following of its eigenrays further away.
+"""Per-link arrival cache over positions: a second-order Taylor expansion with an error bound
+near the point where a link was searched, the exact following of its eigenrays further away.
 
 In the spirit of WOSS's channel cache. The arrivals of a link (:func:`.arrivals.arrivals`) are
-searched at reference positions (s0, d0); a later request for the same link at (s, d) is
-served, cheapest first, by
+searched at reference positions x0 = (s0, d0); a later request for the same link at x = (s, d)
+is served, cheapest first, by
 
 0. the last solution itself, at the very positions it was solved for (moored nodes);
-1. **Taylor** (``tol_s`` > 0), while the ends stay close to (s0, d0): a first-order expansion of
-   each delay,
+1. **Taylor** (``tol_s`` > 0), while |x - x0| <= 0.5 m, the bound below is <= ``tol_s`` and the
+   link's section keeps its structure (below): each delay as
 
-       t(s, d) = t0 + g_s . (s - s0) + g_d . (d - d0),
+       t(x) = t0 + g . (x - x0) + 1/2 (x - x0)' H (x - x0),
 
-   with an error bound <= ``tol_s`` (below);
+   x the six end coordinates (source x, y, z, then receiver x, y, z);
 2. **following** (``follow_m`` > 0), while each end stays within ``follow_m`` of where the link
    was last searched: each eigenray of the last solution followed to (s, d) from its launch
-   angle by a few secant steps on the depth miss (:func:`.arrivals.follow`: exact delays, levels
-   and angles, a tenth of a search's rays), unless one cannot be followed (its bounce sequence
-   changed: a path about to vanish) or may have been followed onto a sibling of its bounce
-   sequence (a fold);
-3. **searching** again, which resets the reference positions.
+   angle by a few secant steps on the depth miss (:func:`.arrivals.follow`: exact delays,
+   levels and angles; with ``follow_back``, a moved source's move backwards from the receiver
+   where following it forwards loses an eigenray, :func:`.rangedep.follow_ends`), unless one
+   cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
+   followed onto a sibling of its bounce sequence (a fold);
+3. **searching** again, which resets the reference positions and the expansion.
 
-Taylor gradients. g_s, g_d are the exact gradients of the link's N x 2-D travel time: in the
-link's vertical plane the slowness vectors at the ends (Fermat: -(cos th_S u, sin th_S) / c_S at
-the source, (cos th_R u, sin th_R) / c_R at the receiver, u the horizontal unit vector of the
-link); across the plane (moving an end sideways turns the plane, which then samples another part
-of a front or a flank) a central difference of the delays with that end moved by +-h = 0.5 m,
-each eigenray followed there.
+Expansion. g and H are those of the link's N x 2-D travel time, from the exact solutions at a
+stencil of 18 points: each of the six coordinates moved by +-h (h = 0.5 m), both ends moved
+sideways together by +-h, and each end sideways by +-h/2, every eigenray followed there (a
+source's move backwards from the receiver where following it from the moved source loses it).
+g: in the link's vertical plane the slowness vectors at the ends (Fermat: -(cos th_S u, sin th_S)
+/ c_S at the source, (cos th_R u, sin th_R) / c_R at the receiver, u the plane's horizontal unit
+vector), across it a central difference of the delays (moving an end sideways turns the plane,
+which then samples another part of a front or a flank). H: central differences of the exact
+in-plane gradients along each axis (each stencil point's own plane), symmetrized; the sideways
+block from second differences of the delays.
 
-Taylor error bound. The remainder is at most 1/2 |H| |delta|^2, |delta|^2 = |s - s0|^2 +
-|d - d0|^2, |H| the largest curvature of t over the move. For a straight ray |H| = 2 / (c L)
-(L the end-to-end distance); the cache takes kappa = max(16 / (c_min D), 2 k_side) per link,
-eight times the straight-ray value (refraction, and reflections off a sloping floor, which turn
-the image sources as an end moves, curve the delays more: with four times, served errors up to
-1.004x the bound were measured on the shelf-break benchmark, tools/bench_arrivals.py), and twice
-the sideways curvatures seen by the central differences; plus 1e-12 s for the solver's own
-accuracy. The factor is measured, not derived: the tests check the bound on random moves. A link
-is served while 1/2 kappa |delta|^2 + 1e-12 s <= tol_s (default 1e-7 s).
+Error bound, for a move r = |x - x0| <= h:
 
-Arrival-set changes. The sideways steps double as a guard: a link with an eigenray that cannot
-be followed to +-h, or followed onto a sibling of its bounce sequence, or with a bottom
-reflection point within twice the served radius of a kink of the floor polyline (where the
-delay's gradient jumps), is never served by Taylor. Neither tier detects a path that appears (a
-new eigenray) inside its radius. Measured on the shelf-break network (``python
-tools/follow_radius.py --seeds 4 --nodes 20``: 1 520 links, both ends moved by r): at r = 1 m (the
-default ``follow_m``) 39 % of the links are followed (the others searched again) and the first
-arrival above a 10 dB detection threshold equals the new search's on every followed one (0 of
-599); at 0.1 m 1 of 1 025 and at 3 m 3 of 360 differ, each time the search finding an earlier
-detectable arrival. The two arrival sets differ more often (30 of 599 at 1 m), mostly where the
-search itself misses a fold's pair of eigenrays that following keeps (docs/channel.md).
+    |error| <= 1e-12 s + a1 r + a2 r^2 + a3 r^3,
+
+a3 = M3 / 6 the third-order remainder, M3 a bound on the delay's third derivative: the larger of
+eight times a straight ray's (2 sqrt(2) (2 / sqrt(3)) / (c_min L^2), L = D - 2 h the shortest the
+link gets over the region) and twice the third derivatives the stencil itself measured (along
+the in-plane axes from the gradients, across from the five sideways delays of each end);
+a2 = 1/2 ||dH||, the Hessian's error: central differences (sqrt(6) h^2 / 6 M4, M4 eight times a
+straight ray's 12 / (c_min L^3)), the in-plane block's asymmetry, the delays' own error in the
+second differences; a1 = sqrt(2) h^2 / 6 M3, the sideways gradients' central-difference error.
+The factor of eight is measured, not derived (refraction, and reflections off a sloping floor,
+which turn the image sources as an end moves, curve the delays more than a straight ray does);
+on the shelf-break sample the stencil's own third derivatives exceed it on most links and then
+set the bound.
+
+Smoothness. A Taylor bound needs smooth delays, and the model's are smooth only piecewise: the
+section of a link changes its columns where an end, or the turning plane, brings a kink of the
+environment (a grid line of a gridded floor or field) in or out of it or past another one, and
+where one of its cells changes how it is cut; the delays' slopes may jump there (measured on the
+shelf-break network before this guard: served errors up to 27x the bound, 1.3e-7 s, on links
+running nearly along a grid axis, whose sections reach kinks tens of kilometres away). So the
+Taylor tier serves a link only while its section's structure (:attr:`.rangedep.Sections.structure`)
+is the reference's, and only if it was the same at every stencil point, and the second
+differences across the plane over h and h/2 agree (else the slope jumps in between).
+
+Arrival-set changes. The stencil doubles as a guard: a link with an eigenray that cannot be
+followed to one of its points, or followed onto a sibling of its bounce sequence, or with a
+bottom reflection point within 2 h of a kink of the floor polyline (where the delay's gradient
+jumps), is never served by Taylor; searched again within 2 h of where it was refused, it is not
+expanded again (the stencil would most likely be refused again, and costs twice the search). A
+link without arrivals is served as such within the region. Neither tier detects a path that appears (a new eigenray) inside its region; how often
+that changes the modem's stamp is measured by ``python tools/follow_radius.py`` (docs/channel.md).
 
 Levels and angles served by Taylor are the reference's (they vary on scales of metres, not of
 the delay's 1e-7 s). Vectorized: links are integer ids, each given a slot in growing arrays;
@@ -68,8 +85,13 @@ from .environment import Environment
 
 __all__ = ["ArrivalCache", "CacheStats"]
 
-_SIDE_STEP_M = 0.5
-_SAFETY = 8.0  # curvature allowed over a straight ray's 2 / (c L), see the module docstring
+_IU = np.triu_indices(6)
+_IU_WEIGHT = np.where(_IU[0] == _IU[1], 0.5, 1.0)  # 1/2 delta' H delta from the upper triangle
+
+_STENCIL_M = 0.5  # the stencil's step, and the farthest each end may move for the Taylor tier
+_SAFETY = 8.0  # third and fourth derivatives allowed over a straight ray's, see the module docstring
+_D3_STRAIGHT = 2.0 * 2.0**0.5 * 2.0 / 3.0**0.5  # |d^3 (L / c)| <= this / (c L^2) over both ends' moves
+_D4_STRAIGHT = 12.0  # |d^4 (L / c)| <= this / (c L^3)
 _SOLVER_S = 1e-12  # the eigenray solver's own accuracy, added to the bound
 #: the per-arrival fields of an Arrivals the cache keeps (padded per slot)
 _FLOAT_FIELDS = (
@@ -96,9 +118,13 @@ def _slot_arrays(A: int) -> tuple[tuple[str, tuple[int, ...], float, type], ...]
         ("_da", (3,), np.nan, float),
         ("_sl", (3,), np.nan, float),  # the last solution's ends
         ("_dl", (3,), np.nan, float),
-        ("_kappa", (), np.inf, float),  # s/m^2; inf: no Taylor
+        ("_coef", (3,), np.inf, float),  # the bound's coefficients of |delta|, ^2, ^3; inf: no Taylor
+        ("_radius", (), 0.0, float),  # the largest |delta| the Taylor tier serves, m
+        ("_struct", (), 0, np.uint64),  # the reference section's structure (rangedep.Sections)
+        ("_refused", (6,), np.nan, float),  # the ends where the Taylor tier last refused the link
         ("_t0", (A,), np.nan, float),  # reference delays
-        ("_g", (A, 6), 0.0, float),  # their gradients
+        ("_g", (A, 6), 0.0, float),  # their gradients, s/m
+        ("_H", (A, 21), 0.0, float),  # their Hessians (upper triangle, row by row), s/m^2
         ("_n", (), 0, np.int64),  # arrivals of the last solution
         # False where the last solution had more arrivals than a slot holds (never followed)
         ("_fits", (), False, bool),
@@ -110,7 +136,7 @@ class CacheStats:
     hits: int = 0  #: served by the Taylor expansion
     follows: int = 0  #: served by following the last solution's eigenrays
     misses: int = 0  #: searched
-    uncacheable: int = 0  #: searches of links whose arrival set is not stable sideways
+    uncacheable: int = 0  #: searches after which the Taylor tier refused a link (unstable or not smooth)
 
     @property
     def hit_rate(self) -> float:
@@ -124,7 +150,11 @@ class ArrivalCache:
     """Arrivals of links ``0 .. n_links-1`` (the caller's ids, e.g. src * n_nodes + dst).
 
     tol_s: the Taylor tier's error bound (s); 0 turns it off (every request exact). follow_m:
-    the following tier's radius (m) around the last search; 0 turns it off."""
+    the following tier's radius (m) around the last search; 0 turns it off. follow_back: where
+    following a moved source loses an eigenray, follow the link again in two legs
+    (:func:`.rangedep.follow_ends`) instead of searching it: far more links followed, but a
+    failing one-leg follow often marks a changing arrival set, and without it the modem's stamp
+    differs from a new search's more often (docs/channel.md, ``tools/follow_radius.py``)."""
 
     env: Environment
     n_links: int
@@ -134,6 +164,7 @@ class ArrivalCache:
     spreading: str | float = "ray"
     max_arrivals: int = 24
     follow_m: float = 1.0
+    follow_back: bool = False
     stats: CacheStats = field(default_factory=CacheStats)
     # per-slot arrays (_grow); the last solution's fields in _tab
     _s0: NDArray[np.float64] = field(init=False, repr=False)
@@ -142,9 +173,13 @@ class ArrivalCache:
     _da: NDArray[np.float64] = field(init=False, repr=False)
     _sl: NDArray[np.float64] = field(init=False, repr=False)
     _dl: NDArray[np.float64] = field(init=False, repr=False)
-    _kappa: NDArray[np.float64] = field(init=False, repr=False)
+    _coef: NDArray[np.float64] = field(init=False, repr=False)
+    _radius: NDArray[np.float64] = field(init=False, repr=False)
+    _struct: NDArray[np.uint64] = field(init=False, repr=False)
+    _refused: NDArray[np.float64] = field(init=False, repr=False)
     _t0: NDArray[np.float64] = field(init=False, repr=False)
     _g: NDArray[np.float64] = field(init=False, repr=False)
+    _H: NDArray[np.float64] = field(init=False, repr=False)
     _n: NDArray[np.int64] = field(init=False, repr=False)
     _fits: NDArray[np.bool_] = field(init=False, repr=False)
     _tab: dict[str, NDArray] = field(init=False, repr=False)
@@ -176,15 +211,21 @@ class ArrivalCache:
         slots = self._slots(ids)
         ds = s - self._s0[slots]
         dd = d - self._d0[slots]
-        move2 = (ds * ds).sum(axis=1) + (dd * dd).sum(axis=1)
+        delta = np.concatenate([ds, dd], axis=1)
         with np.errstate(invalid="ignore"):
-            hit = 0.5 * self._kappa[slots] * move2 + _SOLVER_S <= self.tol_s
-        hit &= np.isfinite(move2)
+            hit = np.linalg.norm(delta, axis=1) <= self._radius[slots]
+        if hit.any():  # and only while the section keeps the reference's structure
+            h = np.flatnonzero(hit)
+            hit[h] = rangedep.sections(self.env, s[h], d[h]).structure == self._struct[slots[h]]
         # the very positions of the last solution (a link between moored nodes): as it is
         same = np.all(s == self._sl[slots], axis=1) & np.all(d == self._dl[slots], axis=1) & ~hit
         self.stats.hits += int(hit.sum()) + int(same.sum())
         rest = np.flatnonzero(~(hit | same))
-        delay = self._t0[slots] + np.einsum("naj,nj->na", self._g[slots], np.concatenate([ds, dd], axis=1))
+        delay = self._t0[slots] + np.einsum("naj,nj->na", self._g[slots], delta)
+        if hit.any():  # the second-order term where it is served
+            h = np.flatnonzero(hit)
+            quad = delta[h][:, _IU[0]] * delta[h][:, _IU[1]] * _IU_WEIGHT
+            delay[h] += np.einsum("naq,nq->na", self._H[slots[h]], quad)
         # the Taylor tier serves from the reference solution, the others from the last one
         fresh = np.zeros(ids.size, bool)
         if rest.size:
@@ -207,18 +248,26 @@ class ArrivalCache:
         known = np.array([int(i) in self._slot for i in ids.tolist()], bool)
         ds = np.asarray(src, float).reshape(-1, 3) - self._s0[slots]
         dd = np.asarray(dst, float).reshape(-1, 3) - self._d0[slots]
+        r = np.sqrt((ds * ds).sum(axis=1) + (dd * dd).sum(axis=1))
         with np.errstate(invalid="ignore"):
-            b = 0.5 * self._kappa[slots] * ((ds * ds).sum(axis=1) + (dd * dd).sum(axis=1)) + _SOLVER_S
-        return np.where(known, b, np.inf)
+            b = _bound(self._coef[slots], r)
+            inside = r <= self._radius[slots]
+        return np.where(known & inside, b, np.inf)
+
+    def last(self, links: ArrayLike) -> Arrivals:
+        """Each link's cached solution, as last searched or followed (for a link the Taylor
+        tier serves, its reference)."""
+        ids = np.asarray(links, np.int64).ravel()
+        unknown = [i for i in ids.tolist() if i not in self._slot]
+        if unknown:
+            raise ValueError(f"ArrivalCache.last: link {unknown[0]} was never requested")
+        return self._last(np.array([self._slot[i] for i in ids.tolist()], np.int64))
 
     def radius(self, links: ArrayLike) -> NDArray[np.float64]:
         """The largest move sqrt(|s - s0|^2 + |d - d0|^2) (m) of each link the Taylor tier
         serves (0: none)."""
         ids = np.asarray(links, np.int64).ravel()
-        kappa = np.array([self._kappa[self._slot[i]] if i in self._slot else np.inf for i in ids.tolist()])
-        with np.errstate(divide="ignore"):
-            r = np.sqrt(2.0 * max(self.tol_s - _SOLVER_S, 0.0) / kappa)
-        return np.where(np.isfinite(r), r, 0.0)
+        return np.array([self._radius[self._slot[i]] if i in self._slot else 0.0 for i in ids.tolist()])
 
     # ----------------------------------------------------------------- storage
     def _grow(self, cap: int) -> None:
@@ -295,12 +344,13 @@ class ArrivalCache:
             max_bounces=self.max_bounces,
             frequency_khz=self.frequency_khz,
             spreading=self.spreading,
+            src_from=self._sl[sub] if self.follow_back else None,
         )
         good = idx[ok]
         if good.size:
             self._store(slots[good], _links_of(got, ok))
             self._sl[slots[good]], self._dl[slots[good]] = s[good], d[good]
-            self._kappa[slots[good]] = np.inf  # the Taylor reference no longer matches the tables
+            self._radius[slots[good]] = 0.0  # the Taylor reference no longer matches the tables
         done[good] = True
         return done
 
@@ -323,87 +373,166 @@ class ArrivalCache:
         self._s0[slots], self._d0[slots] = s, d
         self._t0[slots] = self._tab["delay"][slots]
         self._g[slots] = 0.0
-        self._kappa[slots] = np.inf
-        if self.tol_s > 0.0:
-            kappa, g = self._gradients(slots, s, d)
-            self._kappa[slots] = np.where(self._fits[slots], kappa, np.inf)
-            self._g[slots] = g
+        self._H[slots] = 0.0
+        self._coef[slots] = np.inf
+        self._radius[slots] = 0.0
+        if self.tol_s <= 0.0:
+            return
+        self._struct[slots] = rangedep.sections(self.env, s, d).structure
+        # a link refused within 2 h of here is not expanded again (its stencil would most likely
+        # be refused again: a changing arrival set or structure nearby; searching it is the cost)
+        x = np.concatenate([s, d], axis=1)
+        with np.errstate(invalid="ignore"):
+            todo = ~(np.linalg.norm(x - self._refused[slots], axis=1) <= 2.0 * _STENCIL_M)
+        self.stats.uncacheable += int((~todo).sum())
+        if not todo.any():
+            return
+        sub = slots[todo]
+        coef, g, H = self._expansion(sub, s[todo], d[todo])
+        coef[~self._fits[sub]] = np.inf
+        self._coef[sub], self._g[sub], self._H[sub] = coef, g, H
+        self._radius[sub] = _radius(coef, self.tol_s, _STENCIL_M)
+        refused = ~(self._radius[sub] > 0.0)
+        self._refused[sub] = np.where(refused[:, None], x[todo], np.nan)
 
-    def _gradients(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray, NDArray]:
-        """(kappa (n,), gradients (n, A, 6)) of the Taylor tier at the searched (s, d); kappa
-        inf where the link is not served (see the module docstring)."""
-        n, A = slots.size, int(self.max_arrivals)
-        tab = self._tab
-        h = _SIDE_STEP_M
-        ux, uy = d[:, 0] - s[:, 0], d[:, 1] - s[:, 1]
-        hor = np.hypot(ux, uy)
-        ux = np.where(hor > 0, ux / np.where(hor > 0, hor, 1.0), 1.0)
-        uy = np.where(hor > 0, uy / np.where(hor > 0, hor, 1.0), 0.0)
-        side = np.stack([-uy, ux, np.zeros(n)], axis=1) * h
-        cnt = self._n[slots]
-        valid = np.arange(A)[None, :] < cnt[:, None]
-        tb = tab["delay"][slots]
-        ths, thr = tab["launch_angle"][slots], tab["arrival_angle"][slots]
-        cs, cr = tab["source_speed"][slots], tab["receiver_speed"][slots]
-        cb = np.where(valid, tab["bounce_code"][slots], -1)
-        # the same eigenrays followed to d + side, d - side, s + side, s - side (one batch)
-        S = np.concatenate([s, s, s + side, s - side])
-        D = np.concatenate([d + side, d - side, d, d])
-        th4 = np.tile(ths, (4, 1))
-        rows, ok, _sec = rangedep.follow(
-            self.env, S, D, self.max_bounces, th4, np.tile(tab["dz_dlaunch"][slots], (4, 1)), np.tile(cb, (4, 1))
-        )
+    def _expansion(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """(bound coefficients (n, 3), gradients (n, A, 6), Hessians (n, A, 21)) of the Taylor
+        tier at the searched (s, d), world coordinates (x, y, z of the source, then of the
+        receiver); coefficients inf where the link is not served (module docstring)."""
         from . import _rangedep_search_jit as jit
 
-        side_t = np.where(ok, rows[:, :, jit.F_TIME], np.nan).reshape(4, n, A)
-        # followed onto a sibling of its bounce sequence: moved by half the gap to it or more
-        c4 = np.tile(cb, (4, 1))
-        same = (c4[:, :, None] == c4[:, None, :]) & (c4[:, :, None] >= 0)
-        same &= ~np.eye(A, dtype=bool)[None]
-        gap = np.min(np.where(same, np.abs(th4[:, :, None] - th4[:, None, :]), np.inf), axis=2)
-        with np.errstate(invalid="ignore"):
-            jumped = ~(np.abs(rows[:, :, jit.F_THETA0] - th4) < 0.5 * gap)
-        side_t = np.where(jumped.reshape(4, n, A), np.nan, side_t)
-        # unstable: an arrival that cannot be followed sideways (a path about to vanish) or
-        # may have been followed onto a sibling
-        stable = ~np.any(valid & np.isnan(side_t).any(axis=0), axis=1)
-        # gradients: Fermat in the plane, central differences across it
-        uxa, uya = ux[:, None], uy[:, None]
-        gd_side = (side_t[0] - side_t[1]) / (2.0 * h)
-        gs_side = (side_t[2] - side_t[3]) / (2.0 * h)
-        vx, vy = -uya, uxa
-        g = np.zeros((n, A, 6))
-        g[:, :, 0] = -np.cos(ths) * uxa / cs + gs_side * vx
-        g[:, :, 1] = -np.cos(ths) * uya / cs + gs_side * vy
-        g[:, :, 2] = -np.sin(ths) / cs
-        g[:, :, 3] = np.cos(thr) * uxa / cr + gd_side * vx
-        g[:, :, 4] = np.cos(thr) * uya / cr + gd_side * vy
-        g[:, :, 5] = np.sin(thr) / cr
-        # curvature: eight times the straight-ray value over the chord, twice the sideways ones
-        dist = np.linalg.norm(d - s, axis=1)
-        cmin = np.nanmin(np.where(valid, np.minimum(cs, cr), np.inf), axis=1, initial=np.inf)
-        k_side = np.nanmax(
-            np.where(
-                valid,
-                np.maximum(np.abs(side_t[0] - 2 * tb + side_t[1]), np.abs(side_t[2] - 2 * tb + side_t[3])) / h**2,
-                0.0,
-            ),
-            axis=1,
-            initial=0.0,
+        n, A = slots.size, int(self.max_arrivals)
+        tab = self._tab
+        h = _STENCIL_M
+        cnt = self._n[slots]
+        valid = np.arange(A)[None, :] < cnt[:, None]
+        t0 = tab["delay"][slots]
+        ths, cb = tab["launch_angle"][slots], np.where(valid, tab["bounce_code"][slots], -1)
+        # the link's frame: u along it (horizontal), v across it, z down; one unit vector per
+        # axis of the six end coordinates (su, sv, sz, du, dv, dz), in world coordinates
+        u = _horizontal_unit(s, d)
+        v = np.stack([-u[:, 1], u[:, 0], np.zeros(n)], axis=1)
+        z = np.broadcast_to([0.0, 0.0, 1.0], (n, 3))
+        zero = np.zeros((n, 3))
+        axes = [np.concatenate(p, axis=1) for p in ((u, zero), (v, zero), (z, zero), (zero, u), (zero, v), (zero, z))]
+        B = np.stack(axes, axis=2)  # (n, 6 world, 6 frame)
+        # the stencil: +-h along each axis, and (sv, dv) moved together both ways
+        steps = [sgn * ax for ax in axes for sgn in (1.0, -1.0)]
+        steps += [axes[1] + axes[4], -(axes[1] + axes[4])]
+        # and each end sideways by +-h/2: is the delay smooth across the plane? (The section of a
+        # turned plane can change its columns, e.g. where it runs nearly along the lines of a
+        # gridded field, and with them the delay's slope.)
+        steps += [0.5 * axes[1], -0.5 * axes[1], 0.5 * axes[4], -0.5 * axes[4]]
+        P = len(steps)
+        X = np.concatenate([np.concatenate([s, d], axis=1) + h * st for st in steps])
+        # a source's move that following from the moved source loses is followed backwards from
+        # the receiver (rangedep.follow_ends; from a source moved up or down, the old launch angle
+        # of a ray near a boundary or a turning point often falls into another bounce sequence)
+        src_from = np.tile(s, (P, 1))
+        Xs, Xd = X[:, :3].reshape(P, n, 3), X[:, 3:].reshape(P, n, 3)
+        th_in, code_in = np.tile(ths, (P, 1)), np.tile(cb, (P, 1))
+        rows, ok, sec = rangedep.follow_ends(
+            self.env,
+            src_from,
+            X[:, :3],
+            X[:, 3:],
+            self.max_bounces,
+            th_in,
+            np.tile(tab["dz_dlaunch"][slots], (P, 1)),
+            code_in,
         )
-        with np.errstate(divide="ignore"):
-            kappa = np.maximum(_SAFETY * 2.0 / (cmin * dist), 2.0 * k_side)
+
+        def at(field: int) -> NDArray:
+            """A field of the followed rows (P, n, A); NaN where not followed (a bounce sequence
+            changed, or the eigenray may have landed on a sibling: a fold)."""
+            return np.where(ok, rows[:, :, field], np.nan).reshape(P, n, A)
+
+        t = at(jit.F_TIME)
+        th_s_p, th_r_p, c_s_p, c_r_p = at(jit.F_THETA0), at(jit.F_THETAR), at(jit.F_CS), at(jit.F_CR)
+        # unstable: an arrival that cannot be followed to a stencil point (a path about to
+        # vanish) or may have been followed onto a sibling
+        stable = ~np.any(valid & np.isnan(t).any(axis=0), axis=1)
+        # gradients at the searched ends: Fermat in the plane (the slowness vector at each end),
+        # a central difference of the delays across it
+        g_sv = (t[2] - t[3]) / (2.0 * h)
+        g_dv = (t[8] - t[9]) / (2.0 * h)
+        g = _fermat(u, ths, tab["arrival_angle"][slots], tab["source_speed"][slots], tab["receiver_speed"][slots])
+        g += g_sv[:, :, None] * np.concatenate([v, zero], axis=1)[:, None, :]
+        g += g_dv[:, :, None] * np.concatenate([zero, v], axis=1)[:, None, :]
+        # the same at each stencil point, in its own plane (the sideways components there taken
+        # as at the centre: they enter the in-plane columns below only through the plane's turn)
+        gp = np.empty((P, n, A, 6))
+        for p in range(P):
+            up = _horizontal_unit(Xs[p], Xd[p])
+            vp = np.stack([-up[:, 1], up[:, 0], np.zeros(n)], axis=1)
+            gp[p] = _fermat(up, th_s_p[p], th_r_p[p], c_s_p[p], c_r_p[p])
+            gp[p] += g_sv[:, :, None] * np.concatenate([vp, zero], axis=1)[:, None, :]
+            gp[p] += g_dv[:, :, None] * np.concatenate([zero, vp], axis=1)[:, None, :]
+        # the Hessian in the link's frame: column k the central difference of the gradient along
+        # axis k, read in the in-plane rows (su, sz, du, dz); the across rows by symmetry, except
+        # (sv, sv), (dv, dv) and (sv, dv): second differences of the delays
+        Hb = np.einsum("nwi,knaw->naik", B, (gp[0::2][:6] - gp[1::2][:6]) / (2.0 * h))
+        inplane = np.array([0, 2, 3, 5])
+        ip = np.ix_(inplane, inplane)
+        asym = Hb[:, :, ip[0], ip[1]] - np.swapaxes(Hb[:, :, ip[0], ip[1]], 2, 3)
+        sym = 0.5 * (Hb + np.swapaxes(Hb, 2, 3))
+        H = np.zeros_like(Hb)
+        H[:, :, ip[0], ip[1]] = sym[:, :, ip[0], ip[1]]
+        for a in (1, 4):
+            H[:, :, a, inplane] = Hb[:, :, inplane, a]
+            H[:, :, inplane, a] = Hb[:, :, inplane, a]
+        t0v = np.where(valid, t0, np.nan)
+        H[:, :, 1, 1] = (t[2] - 2.0 * t0v + t[3]) / h**2
+        H[:, :, 4, 4] = (t[8] - 2.0 * t0v + t[9]) / h**2
+        H[:, :, 1, 4] = H[:, :, 4, 1] = (t[12] + t[13] - t[2] - t[3] - t[8] - t[9] + 2.0 * t0v) / (2.0 * h**2)
+        H_world = np.einsum("nwi,naij,nvj->nawv", B, H, B)
+        # third derivatives along the in-plane axes, seen by the same stencil points
+        third = np.einsum(
+            "nwi,knaw->naki", B[:, :, inplane], (gp[0::2][inplane] + gp[1::2][inplane] - 2.0 * g[None]) / h**2
+        )
+        k3 = np.sqrt(np.nanmax(np.where(valid, (third**2).sum(axis=(2, 3)), 0.0), axis=1, initial=0.0))
+        k_asym = np.sqrt(np.nanmax(np.where(valid, (asym**2).sum(axis=(2, 3)), 0.0), axis=1, initial=0.0))
+        # across the plane: the second differences over h and h/2 agree to (h / L)^2 for a smooth
+        # delay (1e-3 of it is ample); where they do not, the slope jumps in between and no Taylor
+        # bound holds. The same five points give the third derivative across.
+        smooth = np.ones(n, bool)
+        k3_side = np.zeros(n)
+        for plus, minus, hp, hm in ((2, 3, 14, 15), (8, 9, 16, 17)):
+            d2_h = (t[plus] - 2.0 * t0v + t[minus]) / h**2
+            d2_q = (t[hp] - 2.0 * t0v + t[hm]) / (0.5 * h) ** 2
+            with np.errstate(invalid="ignore"):
+                bad = np.abs(d2_h - d2_q) > 1e-3 * np.abs(d2_h) + 1e-9
+            smooth &= ~np.any(valid & bad, axis=1)
+            d3 = (t[plus] - 2.0 * t[hp] + 2.0 * t[hm] - t[minus]) / (2.0 * (0.5 * h) ** 3)
+            k3_side = np.maximum(k3_side, np.nanmax(np.where(valid, np.abs(d3), 0.0), axis=1, initial=0.0))
+        # the bound's coefficients: straight-ray derivatives at the nearest the ends come over
+        # the served region, times the safety factor, or twice what the stencil saw
+        cmin = np.nanmin(
+            np.where(valid, np.minimum(tab["source_speed"][slots], tab["receiver_speed"][slots]), np.inf),
+            axis=1,
+            initial=np.inf,
+        )
+        lmin = np.linalg.norm(d - s, axis=1) - 2.0 * h
+        with np.errstate(divide="ignore", invalid="ignore"):
+            m3 = np.maximum(_SAFETY * _D3_STRAIGHT / (cmin * lmin**2), 2.0 * np.maximum(k3, k3_side))
+            m4 = _SAFETY * _D4_STRAIGHT / (cmin * lmin**3)
+        # ||Hessian error||: central differences (sqrt(6) columns of h^2 / 6 m4 each), the in-plane
+        # block's asymmetry, the delays' own error in the second differences
+        dH = np.sqrt(6.0) * h**2 / 6.0 * m4 + k_asym + 8.0 * _SOLVER_S / h**2
+        coef = np.stack([np.sqrt(2.0) * h**2 / 6.0 * m3, 0.5 * dH, m3 / 6.0], axis=1)
         # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
         # reflection point crosses it, so no Taylor bound holds across it; the reflection point
-        # moves less than the ends do, so the served radius must stay below that distance
-        with np.errstate(divide="ignore"):
-            radius = np.sqrt(2.0 * self.tol_s / kappa)
-        near_kink = np.any(valid & (tab["floor_kink_distance"][slots] <= 2.0 * radius[:, None]), axis=1)
-        stable &= ~near_kink
-        # a link without arrivals is searched every time (a path may appear anywhere)
-        kappa = np.where(stable & np.isfinite(kappa) & (cnt > 0), kappa, np.inf)
-        self.stats.uncacheable += int((~stable).sum())
-        return kappa, np.nan_to_num(g)
+        # moves less than the ends do, so the served region must stay clear of it
+        near_kink = np.any(valid & (tab["floor_kink_distance"][slots] <= 2.0 * _STENCIL_M), axis=1)
+        # a link without arrivals is served as such (like any served link, a path that appears
+        # inside the served region is not detected)
+        # the section's structure the same at every stencil point (else the differences
+        # straddle a jump of the delays' slopes)
+        smooth &= np.all(sec.structure.reshape(P, n) == self._struct[slots][None, :], axis=0)
+        serve = stable & smooth & ~near_kink & (lmin > 0.0) & np.isfinite(coef).all(axis=1)
+        self.stats.uncacheable += int((~(stable & smooth)).sum())
+        coef[~serve] = np.inf
+        return coef, np.nan_to_num(g), np.nan_to_num(H_world[:, :, _IU[0], _IU[1]])
 
     def _serve(self, slots: NDArray[np.int64], delay: NDArray, fresh: NDArray[np.bool_]) -> Arrivals:
         """Arrivals of ``slots`` from their tables, with delays ``delay`` (n, A) (Taylor rows:
@@ -432,6 +561,48 @@ class ArrivalCache:
             delay=take(delay),
             **fields,
         )
+
+
+def _bound(coef: NDArray, r: NDArray) -> NDArray:
+    """The Taylor tier's error bound (s) at a move r (m) from the reference, coef (n, 3) of r,
+    r^2 and r^3 (module docstring)."""
+    return _SOLVER_S + r * (coef[:, 0] + r * (coef[:, 1] + r * coef[:, 2]))
+
+
+def _radius(coef: NDArray, tol: float, cap: float) -> NDArray:
+    """The largest r <= cap with _bound(coef, r) <= tol (0 where none): bisection, the bound
+    growing with r."""
+    lo = np.zeros(coef.shape[0])
+    hi = np.full(coef.shape[0], cap)
+    with np.errstate(invalid="ignore"):
+        whole = _bound(coef, hi) <= tol
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            ok = _bound(coef, mid) <= tol
+            lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+        out = np.where(whole, cap, lo)
+    return np.where(np.isfinite(coef).all(axis=1) & (tol >= _SOLVER_S), out, 0.0)
+
+
+def _horizontal_unit(s: NDArray, d: NDArray) -> NDArray:
+    """(n, 3) the horizontal unit vector from s to d ((1, 0, 0) where they are stacked)."""
+    ux, uy = d[:, 0] - s[:, 0], d[:, 1] - s[:, 1]
+    hor = np.hypot(ux, uy)
+    safe = np.where(hor > 0, hor, 1.0)
+    return np.stack([np.where(hor > 0, ux / safe, 1.0), np.where(hor > 0, uy / safe, 0.0), np.zeros_like(ux)], axis=1)
+
+
+def _fermat(u: NDArray, th_s: NDArray, th_r: NDArray, c_s: NDArray, c_r: NDArray) -> NDArray:
+    """(n, A, 6) the in-plane gradient of each delay (s/m) with respect to the ends: minus the
+    slowness vector at the source, the slowness vector at the receiver (Fermat); u (n, 3) the
+    plane's horizontal unit vector, angles (rad) and speeds (m/s) (n, A)."""
+    g = np.empty((*th_s.shape, 6))
+    hs, hr = np.cos(th_s) / c_s, np.cos(th_r) / c_r
+    g[..., 0], g[..., 1] = -hs * u[:, None, 0], -hs * u[:, None, 1]
+    g[..., 2] = -np.sin(th_s) / c_s
+    g[..., 3], g[..., 4] = hr * u[:, None, 0], hr * u[:, None, 1]
+    g[..., 5] = np.sin(th_r) / c_r
+    return g
 
 
 def _links_of(got: Arrivals, ok: NDArray[np.bool_]) -> Arrivals:

@@ -177,6 +177,7 @@ def follow(
     max_bounces: int = 2,
     frequency_khz: float = 10.0,
     spreading: str | float = "ray",
+    src_from: ArrayLike | None = None,
 ) -> tuple[Arrivals, NDArray[np.bool_]]:
     """The arrivals ``prev`` (of n links, each solved at nearby end points) followed to the end
     points ``src``, ``dst`` ((n, 3), m): each eigenray from its launch angle by a few secant
@@ -187,7 +188,10 @@ def follow(
     land on the other); its arrivals are then meaningless and must be searched again. A
     followed link has exactly ``prev``'s eigenrays: one that appeared since is not found. The
     ray-tube width (for the level) is the secant's last slope instead of a central difference:
-    within 1e-3 of it for moves of a metre away from caustics (a few thousandths of a dB)."""
+    within 1e-3 of it for moves of a metre away from caustics (a few thousandths of a dB).
+    ``src_from`` (n, 3): where the sources were when ``prev`` was solved; given, a moved
+    source's move is followed backwards from the receiver (:func:`.rangedep.follow_ends`),
+    which keeps far more eigenrays than following it from the source."""
     from . import _rangedep_search_jit as jit
 
     n = prev.offsets.size - 1
@@ -203,19 +207,16 @@ def follow(
     theta[rows_of, col] = prev.launch_angle
     slope[rows_of, col] = prev.dz_dlaunch
     code[rows_of, col] = prev.bounce_code
-    rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code)
     used = code >= 0
+    if src_from is None:
+        rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code)
+        ok &= rangedep.kept_apart(theta, rows[:, :, jit.F_THETA0], code)
+    else:
+        s0 = np.asarray(src_from, dtype=float).reshape(n, 3)
+        rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, slope, code)
+    # a link is followed where every eigenray is: not one changed its bounce sequence, and none
+    # moved by half the gap to a sibling of its sequence or more (a fold)
     whole = np.all(ok | ~used, axis=1)
-    # a fold: an eigenray of a bounce sequence with others may have been followed onto one of
-    # them; each must have stayed within half the gap to its nearest sibling (then no two can
-    # meet or swap)
-    th_new = rows[:, :, jit.F_THETA0]
-    same = (code[:, :, None] == code[:, None, :]) & used[:, :, None] & used[:, None, :]
-    same &= ~np.eye(same.shape[1], dtype=bool)[None]
-    gap = np.min(np.where(same, np.abs(theta[:, :, None] - theta[:, None, :]), np.inf), axis=2)
-    with np.errstate(invalid="ignore"):
-        moved = np.abs(th_new - theta)
-    whole &= ~np.any(used & ~(moved < 0.5 * gap), axis=1)
     out = _assemble(sec, rows, used & whole[:, None], (n,), frequency_khz, spreading)
     return out, whole
 

@@ -42,7 +42,19 @@ from numpy.typing import ArrayLike, NDArray
 
 from .environment import Environment
 
-__all__ = ["MIN_RANGE_M", "Sections", "follow", "sections", "solve", "trace_rays", "track"]
+__all__ = [
+    "MIN_RANGE_M",
+    "Sections",
+    "follow",
+    "follow_ends",
+    "kept_apart",
+    "reversed_code",
+    "reversed_rows",
+    "sections",
+    "solve",
+    "trace_rays",
+    "track",
+]
 
 FloatArray = NDArray[np.float64]
 
@@ -70,6 +82,11 @@ class Sections:
     ux: FloatArray  #: (n,) unit direction, x
     uy: FloatArray  #: (n,) unit direction, y
     valid: NDArray[np.bool_]  #: (n,) both ends in the water
+    #: (n,) a hash of each section's structure: the kinks of the environment that bound and cut
+    #: it, in order, and how each of its cells is cut (whole or along which diagonal). The
+    #: delays are smooth functions of the ends while it stays the same; where it changes (a
+    #: kink enters, leaves or passes another, a cell's cut flips) their slopes may jump.
+    structure: NDArray[np.uint64]
 
     def link(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(r, c, floor_z) of link i."""
@@ -111,6 +128,7 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
     left = np.where(np.isfinite(left), left, 0.0)
     right = np.where(np.isfinite(right), right, R)
     inner = np.where((kinks > 0.0) & (kinks < Rc), kinks, np.nan)
+    kink_ids = _kink_ids_hash(kinks, R)
     rs = np.sort(np.concatenate([left[:, None], inner, right[:, None]], axis=1), axis=1)  # NaN last
     # drop columns closer than a nanometre to the previous one
     close = np.zeros(rs.shape, bool)
@@ -161,7 +179,71 @@ def sections(env: Environment, src: ArrayLike, dst: ArrayLike) -> Sections:
         H = np.maximum(H, 100.0)
     if np.any(cols <= 0.0):
         raise ValueError("sound speed not positive inside the sections (check the field's depth extrapolation)")
-    return Sections(offs, rs[keep], cols, fz, depths, floor, zs, zr, R, H, ux, uy, valid)
+    structure = kink_ids ^ _cuts_hash(cols, depths, fz, offs) ^ (valid.astype(np.uint64) * _MIX[2])
+    return Sections(offs, rs[keep], cols, fz, depths, floor, zs, zr, R, H, ux, uy, valid, structure)
+
+
+_COPLANAR_MPS = 1e-6
+_MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)
+
+
+def _splitmix(x: NDArray[np.uint64]) -> NDArray[np.uint64]:
+    """A 64-bit mixer (splitmix64's finalizer), elementwise, wrapping."""
+    x = x + _MIX[0]
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+def _kink_ids_hash(kinks: FloatArray, R: FloatArray) -> NDArray[np.uint64]:
+    """(n,) a hash of which kinks (columns of ``kinks``) bound each section (the last at or
+    before 0, the first at or after R) and which cut it, in their order along the line."""
+    n, m = kinks.shape
+    if m == 0:
+        return np.zeros(n, np.uint64)
+    Rc = R[:, None]
+    with np.errstate(invalid="ignore"):
+        before = np.where(kinks <= 0.0, kinks, -np.inf)
+        after = np.where(kinks >= Rc, kinks, np.inf)
+        inside = (kinks > 0.0) & (kinks < Rc)
+    left = np.where(np.isfinite(before).any(axis=1), np.argmax(before, axis=1), -1)
+    right = np.where(np.isfinite(after).any(axis=1), np.argmin(after, axis=1), -1)
+    order = np.argsort(np.where(inside, kinks, np.inf), axis=1, kind="stable")
+    ids = np.where(np.take_along_axis(inside, order, axis=1), order + 1, 0).astype(np.uint64)
+    pos = np.arange(1, m + 1, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        h = _splitmix(ids * np.uint64(m + 1) + pos[None, :]) * (ids > 0)
+        out = np.bitwise_xor.reduce(h, axis=1)
+        out ^= _splitmix((left + 2).astype(np.uint64)) * _MIX[1]
+        out ^= _splitmix((right + 2).astype(np.uint64) + np.uint64(1 << 32))
+    return out
+
+
+def _cuts_hash(cols: FloatArray, depths: FloatArray, fz: FloatArray, offs: NDArray[np.int64]) -> NDArray[np.uint64]:
+    """(n,) a hash of how every cell of each section above its floor is cut (the rule of
+    _rangedep_jit: whole where its four speeds are coplanar, else along the diagonal whose ends
+    differ least). A cell within 1e-6 m/s of coplanar counts as whole: whichever way it is cut,
+    the medium differs from the plane by less than that (a delay by ~1e-10 s)."""
+    n = offs.size - 1
+    out = np.zeros(n, np.uint64)
+    if cols.shape[0] < 2:
+        return out
+    c00, c10 = cols[:-1, :-1], cols[1:, :-1]
+    c01, c11 = cols[:-1, 1:], cols[1:, 1:]
+    flat = np.abs(c00 - c10 - c01 + c11) <= _COPLANAR_MPS
+    code = np.where(flat, 0, np.where(np.abs(c10 - c01) < np.abs(c00 - c11), 1, 2))
+    # a ray never enters a cell below the floor at both of its columns
+    code = np.where(depths[None, :-1] < np.maximum(fz[:-1], fz[1:])[:, None], code, 0)
+    row = np.arange(cols.shape[0] - 1)
+    link = np.searchsorted(offs, row, side="right") - 1
+    same = row + 1 < offs[link + 1]  # both rows of the pair in one link
+    j = (row - offs[link]).astype(np.uint64)
+    k = np.arange(code.shape[1], dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        h = _splitmix((j[:, None] << np.uint64(20)) + (k[None, :] << np.uint64(2)) + code.astype(np.uint64))
+        per_row = np.bitwise_xor.reduce(h, axis=1) * same
+        np.bitwise_xor.at(out, link[same], per_row[same])
+    return out
 
 
 def _polyline_at(rs: FloatArray, fz: FloatArray, offs: NDArray[np.int64], q: FloatArray) -> FloatArray:
@@ -275,6 +357,100 @@ def follow(
         np.ascontiguousarray(code, dtype=np.int64),
         _ZTOL_M,
     )
+    return rows, ok, sec
+
+
+def kept_apart(theta_old: FloatArray, theta_new: FloatArray, code: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """(n, Q) whether each followed eigenray stayed nearer its old launch angle than half the
+    gap to its nearest sibling (another eigenray of its bounce sequence): then no two of one
+    sequence can have met or swapped (a fold, where following one may land on the other).
+    False where not followed (NaN) or code < 0."""
+    code = np.asarray(code)
+    used = code >= 0
+    same = (code[:, :, None] == code[:, None, :]) & used[:, :, None] & used[:, None, :]
+    same &= ~np.eye(code.shape[1], dtype=bool)[None]
+    gap = np.min(np.where(same, np.abs(theta_old[:, :, None] - theta_old[:, None, :]), np.inf), axis=2)
+    with np.errstate(invalid="ignore"):
+        return used & (np.abs(theta_new - theta_old) < 0.5 * gap)
+
+
+def reversed_code(code: NDArray[np.int64], bounces: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The bounce sequence of each eigenray travelled backwards: its ``bounces`` base-3 digits
+    (first bounce least significant) in reverse order; codes < 0 (none) stay -1."""
+    code = np.asarray(code, np.int64)
+    bounces = np.asarray(bounces, np.int64)
+    out = np.zeros_like(code)
+    rest = np.maximum(code, 0)
+    for k in range(int(bounces.max(initial=0))):
+        digit = rest % 3
+        rest = rest // 3
+        out += np.where(k < bounces, digit * 3 ** np.maximum(bounces - 1 - k, 0), 0)
+    return np.where(code < 0, -1, out)
+
+
+def reversed_rows(rows: FloatArray) -> FloatArray:
+    """Eigenray rows (..., NF) of links seen from the other end: the same rays travelled
+    backwards (launch and arrival angles swapped and negated, the end speeds swapped, the bounce
+    sequence reversed, the ray-tube width d z / d theta at the other end by the reciprocity of
+    the ray propagator: dz_S / dth_R = dz_R / dth_S c_S cos th_R / (c_R cos th_S))."""
+    from . import _rangedep_search_jit as jit
+
+    out = rows.copy()
+    th0, thr = rows[..., jit.F_THETA0], rows[..., jit.F_THETAR]
+    cs, cr = rows[..., jit.F_CS], rows[..., jit.F_CR]
+    out[..., jit.F_THETA0], out[..., jit.F_THETAR] = -thr, -th0
+    out[..., jit.F_CS], out[..., jit.F_CR] = cr, cs
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[..., jit.F_DZDTH] = rows[..., jit.F_DZDTH] * cs * np.cos(thr) / (cr * np.cos(th0))
+    code = rows[..., jit.F_CODE]
+    known = np.isfinite(code)
+    nb = np.where(known, rows[..., jit.F_NS] + rows[..., jit.F_NB], 0).astype(np.int64)
+    out[..., jit.F_CODE] = np.where(known, reversed_code(np.where(known, code, -1).astype(np.int64), nb), np.nan)
+    out[..., jit.F_ZMISS] = np.nan
+    return out
+
+
+def follow_ends(
+    env: Environment,
+    src_from: ArrayLike,
+    src: ArrayLike,
+    dst: ArrayLike,
+    max_bounces: int,
+    theta0: FloatArray,
+    slope: FloatArray,
+    code: NDArray[np.int64],
+) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
+    """:func:`follow`, and where that loses an eigenray of a link whose source moved from
+    ``src_from``, the link again in two legs: the receiver's move from the source where it was
+    (the old launch angles, a short secant on the depth miss), then the source's move followed
+    backwards from the receiver (the reversed link, launched at the first leg's arrival angles;
+    reciprocity: the same eigenrays). From a moved source the old launch angle of a ray near a
+    boundary or a turning point often falls into another bounce sequence, where one leg gives
+    up; the old arrival angle reaches a moved receiver by a short secant. Every leg keeps an
+    eigenray only where its launch angle (from the end that stays) moved by less than half the
+    gap to its nearest sibling (:func:`kept_apart`). Returns what :func:`follow` does, for the
+    links src -> dst."""
+    from . import _rangedep_search_jit as jit
+
+    s0 = np.asarray(src_from, dtype=float).reshape(-1, 3)
+    s1 = np.asarray(src, dtype=float).reshape(-1, 3)
+    d1 = np.asarray(dst, dtype=float).reshape(-1, 3)
+    rows, ok, sec = follow(env, s1, d1, max_bounces, theta0, slope, code)
+    ok &= kept_apart(theta0, rows[..., jit.F_THETA0], code)
+    used = np.asarray(code) >= 0
+    # the two legs where following from the moved source lost an eigenray
+    redo = np.flatnonzero(np.any(s1 != s0, axis=1) & np.any(used & ~ok, axis=1))
+    if not redo.size:
+        return rows, ok, sec
+    ra, oka, _ = follow(env, s0[redo], d1[redo], max_bounces, theta0[redo], slope[redo], code[redo])
+    oka &= kept_apart(theta0[redo], ra[..., jit.F_THETA0], code[redo])
+    back = reversed_rows(ra)
+    back_code = np.where(oka, np.nan_to_num(back[..., jit.F_CODE], nan=-1.0), -1.0).astype(np.int64)
+    back_th = back[..., jit.F_THETA0]
+    rb, okb, _ = follow(env, d1[redo], s1[redo], max_bounces, back_th, back[..., jit.F_DZDTH], back_code)
+    okb &= kept_apart(back_th, rb[..., jit.F_THETA0], back_code)
+    rows[redo] = reversed_rows(rb)
+    ok[redo] = oka & okb
     return rows, ok, sec
 
 

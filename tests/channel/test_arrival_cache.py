@@ -17,35 +17,105 @@ def _links(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_served_delays_within_bound_and_1e7() -> None:
-    """Random moves of both ends inside the region the cache serves (a front over a slope,
-    every arrival up to 2 bounces): each served delay is within the cache's bound of the exact
-    search's, the bound is <= 1e-7 s, and the served arrival sets equal the exact ones."""
+    """Random moves of both ends inside the region the Taylor tier serves (a front over a
+    slope, every arrival up to 2 bounces): each served delay is within the cache's bound of the
+    same eigenray followed exactly to the moved ends, the bound is <= 1e-7 s, and wherever a new
+    search finds the same arrival set, within the bound of the search's delays too."""
+    from aquasim_py.channel.arrivals import follow
+
     env = _front_env()
     rng = np.random.default_rng(3)
     n = 40
     s, d = _links(rng, n)
     ids = np.arange(n)
     cache = ArrivalCache(env, n, max_bounces=2, tol_s=1e-7)
-    cache.get(ids, s, d)
-    served = 0
+    ref = cache.get(ids, s, d)
+    radius = cache.radius(ids)
+    assert (radius > 0).sum() >= n // 2 and radius.max() <= 0.5
+    served, same_set = 0, 0
     for _ in range(4):
-        radius = cache.radius(ids)
         u = rng.normal(size=(n, 6))
         u /= np.linalg.norm(u, axis=1, keepdims=True)
-        f = (rng.uniform(0, 1, n) * radius)[:, None]
+        f = (rng.uniform(0, 1, n) ** (1 / 6) * radius)[:, None]  # uniform in the 6-D ball
         s2, d2 = s + u[:, :3] * f, d + u[:, 3:] * f
         bound = cache.bound(ids, s2, d2)
         before = cache.stats.hits
         got = cache.get(ids, s2, d2)
         served += cache.stats.hits - before
-        exact = arrivals(env, s2, d2, max_bounces=2)
-        np.testing.assert_array_equal(got.offsets, exact.offsets)
-        np.testing.assert_array_equal(got.bounce_code, exact.bounce_code)
-        b = bound[got.link]
-        ok = np.isfinite(b)
-        assert np.all(np.abs(got.delay - exact.delay)[ok] <= b[ok])
-        assert np.all(b[ok] <= 1e-7)
-    assert served >= n  # most links are served
+        fol, ok = follow(env, ref, s2, d2, max_bounces=2)
+        new = arrivals(env, s2, d2, max_bounces=2)
+        for i in np.flatnonzero(np.isfinite(bound)):
+            assert bound[i] <= 1e-7
+            g = slice(got.offsets[i], got.offsets[i + 1])
+            og = np.lexsort((got.launch_angle[g], got.bounce_code[g]))
+            if ok[i]:
+                f_ = slice(fol.offsets[i], fol.offsets[i + 1])
+                of = np.lexsort((fol.launch_angle[f_], fol.bounce_code[f_]))
+                np.testing.assert_array_equal(got.bounce_code[g][og], fol.bounce_code[f_][of])
+                assert np.all(np.abs(got.delay[g][og] - fol.delay[f_][of]) <= bound[i])
+            e = slice(new.offsets[i], new.offsets[i + 1])
+            if sorted(got.bounce_code[g]) == sorted(new.bounce_code[e]):
+                same_set += 1
+                oe = np.lexsort((new.launch_angle[e], new.bounce_code[e]))
+                assert np.all(np.abs(got.delay[g][og] - new.delay[e][oe]) <= bound[i] + 1e-9)
+    assert served >= 2 * n  # most links are served
+    assert same_set >= 0.9 * served
+
+
+def test_second_order_term_is_there() -> None:
+    """The Hessian term matters: on 0.4 m moves the served delays are far closer to the exact
+    ones (the same eigenrays followed) than a first-order expansion with the exact gradient
+    (central differences of followed delays over +-1 mm, independent of the cache) is."""
+    from aquasim_py.channel.rangedep import track
+
+    env = _front_env()
+    rng = np.random.default_rng(8)
+    n = 20
+    s, d = _links(rng, n)
+    ids = np.arange(n)
+    cache = ArrivalCache(env, n, max_bounces=1)
+    ref = cache.get(ids, s, d)
+    q = int(np.diff(ref.offsets).max())
+    rows, cols = ref.link, np.arange(ref.delay.size) - ref.offsets[ref.link]
+
+    def per_link(values: np.ndarray, fill: float) -> np.ndarray:
+        out = np.full((n, q), fill)
+        out[rows, cols] = values
+        return out
+
+    th, slope = per_link(ref.launch_angle, np.nan), per_link(ref.dz_dlaunch, np.nan)
+    code = per_link(ref.bounce_code, -1).astype(np.int64)
+
+    def exact(ds: np.ndarray, dd: np.ndarray) -> np.ndarray:
+        """(n, q) the reference's eigenrays followed to the moved ends, in its order."""
+        return track(env, s + ds, d + dd, 1, th, slope, code)
+
+    u = rng.normal(size=(n, 6))
+    u *= 0.4 / np.linalg.norm(u, axis=1, keepdims=True)
+    s2, d2 = s + u[:, :3], d + u[:, 3:]
+    served = np.isfinite(cache.bound(ids, s2, d2))
+    got = cache.get(ids, s2, d2)
+    t_new = exact(u[:, :3], u[:, 3:])
+    grad_dot = np.zeros((n, q))
+    h = 1e-3
+    for k in range(6):
+        e = np.zeros((n, 6))
+        e[:, k] = h
+        grad_dot += (exact(e[:, :3], e[:, 3:]) - exact(-e[:, :3], -e[:, 3:])) / (2 * h) * u[:, k : k + 1]
+    t_ref = per_link(ref.delay, np.nan)
+    # the served delays in the reference's order: match each by its launch angle
+    err1, err2 = [], []
+    for i in np.flatnonzero(served):
+        g = slice(got.offsets[i], got.offsets[i + 1])
+        for j in range(int(np.diff(ref.offsets)[i])):
+            if not (np.isfinite(t_new[i, j]) and np.isfinite(grad_dot[i, j])):
+                continue
+            k = int(np.argmin(np.abs(got.launch_angle[g] - th[i, j]) + 10.0 * (got.bounce_code[g] != code[i, j])))
+            err2.append(abs(got.delay[g][k] - t_new[i, j]))
+            err1.append(abs(t_ref[i, j] + grad_dot[i, j] - t_new[i, j]))
+    assert len(err2) >= 2 * n
+    assert np.median(err2) < 0.1 * np.median(err1)
+    assert max(err2) <= 1e-7
 
 
 def test_moves_beyond_the_bound_are_solved_again() -> None:
@@ -127,3 +197,33 @@ def test_follow_keeps_delays_and_levels() -> None:
         og, oe = np.argsort(fol.bounce_code[g], kind="stable"), np.argsort(exact.bounce_code[e], kind="stable")
         np.testing.assert_allclose(fol.delay[g][og], exact.delay[e][oe], rtol=0, atol=1e-9)
         np.testing.assert_allclose(fol.level_db[g][og], exact.level_db[e][oe], rtol=0, atol=0.01)
+
+
+def test_section_structure_changes_are_not_served() -> None:
+    """Where an end crosses a kink of the environment (here a grid line of the shelf-break
+    sample's gridded floor and field, x = 1000 m), the section changes its columns and the
+    delays' slopes may jump there: the structure hash of the section changes, does not depend on
+    the other links of the batch, and the Taylor tier does not serve across it, even inside its
+    region (the link runs at 45 degrees, so its stencil, +-0.5 m along and across it, stays 0.05 m
+    short of the grid line; the request is followed or searched: exact)."""
+    from aquasim_py.channel.data import shelfbreak
+    from aquasim_py.channel.rangedep import sections
+
+    env = shelfbreak()
+    d_before = np.array([[999.6, 300.0, 60.0]])
+    s = d_before - np.array([[300.0, 300.0, 20.0]])
+    d_after = d_before + np.array([0.45, 0.0, 0.0])
+    other = np.array([[-200.0, -900.0, 30.0]])
+    st = sections(env, s, d_before).structure
+    assert sections(env, np.r_[other, s], np.r_[d_after, d_before]).structure[1] == st[0]
+    assert sections(env, s, d_after).structure[0] != st[0]
+    assert sections(env, s, d_before + np.array([0.3, -0.2, 0.3])).structure[0] == st[0]  # no kink crossed
+    cache = ArrivalCache(env, 1, max_bounces=2)
+    cache.get([0], s, d_before)
+    assert cache.radius([0])[0] >= 0.45  # the move below is inside the region
+    hits = cache.stats.hits
+    got = cache.get([0], s, d_after)
+    assert cache.stats.hits == hits
+    exact = arrivals(env, s, d_after, max_bounces=2)
+    if sorted(got.bounce_code) == sorted(exact.bounce_code):
+        np.testing.assert_allclose(np.sort(got.delay), np.sort(exact.delay), rtol=0, atol=1e-9)
