@@ -60,8 +60,9 @@ differences across the plane over h and h/2 agree (else the slope jumps in betwe
 
 Arrival-set changes. The stencil doubles as a guard: a link with an eigenray that cannot be
 followed to one of its points, or followed onto a sibling of its bounce sequence, or with a
-bottom reflection point within 2 h of a kink of the floor polyline (where the delay's gradient
-jumps), is never served by Taylor; searched again within 2 h of where it was refused, it is not
+bottom reflection point near a kink of the floor polyline (where the delay's gradient jumps:
+within 2 h, more where the stencil shows the point moving faster than the ends, as it does at
+low grazing angles), is never served by Taylor; searched again within 2 h of where it was refused, it is not
 expanded again (the stencil would most likely be refused again, and costs twice the search). A
 link without arrivals is served as such within the region. Neither tier detects a path that appears (a new eigenray) inside its region; how often
 that changes the modem's stamp is measured by ``python tools/follow_radius.py`` (docs/channel.md).
@@ -521,9 +522,19 @@ class ArrivalCache:
         dH = np.sqrt(6.0) * h**2 / 6.0 * m4 + k_asym + 8.0 * _SOLVER_S / h**2
         coef = np.stack([np.sqrt(2.0) * h**2 / 6.0 * m3, 0.5 * dH, m3 / 6.0], axis=1)
         # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
-        # reflection point crosses it, so no Taylor bound holds across it; the reflection point
-        # moves less than the ends do, so the served region must stay clear of it
-        near_kink = np.any(valid & (tab["floor_kink_distance"][slots] <= 2.0 * _STENCIL_M), axis=1)
+        # reflection point crosses it, so no Taylor bound holds across it. At a low grazing angle
+        # the reflection point moves faster than the ends: its distance to the kink at the stencil
+        # points gives the rate (a crossing between a pair of them shows as a fast one), and the
+        # served region must stay clear of it by twice what that rate allows, 2 h at least
+        k0 = tab["floor_kink_distance"][slots]
+        with np.errstate(invalid="ignore"):
+            moved = np.abs(at(jit.F_KINK) - k0[None]) / h  # (P, n, A) m per m of the ends' move
+            per_axis = np.fmax(moved[0:12:2], moved[1:12:2])  # (6, n, A)
+            rate = np.sqrt(np.nansum(per_axis**2, axis=0))  # |d point / d ends|, m/m
+            rate = np.fmax(rate, np.nanmax(moved[12:14] / np.sqrt(2.0), axis=0, initial=0.0))
+            rate = np.fmax(rate, np.nanmax(moved[14:] / 0.5, axis=0, initial=0.0))
+            rate = np.where(np.isfinite(k0), rate, 0.0)
+            near_kink = np.any(valid & (k0 <= 2.0 * h * (1.0 + rate)), axis=1)
         # a link without arrivals is served as such (like any served link, a path that appears
         # inside the served region is not detected)
         # the section's structure the same at every stencil point (else the differences

@@ -39,12 +39,12 @@ def test_served_delays_within_bound_and_1e7() -> None:
         f = (rng.uniform(0, 1, n) ** (1 / 6) * radius)[:, None]  # uniform in the 6-D ball
         s2, d2 = s + u[:, :3] * f, d + u[:, 3:] * f
         bound = cache.bound(ids, s2, d2)
-        before = cache.stats.hits
         got = cache.get(ids, s2, d2)
-        served += cache.stats.hits - before
         fol, ok = follow(env, ref, s2, d2, max_bounces=2)
         new = arrivals(env, s2, d2, max_bounces=2)
-        for i in np.flatnonzero(np.isfinite(bound)):
+        moved_and_served = np.flatnonzero(np.isfinite(bound) & (radius > 0))
+        served += moved_and_served.size
+        for i in moved_and_served:
             assert bound[i] <= 1e-7
             g = slice(got.offsets[i], got.offsets[i + 1])
             og = np.lexsort((got.launch_angle[g], got.bounce_code[g]))
@@ -58,7 +58,7 @@ def test_served_delays_within_bound_and_1e7() -> None:
                 same_set += 1
                 oe = np.lexsort((new.launch_angle[e], new.bounce_code[e]))
                 assert np.all(np.abs(got.delay[g][og] - new.delay[e][oe]) <= bound[i] + 1e-9)
-    assert served >= 2 * n  # most links are served
+    assert served >= 2 * n  # most links are served (those the tier refused do not move)
     assert same_set >= 0.9 * served
 
 
