@@ -218,18 +218,17 @@ class ArrivalCache:
         delta = np.concatenate([ds, dd], axis=1)
         with np.errstate(invalid="ignore"):
             hit = np.linalg.norm(delta, axis=1) <= self._radius[slots]
-        if hit.any():  # and only while the section keeps the reference's structure
+        delay = self._t0[slots] + np.einsum("naj,nj->na", self._g[slots], delta)
+        if hit.any():  # only while the section keeps the reference's structure, to second order
             h = np.flatnonzero(hit)
             hit[h] = rangedep.sections(self.env, s[h], d[h]).structure == self._struct[slots[h]]
+            h = h[hit[h]]
+            quad = delta[h][:, _IU[0]] * delta[h][:, _IU[1]] * _IU_WEIGHT
+            delay[h] += np.einsum("naq,nq->na", self._H[slots[h]], quad)
         # the very positions of the last solution (a link between moored nodes): as it is
         same = np.all(s == self._sl[slots], axis=1) & np.all(d == self._dl[slots], axis=1) & ~hit
         self.stats.hits += int(hit.sum()) + int(same.sum())
         rest = np.flatnonzero(~(hit | same))
-        delay = self._t0[slots] + np.einsum("naj,nj->na", self._g[slots], delta)
-        if hit.any():  # the second-order term where it is served
-            h = np.flatnonzero(hit)
-            quad = delta[h][:, _IU[0]] * delta[h][:, _IU[1]] * _IU_WEIGHT
-            delay[h] += np.einsum("naq,nq->na", self._H[slots[h]], quad)
         # the Taylor tier serves from the reference solution, the others from the last one
         fresh = np.zeros(ids.size, bool)
         if rest.size:
@@ -382,7 +381,8 @@ class ArrivalCache:
         self._radius[slots] = 0.0
         if self.tol_s <= 0.0:
             return
-        self._struct[slots] = rangedep.sections(self.env, s, d).structure
+        sec = rangedep.sections(self.env, s, d)
+        self._struct[slots] = sec.structure
         # a link refused within 2 h of here is not expanded again (its stencil would most likely
         # be refused again: a changing arrival set or structure nearby; searching it is the cost)
         x = np.concatenate([s, d], axis=1)
@@ -392,17 +392,21 @@ class ArrivalCache:
         if not todo.any():
             return
         sub = slots[todo]
-        coef, g, H = self._expansion(sub, s[todo], d[todo])
+        u = np.stack([sec.ux[todo], sec.uy[todo], np.zeros(sub.size)], axis=1)
+        coef, g, H = self._expansion(sub, s[todo], d[todo], u)
         coef[~self._fits[sub]] = np.inf
         self._coef[sub], self._g[sub], self._H[sub] = coef, g, H
         self._radius[sub] = _radius(coef, self.tol_s, _STENCIL_M)
         refused = ~(self._radius[sub] > 0.0)
         self._refused[sub] = np.where(refused[:, None], x[todo], np.nan)
 
-    def _expansion(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    def _expansion(
+        self, slots: NDArray[np.int64], s: NDArray, d: NDArray, u: NDArray
+    ) -> tuple[NDArray, NDArray, NDArray]:
         """(bound coefficients (n, 3), gradients (n, A, 6), Hessians (n, A, 21)) of the Taylor
         tier at the searched (s, d), world coordinates (x, y, z of the source, then of the
-        receiver); coefficients inf where the link is not served (module docstring)."""
+        receiver); u (n, 3) the links' horizontal unit vectors (their sections'); coefficients
+        inf where the link is not served (module docstring)."""
         from . import _rangedep_search_jit as jit
 
         n, A = slots.size, int(self.max_arrivals)
@@ -414,7 +418,6 @@ class ArrivalCache:
         ths, cb = tab["launch_angle"][slots], np.where(valid, tab["bounce_code"][slots], -1)
         # the link's frame: u along it (horizontal), v across it, z down; one unit vector per
         # axis of the six end coordinates (su, sv, sz, du, dv, dz), in world coordinates
-        u = _horizontal_unit(s, d)
         v = np.stack([-u[:, 1], u[:, 0], np.zeros(n)], axis=1)
         z = np.broadcast_to([0.0, 0.0, 1.0], (n, 3))
         zero = np.zeros((n, 3))
@@ -433,7 +436,6 @@ class ArrivalCache:
         # the receiver (rangedep.follow_ends; from a source moved up or down, the old launch angle
         # of a ray near a boundary or a turning point often falls into another bounce sequence)
         src_from = np.tile(s, (P, 1))
-        Xs, Xd = X[:, :3].reshape(P, n, 3), X[:, 3:].reshape(P, n, 3)
         th_in, code_in = np.tile(ths, (P, 1)), np.tile(cb, (P, 1))
         rows, ok, sec = rangedep.follow_ends(
             self.env,
@@ -463,19 +465,25 @@ class ArrivalCache:
         g = _fermat(u, ths, tab["arrival_angle"][slots], tab["source_speed"][slots], tab["receiver_speed"][slots])
         g += g_sv[:, :, None] * np.concatenate([v, zero], axis=1)[:, None, :]
         g += g_dv[:, :, None] * np.concatenate([zero, v], axis=1)[:, None, :]
-        # the same at each stencil point, in its own plane (the sideways components there taken
-        # as at the centre: they enter the in-plane columns below only through the plane's turn)
-        gp = np.empty((P, n, A, 6))
-        for p in range(P):
-            up = _horizontal_unit(Xs[p], Xd[p])
-            vp = np.stack([-up[:, 1], up[:, 0], np.zeros(n)], axis=1)
-            gp[p] = _fermat(up, th_s_p[p], th_r_p[p], c_s_p[p], c_r_p[p])
-            gp[p] += g_sv[:, :, None] * np.concatenate([vp, zero], axis=1)[:, None, :]
-            gp[p] += g_dv[:, :, None] * np.concatenate([zero, vp], axis=1)[:, None, :]
+        # the same at the twelve points along the axes, each in its own plane (its section's
+        # direction; the sideways components there taken as at the centre: they enter the
+        # in-plane columns below only through the plane's turn)
+        Q = 12
+        up = np.stack([sec.ux[: Q * n], sec.uy[: Q * n], np.zeros(Q * n)], axis=1)
+        vp = np.stack([-up[:, 1], up[:, 0], up[:, 2]], axis=1)
+        zq = np.zeros((Q * n, 3))
+
+        def flat(a: NDArray) -> NDArray:
+            return a[:Q].reshape(Q * n, A)
+
+        gp = _fermat(up, flat(th_s_p), flat(th_r_p), flat(c_s_p), flat(c_r_p))
+        gp += np.tile(g_sv, (Q, 1))[:, :, None] * np.concatenate([vp, zq], axis=1)[:, None, :]
+        gp += np.tile(g_dv, (Q, 1))[:, :, None] * np.concatenate([zq, vp], axis=1)[:, None, :]
+        gp = gp.reshape(Q, n, A, 6)
         # the Hessian in the link's frame: column k the central difference of the gradient along
         # axis k, read in the in-plane rows (su, sz, du, dz); the across rows by symmetry, except
         # (sv, sv), (dv, dv) and (sv, dv): second differences of the delays
-        Hb = np.einsum("nwi,knaw->naik", B, (gp[0::2][:6] - gp[1::2][:6]) / (2.0 * h))
+        Hb = np.einsum("nwi,knaw->naik", B, (gp[0::2] - gp[1::2]) / (2.0 * h))
         inplane = np.array([0, 2, 3, 5])
         ip = np.ix_(inplane, inplane)
         asym = Hb[:, :, ip[0], ip[1]] - np.swapaxes(Hb[:, :, ip[0], ip[1]], 2, 3)
@@ -596,14 +604,6 @@ def _radius(coef: NDArray, tol: float, cap: float) -> NDArray:
             lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
         out = np.where(whole, cap, lo)
     return np.where(np.isfinite(coef).all(axis=1) & (tol >= _SOLVER_S), out, 0.0)
-
-
-def _horizontal_unit(s: NDArray, d: NDArray) -> NDArray:
-    """(n, 3) the horizontal unit vector from s to d ((1, 0, 0) where they are stacked)."""
-    ux, uy = d[:, 0] - s[:, 0], d[:, 1] - s[:, 1]
-    hor = np.hypot(ux, uy)
-    safe = np.where(hor > 0, hor, 1.0)
-    return np.stack([np.where(hor > 0, ux / safe, 1.0), np.where(hor > 0, uy / safe, 0.0), np.zeros_like(ux)], axis=1)
 
 
 def _fermat(u: NDArray, th_s: NDArray, th_r: NDArray, c_s: NDArray, c_r: NDArray) -> NDArray:

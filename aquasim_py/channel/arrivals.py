@@ -192,7 +192,6 @@ def follow(
     ``src_from`` (n, 3): where the sources were when ``prev`` was solved; given, a moved
     source's move is followed backwards from the receiver (:func:`.rangedep.follow_ends`),
     which keeps far more eigenrays than following it from the source."""
-    from . import _rangedep_search_jit as jit
 
     n = prev.offsets.size - 1
     s = np.asarray(src, dtype=float).reshape(n, 3)
@@ -208,12 +207,9 @@ def follow(
     slope[rows_of, col] = prev.dz_dlaunch
     code[rows_of, col] = prev.bounce_code
     used = code >= 0
-    if src_from is None:
-        rows, ok, sec = rangedep.follow(env, s, d, max_bounces, theta, slope, code)
-        ok &= rangedep.kept_apart(theta, rows[:, :, jit.F_THETA0], code)
-    else:
-        s0 = np.asarray(src_from, dtype=float).reshape(n, 3)
-        rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, slope, code)
+    # without src_from no source counts as moved: one leg
+    s0 = s if src_from is None else np.asarray(src_from, dtype=float).reshape(n, 3)
+    rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, slope, code)
     # a link is followed where every eigenray is: not one changed its bounce sequence, and none
     # moved by half the gap to a sibling of its sequence or more (a fold)
     whole = np.all(ok | ~used, axis=1)
