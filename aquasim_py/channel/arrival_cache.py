@@ -266,6 +266,15 @@ class ArrivalCache:
             raise ValueError(f"ArrivalCache.last: link {unknown[0]} was never requested")
         return self._last(np.array([self._slot[i] for i in ids.tolist()], np.int64))
 
+    def positions(self, links: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(src, dst) (n, 3): the positions each link's :meth:`last` solution was solved at."""
+        ids = np.asarray(links, np.int64).ravel()
+        unknown = [i for i in ids.tolist() if i not in self._slot]
+        if unknown:
+            raise ValueError(f"ArrivalCache.positions: link {unknown[0]} was never requested")
+        slots = np.array([self._slot[i] for i in ids.tolist()], np.int64)
+        return self._sl[slots].copy(), self._dl[slots].copy()
+
     def radius(self, links: ArrayLike) -> NDArray[np.float64]:
         """The largest move sqrt(|s - s0|^2 + |d - d0|^2) (m) of each link the Taylor tier
         serves (0: none)."""
