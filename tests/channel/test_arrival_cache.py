@@ -170,6 +170,13 @@ def test_follow_tier_matches_the_exact_search() -> None:
         same += 1
         np.testing.assert_allclose(np.sort(got.delay[g]), np.sort(exact.delay[e]), rtol=0, atol=1e-9)
     assert same >= n - 3
+    # the positions of the cached solutions: the followed links' new ends, the others' too
+    # (searched there)
+    ps, pd = cache.positions(ids)
+    np.testing.assert_array_equal(ps, s2)
+    np.testing.assert_array_equal(pd, d2)
+    with pytest.raises(ValueError, match="never requested"):
+        ArrivalCache(env, 2).positions([1])
     # a move beyond follow_m is searched again
     m0 = cache.stats.misses
     cache.get(ids, s2 + np.array([3.0, 0.0, 0.0]), d2)
