@@ -21,6 +21,12 @@ is served, cheapest first, by
    followed onto a sibling of its bounce sequence (a fold);
 3. **searching** again, which resets the reference positions and the expansion.
 
+A search is expanded (the stencil below, which costs about as much as following the link 13
+times: ~7.6 ms against ~0.56 ms on the shelf-break benchmark) only where that can pay: at a
+link's first request, and where its ends moved since its last request by at most 0.5 m / 13
+(a link moving faster leaves the Taylor region before the expansion has paid for itself; it is
+followed instead). ``stats.not_expanded`` counts the searches this skipped.
+
 Expansion. g and H are those of the link's N x 2-D travel time, from the exact solutions at a
 stencil of 18 points: each of the six coordinates moved by +-h (h = 0.5 m), both ends moved
 sideways together by +-h, and each end sideways by +-h/2, every eigenray followed there (a
@@ -52,14 +58,13 @@ Smoothness. A Taylor bound needs smooth delays, and the model's are smooth only 
 section of a link changes its columns where an end, or the turning plane, brings a kink of the
 environment (a grid line of a gridded floor or field) in or out of it or past another one, and
 where one of its cells changes how it is cut; the delays' slopes may jump there (measured on the
-shelf-break network before this guard: served errors up to 27x the bound, 1.3e-7 s, on links
-running nearly along a grid axis, whose sections reach kinks tens of kilometres away). So the
-Taylor tier serves a link only while its section's structure (:attr:`.rangedep.Sections.structure`)
-is the reference's, and only if it was the same at every stencil point, and the second
-differences across the plane over h and h/2 agree (else the slope jumps in between). Not seen:
-a jump that changes none of these and lies between the stencil's points, e.g. a bottom
-reflection point near grazing that jumps across a kink of the floor polyline; the bound
-does not hold across it (measured once on the shelf-break benchmark: 2.5e-5 s, docs/channel.md).
+shelf-break benchmark with this guard off: served errors up to 110x the bound, 6.9e-7 s, on
+links running nearly along a grid axis, whose sections reach kinks tens of kilometres away). So
+the Taylor tier serves a link only while its section's structure
+(:attr:`.rangedep.Sections.structure`) is the reference's, and only if it was the same at every
+stencil point, and the second differences across the plane over h and h/2 agree (else the slope
+jumps in between). Not seen: a jump that changes none of these and lies between the stencil's
+points (none found on the shelf-break benchmark, docs/channel.md).
 
 Arrival-set changes. The stencil doubles as a guard: a link with an eigenray that cannot be
 followed to one of its points, or followed onto a sibling of its bounce sequence, or with a
@@ -97,6 +102,10 @@ _SAFETY = 8.0  # third and fourth derivatives allowed over a straight ray's, see
 _D3_STRAIGHT = 2.0 * 2.0**0.5 * 2.0 / 3.0**0.5  # |d^3 (L / c)| <= this / (c L^2) over both ends' moves
 _D4_STRAIGHT = 12.0  # |d^4 (L / c)| <= this / (c L^3)
 _SOLVER_S = 1e-12  # the eigenray solver's own accuracy, added to the bound
+# an expansion (18 stencil points) costs about as much as following the link this many times
+# (measured on the shelf-break benchmark: ~7.6 ms against ~0.56 ms); it pays only for a link
+# requested at least that often inside its region
+_EXPANSION_FOLLOWS = 13.0
 #: the per-arrival fields of an Arrivals the cache keeps (padded per slot)
 _FLOAT_FIELDS = (
     "delay",
@@ -126,6 +135,7 @@ def _slot_arrays(A: int) -> tuple[tuple[str, tuple[int, ...], float, type], ...]
         ("_radius", (), 0.0, float),  # the largest |delta| the Taylor tier serves, m
         ("_struct", (), 0, np.uint64),  # the reference section's structure (rangedep.Sections)
         ("_refused", (6,), np.nan, float),  # the ends where the Taylor tier last refused the link
+        ("_xq", (6,), np.nan, float),  # the ends of the link's last request
         ("_t0", (A,), np.nan, float),  # reference delays
         ("_g", (A, 6), 0.0, float),  # their gradients, s/m
         ("_H", (A, 21), 0.0, float),  # their Hessians (upper triangle, row by row), s/m^2
@@ -141,6 +151,7 @@ class CacheStats:
     follows: int = 0  #: served by following the last solution's eigenrays
     misses: int = 0  #: searched
     uncacheable: int = 0  #: searches after which the Taylor tier refused a link (unstable or not smooth)
+    not_expanded: int = 0  #: searches not expanded: the link moved too far per request for it to pay
 
     @property
     def hit_rate(self) -> float:
@@ -181,6 +192,7 @@ class ArrivalCache:
     _radius: NDArray[np.float64] = field(init=False, repr=False)
     _struct: NDArray[np.uint64] = field(init=False, repr=False)
     _refused: NDArray[np.float64] = field(init=False, repr=False)
+    _xq: NDArray[np.float64] = field(init=False, repr=False)
     _t0: NDArray[np.float64] = field(init=False, repr=False)
     _g: NDArray[np.float64] = field(init=False, repr=False)
     _H: NDArray[np.float64] = field(init=False, repr=False)
@@ -241,6 +253,7 @@ class ArrivalCache:
         fresh[~(hit | same)] = True
         fresh |= same
         delay[fresh] = self._tab["delay"][slots[fresh]]
+        self._xq[slots] = np.concatenate([s, d], axis=1)
         return self._serve(slots, delay, fresh)
 
     def bound(self, links: ArrayLike, src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
@@ -265,6 +278,15 @@ class ArrivalCache:
         if unknown:
             raise ValueError(f"ArrivalCache.last: link {unknown[0]} was never requested")
         return self._last(np.array([self._slot[i] for i in ids.tolist()], np.int64))
+
+    def positions(self, links: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(src, dst) (n, 3): the positions each link's :meth:`last` solution was solved at."""
+        ids = np.asarray(links, np.int64).ravel()
+        unknown = [i for i in ids.tolist() if i not in self._slot]
+        if unknown:
+            raise ValueError(f"ArrivalCache.positions: link {unknown[0]} was never requested")
+        slots = np.array([self._slot[i] for i in ids.tolist()], np.int64)
+        return self._sl[slots].copy(), self._dl[slots].copy()
 
     def radius(self, links: ArrayLike) -> NDArray[np.float64]:
         """The largest move sqrt(|s - s0|^2 + |d - d0|^2) (m) of each link the Taylor tier
@@ -388,7 +410,13 @@ class ArrivalCache:
         x = np.concatenate([s, d], axis=1)
         with np.errstate(invalid="ignore"):
             todo = ~(np.linalg.norm(x - self._refused[slots], axis=1) <= 2.0 * _STENCIL_M)
+            # nor a link that moved since its last request more than the region's radius over
+            # the requests the expansion must serve to pay for itself (at its next requests the
+            # link would be followed for less; a link requested for the first time is expanded)
+            fast = np.linalg.norm(x - self._xq[slots], axis=1) > _STENCIL_M / _EXPANSION_FOLLOWS
         self.stats.uncacheable += int((~todo).sum())
+        self.stats.not_expanded += int((todo & fast).sum())
+        todo &= ~fast
         if not todo.any():
             return
         sub = slots[todo]

@@ -132,6 +132,34 @@ def test_moves_beyond_the_bound_are_solved_again() -> None:
     np.testing.assert_allclose(got.delay, exact.delay, rtol=0, atol=1e-12)
 
 
+def test_searches_of_fast_moving_links_are_not_expanded() -> None:
+    """The expansion is made at a link's first request and where its ends moved little since
+    the last one (<= 0.5 m / 13): a link moved 5 m per request is searched without it (no Taylor
+    region), one moved 1 cm gets it again and is then served by Taylor."""
+    env = _front_env()
+    rng = np.random.default_rng(7)
+    s, d = _links(rng, 12)
+    ids = np.arange(12)
+    cache = ArrivalCache(env, 12, max_bounces=1, follow_m=0.0)
+    cache.get(ids, s, d)
+    expanded = cache.radius(ids) > 0
+    assert expanded.sum() >= 6 and cache.stats.not_expanded == 0
+    step = np.array([5.0, 0.0, 0.0])
+    cache.get(ids, s, d + step)
+    assert cache.stats.misses == 24 and cache.stats.not_expanded == 12
+    assert np.all(cache.radius(ids) == 0.0)
+    small = np.array([0.01, 0.0, 0.0])
+    cache.get(ids, s, d + step + small)  # searched (no region), now expanded
+    assert cache.stats.misses == 36 and cache.stats.not_expanded == 12
+    again = cache.radius(ids) > 0
+    assert again.sum() >= 6
+    hits = cache.stats.hits
+    got = cache.get(ids, s, d + step + 2 * small)
+    assert cache.stats.hits - hits == again.sum()
+    exact = arrivals(env, s, d + step + 2 * small, max_bounces=1)
+    np.testing.assert_allclose(got.delay, exact.delay, rtol=0, atol=1e-7)
+
+
 def test_bad_ids() -> None:
     cache = ArrivalCache(_front_env(), 3)
     with pytest.raises(ValueError, match="link ids"):
@@ -170,6 +198,13 @@ def test_follow_tier_matches_the_exact_search() -> None:
         same += 1
         np.testing.assert_allclose(np.sort(got.delay[g]), np.sort(exact.delay[e]), rtol=0, atol=1e-9)
     assert same >= n - 3
+    # the positions of the cached solutions: the followed links' new ends, the others' too
+    # (searched there)
+    ps, pd = cache.positions(ids)
+    np.testing.assert_array_equal(ps, s2)
+    np.testing.assert_array_equal(pd, d2)
+    with pytest.raises(ValueError, match="never requested"):
+        ArrivalCache(env, 2).positions([1])
     # a move beyond follow_m is searched again
     m0 = cache.stats.misses
     cache.get(ids, s2 + np.array([3.0, 0.0, 0.0]), d2)
