@@ -62,7 +62,7 @@ def continued(env, ref, s0, d0, s1, d1, mb: int, step_m: float = 0.01):
     on another eigenray of the same bounce sequence, which is not the error the Taylor bound is
     about (measured on the shelf-break sample: a two-bounce eigenray near grazing, followed 0.1 m
     in one jump, landed on one whose reflection points lie 50 m away, the second across a floor
-    kink, 2.5e-5 s later, and which the search does not list)."""
+    kink, 2.5e-5 s earlier, and which the search does not list)."""
     from aquasim_py.channel.arrivals import follow
 
     move = np.maximum(np.linalg.norm(s1 - s0, axis=1), np.linalg.norm(d1 - d0, axis=1))
