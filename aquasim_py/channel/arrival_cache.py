@@ -253,7 +253,8 @@ class ArrivalCache:
         fresh[~(hit | same)] = True
         fresh |= same
         delay[fresh] = self._tab["delay"][slots[fresh]]
-        self._xq[slots] = np.concatenate([s, d], axis=1)
+        if self.tol_s > 0.0:  # only the expansion's cost rule reads it
+            self._xq[slots] = np.concatenate([s, d], axis=1)
         return self._serve(slots, delay, fresh)
 
     def bound(self, links: ArrayLike, src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
@@ -273,20 +274,20 @@ class ArrivalCache:
     def last(self, links: ArrayLike) -> Arrivals:
         """Each link's cached solution, as last searched or followed (for a link the Taylor
         tier serves, its reference)."""
-        ids = np.asarray(links, np.int64).ravel()
-        unknown = [i for i in ids.tolist() if i not in self._slot]
-        if unknown:
-            raise ValueError(f"ArrivalCache.last: link {unknown[0]} was never requested")
-        return self._last(np.array([self._slot[i] for i in ids.tolist()], np.int64))
+        return self._last(self._known_slots(links, "last"))
 
     def positions(self, links: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(src, dst) (n, 3): the positions each link's :meth:`last` solution was solved at."""
-        ids = np.asarray(links, np.int64).ravel()
-        unknown = [i for i in ids.tolist() if i not in self._slot]
-        if unknown:
-            raise ValueError(f"ArrivalCache.positions: link {unknown[0]} was never requested")
-        slots = np.array([self._slot[i] for i in ids.tolist()], np.int64)
+        slots = self._known_slots(links, "positions")
         return self._sl[slots].copy(), self._dl[slots].copy()
+
+    def _known_slots(self, links: ArrayLike, caller: str) -> NDArray[np.int64]:
+        """The slots of links requested before (ValueError naming ``caller`` otherwise)."""
+        ids = np.asarray(links, np.int64).ravel().tolist()
+        unknown = [i for i in ids if i not in self._slot]
+        if unknown:
+            raise ValueError(f"ArrivalCache.{caller}: link {unknown[0]} was never requested")
+        return np.array([self._slot[i] for i in ids], np.int64)
 
     def radius(self, links: ArrayLike) -> NDArray[np.float64]:
         """The largest move sqrt(|s - s0|^2 + |d - d0|^2) (m) of each link the Taylor tier
