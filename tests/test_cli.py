@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from aquasim_py import cli, display, metrics, trace
+from aquasim_py import cli, metrics, trace
+from aquasim_py.reporting import display
 
 SCENARIO = """\
 [simulation]

@@ -54,7 +54,7 @@ def _report_into(
 ) -> Path:
     """Write the report of ``directory`` into ``out`` and list its files in ``out``'s manifest."""
     from aquasim_py.outdir import record_files
-    from aquasim_py.report import write_report
+    from aquasim_py.reporting.report import write_report
 
     html = write_report(directory, out, metrics, link)
     record_files(out, sorted(p.name for p in out.iterdir() if p.suffix == ".png" or p == html))
@@ -75,7 +75,7 @@ def reports_for(out: Path, metrics: Sequence[str] | None = None, link: tuple[int
 
 def command(argv: Sequence[str]) -> int:
     from aquasim_py.outdir import refuse_foreign
-    from aquasim_py.report import ReportError
+    from aquasim_py.reporting.report import ReportError
 
     args = parser().parse_args(argv)
     directory = Path(args.directory)

@@ -9,8 +9,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from aquasim_py import tables
 from aquasim_py.cli import common
+from aquasim_py.reporting import tables
 from aquasim_py.runner import (
     RunResult,
     check_output_format,
@@ -133,7 +133,7 @@ def _report(out: Path, args: argparse.Namespace) -> None:
 
 def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:
     """The variants side by side: a row per metric (each unit shown), a column per variant, in
-    blocks of columns that fit ``width`` (:func:`aquasim_py.tables.comparison_table`)."""
+    blocks of columns that fit ``width`` (:func:`aquasim_py.reporting.tables.comparison_table`)."""
     sim = base.simulation
     title = f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)"
     table = tables.comparison_table({name: res.metrics for name, res in results.items()}, title)

@@ -271,11 +271,12 @@ def _run_with_bar(
 
 def summary_table(out: Path, name: str, patterns: Sequence[str] | None, width: int | None = None) -> Any:
     """The sweep's metrics per grid point from ``out/sweep.csv``: centre, 95 % interval and n
-    (:func:`aquasim_py.tables.sweep_table`), the metrics ``patterns`` select (default all but
+    (:func:`aquasim_py.reporting.tables.sweep_table`), the metrics ``patterns`` select (default all but
     the packet counts)."""
     from rich.text import Text
 
-    from aquasim_py import report_sweep, tables
+    from aquasim_py.reporting import sweep as report_sweep
+    from aquasim_py.reporting import tables
 
     data = report_sweep.load(out)
     metrics = report_sweep.select(data.metrics, patterns)

@@ -9,9 +9,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aquasim_py import cli, report_sweep
+from aquasim_py import cli
+from aquasim_py.reporting import sweep as report_sweep
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MODEL, SIGMA = "nodes.1.params.model", "nodes.1.params.sigma_t_s"
 
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from aquasim_py.display import column_blocks, fits, format_number, format_row, unit_of, wrap_name
+from aquasim_py.reporting.display import column_blocks, fits, format_number, format_row, unit_of, wrap_name
 
 
 @pytest.mark.parametrize(

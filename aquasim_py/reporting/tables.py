@@ -1,6 +1,6 @@
 """The tables a run, a variants run and a sweep print (terminal) and show (report.html).
 
-Each builder returns a :class:`~aquasim_py.display.TextTable` of formatted text (units per
+Each builder returns a :class:`~aquasim_py.reporting.display.TextTable` of formatted text (units per
 metric, four significant digits), rendered by the CLI in blocks that fit the terminal and by
 the reports as HTML, so both show the same numbers.
 """
@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from aquasim_py.display import (
+from aquasim_py.reporting.display import (
     TextTable,
     describe_network,
     fits,
@@ -139,9 +139,9 @@ def paper_title(sc: Any, citations: Sequence[str]) -> str:
 def sweep_table(data: Any, summary: Any, metrics: Sequence[str], title: str, max_points: int = 12) -> TextTable:
     """A sweep's metrics per grid point: rows = metrics, columns = grid points (the first
     ``max_points``), each cell the centre over the point's runs and below it its 95 %
-    interval (``summary``: :func:`aquasim_py.report_sweep.summary`), and ``n=`` when the
+    interval (``summary``: :func:`aquasim_py.reporting.sweep.summary`), and ``n=`` when the
     number of runs differs between cells (else n is in the caption)."""
-    from aquasim_py.report_sweep import point_label
+    from aquasim_py.reporting.sweep import point_label
 
     keys = list(data.grid)
     points = list(dict.fromkeys(tuple(r) for r in data.runs[keys].itertuples(index=False))) if keys else [()]

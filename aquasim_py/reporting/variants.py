@@ -4,7 +4,7 @@ variants side by side on one network and seed.
 The directory holds ``variants.csv`` and one run directory per variant (each with its own
 ``summary.json``, trace tables and, from ``aquasim-py report``, its own ``report.html``).
 The page shows the comparison table (every metric with its unit, each protocol's own family
-aligned, :func:`aquasim_py.tables.comparison_table`), the protocols' papers beside the run
+aligned, :func:`aquasim_py.reporting.tables.comparison_table`), the protocols' papers beside the run
 (``paper.csv``) with the network described, and the distributions of the localization and
 clock errors of every variant on one plot each (``variants_error_cdf.png``,
 ``variants_sync_cdf.png``), with links to each variant's own report.
@@ -21,9 +21,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py import tables, trace, tracks
-from aquasim_py.plotting import plt, save_figure
-from aquasim_py.report_sweep import pick
+from aquasim_py import trace, tracks
+from aquasim_py.reporting import tables
+from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.sweep import pick
 
 __all__ = ["body", "variant_dirs"]
 
@@ -61,7 +62,7 @@ def _citations(summaries: Mapping[str, dict[str, Any]]) -> tuple[list[str], str 
     """The papers the protocols compare with and the network, from the resolved scenarios
     (None when a scenario no longer loads, e.g. a CTD file moved)."""
     from aquasim_py import scenario
-    from aquasim_py.display import describe_network
+    from aquasim_py.reporting.display import describe_network
     from aquasim_py.runner import citations_of
 
     classes: list[type] = []

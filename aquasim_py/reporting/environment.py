@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py.plotting import plt, save_figure
+from aquasim_py.reporting.figures import plt, save_figure
 
 __all__ = ["choose_link", "plot_link", "report_plot"]
 

@@ -13,10 +13,12 @@ import pandas as pd
 import pytest
 from rich.console import Console
 
-from aquasim_py import cli, report_sweep, tables
-from aquasim_py.display import format_row
+from aquasim_py import cli
+from aquasim_py.reporting import sweep as report_sweep
+from aquasim_py.reporting import tables
+from aquasim_py.reporting.display import format_row
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _render(renderable, width: int) -> str:

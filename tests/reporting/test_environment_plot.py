@@ -1,4 +1,4 @@
-"""The environment plot of a range-dependent run's report (aquasim_py.plot_environment)."""
+"""The environment plot of a range-dependent run's report (aquasim_py.reporting.environment)."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pandas as pd
 
 from aquasim_py import run_scenario
 from aquasim_py.cli import main
-from aquasim_py.plot_environment import choose_link
-from aquasim_py.report import write_report
+from aquasim_py.reporting.environment import choose_link
+from aquasim_py.reporting.report import write_report
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 
 def test_report_draws_the_environment_of_a_range_dependent_run(tmp_path, capsys) -> None:

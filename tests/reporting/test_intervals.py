@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from aquasim_py import intervals
+from aquasim_py.reporting import intervals
 
 
 def _one(values, metric="m", **kw):

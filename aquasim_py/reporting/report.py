@@ -4,7 +4,7 @@ a sweep's output.
 Everything is drawn from what the run wrote (trace tables, ``summary.json``, ``variants.csv``,
 ``sweep.csv``), so the same call serves ``aquasim-py report DIR`` long after the run,
 ``--report`` at the end of one, and a notebook. matplotlib runs on its non-interactive Agg
-backend (:mod:`aquasim_py.plotting`); nothing opens a window.
+backend (:mod:`aquasim_py.reporting.figures`); nothing opens a window.
 
 Run directory (``summary.json`` and the trace tables):
 
@@ -14,15 +14,15 @@ Run directory (``summary.json`` and the trace tables):
 - ``error_cdf.png``: empirical CDF of the localization error;
 - ``packets.png``: packet outcomes (received, and each drop reason) per time bin;
 - ``environment.png`` (a range-dependent environment): the sound-speed section and floor under
-  one link with its eigenrays (:mod:`aquasim_py.plot_environment`);
+  one link with its eigenrays (:mod:`aquasim_py.reporting.environment`);
 - a tracker's tracks (MSWPF, SVL-PF, Ramezani tracking) scored by Stone Soup, OSPA and GOSPA
   beside our RMSE (:mod:`aquasim_py.tracks`; the ``stonesoup`` extra).
 
 Variants run (``variants.csv`` and a run directory per variant): the variants side by side
-(:mod:`aquasim_py.report_variants`), each variant's own report in its directory.
+(:mod:`aquasim_py.reporting.variants`), each variant's own report in its directory.
 
 Sweep directory (``sweep.csv``): each metric against each swept value, a line per
-combination of the other grid keys (:mod:`aquasim_py.report_sweep`), and the table per grid
+combination of the other grid keys (:mod:`aquasim_py.reporting.sweep`), and the table per grid
 point with n and the interval.
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
@@ -40,9 +40,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py import report_sweep as sweep_report
-from aquasim_py import tables, trace
-from aquasim_py.plotting import plt, save_figure
+from aquasim_py import trace
+from aquasim_py.reporting import sweep as sweep_report
+from aquasim_py.reporting import tables
+from aquasim_py.reporting.figures import plt, save_figure
 
 __all__ = ["ReportError", "report_run", "report_sweep", "write_report"]
 
@@ -205,7 +206,7 @@ def _run_plots(tables: Mapping[str, pd.DataFrame], out: Path) -> list[Path]:
 def report_sweep(
     sweep_dir: str | Path, out: str | Path | None = None, metrics: Sequence[str] | None = None
 ) -> list[Path]:
-    """The sweep plots of ``sweep_dir`` (:mod:`aquasim_py.report_sweep`) for the metrics the
+    """The sweep plots of ``sweep_dir`` (:mod:`aquasim_py.reporting.sweep`) for the metrics the
     shell ``metrics`` patterns select, written into ``out`` (default ``sweep_dir``)."""
     sweep_dir = Path(sweep_dir)
     out = Path(out) if out is not None else sweep_dir
@@ -232,7 +233,8 @@ _CSS = (
 def _run_body(
     directory: Path, out: Path, metrics: Sequence[str] | None, link: tuple[int, int] | None = None
 ) -> tuple[str, str, list[Path]]:
-    from aquasim_py import plot_environment, tracks
+    from aquasim_py import tracks
+    from aquasim_py.reporting import environment as plot_environment
 
     summary = json.loads((directory / "summary.json").read_text())
     t = trace.load(directory)
@@ -293,12 +295,12 @@ def write_report(
     directory; returns the HTML path. ``metrics``: shell patterns of the metrics to show
     (default: all of a run's; for sweeps and variants all but the packet counts). ``link``:
     (sender, receiver) whose rays a range-dependent run's ``environment.png`` draws (default
-    :func:`aquasim_py.plot_environment.choose_link`).
+    :func:`aquasim_py.reporting.environment.choose_link`).
 
     Raises :class:`ReportError` when ``directory`` holds none of ``summary.json``,
     ``variants.csv`` or ``sweep.csv``.
     """
-    from aquasim_py import report_variants
+    from aquasim_py.reporting import variants as report_variants
 
     directory = Path(directory)
     out = Path(out) if out is not None else directory

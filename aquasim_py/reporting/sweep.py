@@ -5,12 +5,12 @@ order in the scenario). For a metric and an x key (each numeric grid key; with n
 first grid key), the runs are grouped by x and by every other grid key: one line per
 combination of the other keys (and variant), in scenario order, so a grid ``model x sigma_t``
 draws ESSP and ASSP apart against sigma_t instead of pooling them. Each point is the
-sign-respecting centre and 95 % interval of :mod:`aquasim_py.intervals` over its runs.
+sign-respecting centre and 95 % interval of :mod:`aquasim_py.reporting.intervals` over its runs.
 
 Axes: an x key whose values are positive and closer to evenly spaced in log than in linear
 terms (``[1e-5, 1e-4, 1e-3]``, ``[10, 20, 40]``) gets a log axis, a metric whose centres are
 positive and span more than a decade a log y axis; times and lengths are shown in their
-display unit (:mod:`aquasim_py.display`).
+display unit (:mod:`aquasim_py.reporting.display`).
 
 Which metrics: :func:`select` (shell patterns such as ``"*.rmse_m"``; by default every metric
 but the packet counts, ``packets.*``, which a pattern selects explicitly).
@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py import display, intervals
-from aquasim_py.plotting import plt, save_figure
+from aquasim_py.reporting import display, intervals
+from aquasim_py.reporting.figures import plt, save_figure
 
 __all__ = [
     "Line",
@@ -170,7 +170,7 @@ class Line:
 
 
 def summary(data: SweepData, metrics: Sequence[str]) -> pd.DataFrame:
-    """:func:`aquasim_py.intervals.summarize` per grid point (every grid key) and metric."""
+    """:func:`aquasim_py.reporting.intervals.summarize` per grid point (every grid key) and metric."""
     return intervals.summarize(data.runs, list(data.grid), metrics)
 
 
