@@ -1,5 +1,6 @@
-"""``aquasim-py reproduce``: claims as data, verdicts, a tiny reproduction end to end, resume
-after a kill, and bad input. The real ``--quick`` of each paper is marked slow."""
+"""``aquasim-py reproduce`` end to end: a tiny reproduction and its outputs, the runs read
+again over a window, resume after a kill, progress in a log, and bad input. The real
+``--quick`` of each paper is marked slow. Claims as data: tests/reproduce/."""
 
 from __future__ import annotations
 
@@ -11,118 +12,83 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 
 from aquasim_py import reproduce as rp
 from aquasim_py.cli import main
-from aquasim_py.reproduce.claims import Claim, Quantity
-from aquasim_py.reproduce.verdict import evaluate
+from aquasim_py.reproduce.runner import run_units
 
 ROOT = Path(__file__).resolve().parents[1]
 # two STVF claims on 2 seeds of a 25-s network: a few seconds
-TINY = ["stvf", "--quick", "--only", "avg_rmse", "--only", "stvf_vs_slmp_rmse", "--runs", "2"]
+TINY = ["stvf", "--quick", "--only", "avg_rmse", "--only", "stvf_vs_slmp_error", "--runs", "2"]
 TINY_SETS = ["--set", "simulation.duration_s=25.0"]
-
-
-# ------------------------------------------------------------------------------- the claims
-@pytest.mark.parametrize("key", sorted(rp.PAPERS))
-def test_every_claim_names_a_scenario_variant_and_reading_that_exist(key):
-    """Each unit a claim needs loads (its scenario, overrides and variants), at both scales."""
-    paper = rp.PAPERS[key]
-    ids = [c.id for c in paper.claims]
-    assert len(ids) == len(set(ids))
-    for scale in (paper.quick, paper.full):
-        for unit in rp.plan_units(paper, scale, paper.claims):
-            sc = unit.load()
-            for v in unit.variants:
-                assert v is None or v in sc.variants
-    for c in paper.claims:
-        assert c.kind == "reference" or c.paper is not None or c.kind == "less"
-        assert paper.claim_readings(c), c.id
-
-
-def test_consensus_is_kept_out_of_the_claims():
-    sv = rp.PAPERS["svlpf"]
-    for c in sv.claims:
-        names = [q.metric for q in (c.a, c.b) if q is not None]
-        if any("consensus" in n for n in names):
-            assert c.kind == "reference" and "own construction" in c.text
-
-
-def test_no_variant_is_named_a_bound():
-    for paper in rp.PAPERS.values():
-        for scale in (paper.quick, paper.full):
-            for unit in rp.plan_units(paper, scale, paper.claims):
-                assert not any(v and "bound" in v for v in unit.variants)
-
-
-# ------------------------------------------------------------------------------- verdicts
-def _claim(kind, paper=None, stat="mean", **kw):
-    return Claim("c", "Fig. 1", "x", kind, Quantity("m", "a", statistic=stat), "s", paper=paper, **kw)
-
-
-def test_value_verdict_uses_the_band_on_the_t_interval():
-    rng = np.random.default_rng(1)
-    x = 10 + rng.normal(0, 0.5, 40)
-    assert evaluate(_claim("value", 10.0), x, None).verdict == "holds"
-    assert evaluate(_claim("value", 20.0), x, None).verdict == "does not hold"
-    wide = 10 + rng.normal(0, 20, 5)
-    assert evaluate(_claim("value", 10.0), wide, None).verdict == "tie"
-    o = evaluate(_claim("value", 10.0), x, None)
-    from scipy import stats
-
-    half = stats.t.ppf(0.975, 39) * x.std(ddof=1) / np.sqrt(40)
-    assert (o.low, o.high) == pytest.approx((x.mean() - half, x.mean() + half))
-
-
-def test_less_is_paired_and_rms_is_pooled():
-    rng = np.random.default_rng(2)
-    common = rng.normal(0, 5, 30)  # shared luck of each seed: pairing removes it
-    a, b = 10 + common, 10.3 + common + rng.normal(0, 0.1, 30)
-    c = Claim("c", "f", "x", "less", Quantity("m", "a"), "s", b=Quantity("m", "b"))
-    assert evaluate(c, a, b).verdict == "holds"
-    assert evaluate(c, b, a).verdict == "does not hold"
-    r = evaluate(_claim("value", 5.0, "rms"), np.array([3.0, 4.0, 5.0, 6.0]), None)
-    assert r.ours == pytest.approx(np.sqrt(np.mean([9, 16, 25, 36])))
-    assert r.low <= r.ours <= r.high
-
-
-def test_gap_pct_and_missing_runs():
-    c = Claim("c", "f", "x", "gap_pct", Quantity("m", "a"), "s", b=Quantity("m", "b"), paper=50.0)
-    a = np.array([1.0, 1.0, 1.0, np.nan])
-    b = np.array([1.5, 1.5, 1.5, 9.0])
-    o = evaluate(c, a, b)
-    assert o.n == 3 and o.ours == pytest.approx(50.0) and o.verdict == "holds"
-    assert evaluate(c, np.array([np.nan]), np.array([1.0])).verdict == "-"
+ONE_UNIT = ["stvf", "--quick", "--only", "avg_rmse"]  # STVF's two readings at Ns = 200: one unit
 
 
 # ------------------------------------------------------------------------------- end to end
 def test_tiny_reproduction_writes_claims_and_page(tmp_path, capsys):
     out = tmp_path / "r"
-    assert main(["reproduce", *TINY, *TINY_SETS, "--workers", "1", "--out", str(out), "--quiet"]) == 0
-    t = pd.read_csv(out / "claims.csv")
-    assert set(t["claim"]) == {"avg_rmse", "stvf_vs_slmp_rmse"}
-    assert set(t["reading"]) == {"printed", "text"}
+    assert main(["reproduce", *TINY, *TINY_SETS, "--workers", "1", "--out", str(out)]) == 0
+    t = pd.read_csv(out / "claims.csv", keep_default_na=False)
+    assert set(t["claim"]) == {"avg_rmse", "stvf_vs_slmp_error"}
+    assert set(t["reading"]) == {"printed", "text", "printed_after_training", "text_after_training"}
     assert (t["n"] == 2).all()
-    assert set(t["verdict"]) <= {"holds", "does not hold", "tie"}
+    assert set(t["verdict"]) == {"too few runs"}  # 2 runs: no verdict
+    assert {"paper_in_ci", "pi95_low", "flag", "unit"} <= set(t.columns)
     assert (t.loc[t["claim"] == "avg_rmse", "paper_value"] == 7.09).all()
-    assert (t["ci95_low"] <= t["ours"]).all() and (t["ours"] <= t["ci95_high"]).all()
+    assert (t["unit"] == "m").all()
+    num = t[["ci95_low", "ours", "ci95_high"]].astype(float)
+    assert (num["ci95_low"] <= num["ours"]).all() and (num["ours"] <= num["ci95_high"]).all()
+    # the after-training window is read from the same runs, and differs
+    a = t[t["claim"] == "avg_rmse"].set_index("reading")["ours"].astype(float)
+    assert a["printed"] != a["printed_after_training"]
     page = (out / "index.html").read_text()
-    assert "avg_rmse" in page and "7.09" in page and "aquasim-py reproduce" in page
+    assert "avg_rmse" in page and "7.09" in page and "aquasim-py reproduce" in page and "claims.png" in page
+    assert (out / "claims.png").stat().st_size > 10_000
     info = json.loads((out / "reproduce.json").read_text())
-    assert info["paper"] == "stvf" and info["runs_per_quantity"] == 2
-    # one unit: both readings' variants on the same seeds (paired)
-    (unit,) = (out / "units").iterdir()
-    rows = pd.read_csv(unit / "sweep.csv")
-    assert sorted(set(rows["variant"])) == ["slmp", "stvf", "stvf_text"]
-    assert rows.groupby("variant")["seed"].apply(sorted).apply(tuple).nunique() == 1
+    assert info["paper"] == "stvf" and info["runs_per_quantity"] == [2] and info["cpu_time_s"] > 0
+    # STVF at Nr = 2 and SLMP in units of their own, on the same seeds (paired by run)
+    units = {u.name: pd.read_csv(u / "sweep.csv") for u in (out / "units").iterdir()}
+    assert len(units) == 3
+    seeds = {tuple(sorted(set(df["seed"]))) for df in units.values()}
+    assert len(seeds) == 1
+    assert not any((u / "traces").exists() for u in (out / "units").iterdir())  # read again, then removed
+    printed = capsys.readouterr()
+    assert " m [" in printed.out and "n = 2" in printed.out and "too few runs" in printed.out
+    # not a terminal: whole progress lines, no carriage returns
+    assert "\r" not in printed.err and printed.err.count("runs\n") >= 3
+
+
+def test_a_window_at_zero_reads_the_runs_own_metrics(tmp_path):
+    """The metrics read again from a run's traces over a window from t = 0 are the run's own:
+    the re-reading changes nothing but the window."""
+    paper = rp.PAPERS["stvf"]
+    claim = next(c for c in paper.claims if c.id == "coverage_vs_slmp")
+    scale = rp.Scale(paper.quick.scenarios, 1, paper.quick.overrides, windows={"all": 0.0})
+    units = [u for u in rp.plan_units(paper, scale, [claim], sets=TINY_SETS[1:]) if "slmp" in u.variants]
+    rows = run_units(units, tmp_path, workers=1)
+    (row,) = [r for r in rows[units[0].name] if r["variant"] == "slmp"]
+    shared = [k for k in row if k.startswith("all.")]
+    assert len(shared) > 10
+    for k in shared:
+        assert row[k] == pytest.approx(row[k[len("all.") :]], rel=1e-12, nan_ok=True), k
 
 
 def test_resume_after_a_kill_runs_only_the_missing_runs(tmp_path):
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "aquasim_py.cli", "reproduce", *TINY, *TINY_SETS, "--workers", "1", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "aquasim_py.cli",
+        "reproduce",
+        *ONE_UNIT,
+        *TINY_SETS,
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+    ]
     cmd += ["--quiet", "--runs", "3"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     journal = None
@@ -137,11 +103,13 @@ def test_resume_after_a_kill_runs_only_the_missing_runs(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     before = [json.loads(x)["key"] for x in journal.read_text().splitlines() if x.strip().endswith("}")]
-    assert 2 <= len(before) < 9 and not (out / "claims.csv").exists()
-    assert main(["reproduce", *TINY, *TINY_SETS, "--runs", "3", "--workers", "1", "--out", str(out), "--resume"]) == 0
+    assert 2 <= len(before) < 6 and not (out / "claims.csv").exists()
+    assert (
+        main(["reproduce", *ONE_UNIT, *TINY_SETS, "--runs", "3", "--workers", "1", "--out", str(out), "--resume"]) == 0
+    )
     after = [json.loads(x)["key"] for x in journal.read_text().splitlines()]
     assert after[: len(before)] == before  # kept
-    assert len(after) == 9 and len(set(after)) == 9  # 3 variants x 3 seeds, none run twice
+    assert len(after) == 6 and len(set(after)) == 6  # 2 variants x 3 seeds, none run twice
     assert (out / "claims.csv").exists()
 
 

@@ -8,6 +8,7 @@ import os
 import shlex
 import signal
 import sys
+import time
 from collections.abc import Sequence
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -23,8 +24,10 @@ examples:
   aquasim-py reproduce stvf --full --scheduler tcp://10.0.0.5:8786   # Dask cluster
 
 DIR (--out, default out/reproduce/PAPER-SCALE) gets claims.csv (per claim and reading: the
-paper's value, ours with its 95 % CI, the verdict), index.html, reproduce.json and
-units/<unit>/ (each unit's row journal, sweep.csv, summary.csv).
+paper's value, ours with its 95 % CI, whether the paper's number is inside it, n, the
+verdict), claims.md, claims.png (a panel per claim), index.html, reproduce.json and
+units/<unit>/ (each unit's row journal, sweep.csv, summary.csv). Fewer than 10 runs give no
+verdict ("too few runs").
 """
 
 
@@ -82,9 +85,19 @@ def command(argv: Sequence[str]) -> int:
     cmd = shlex.join(["aquasim-py", "reproduce", *argv])
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
 
+    # on a terminal one line rewritten in place; in a log (stdout or stderr redirected) whole
+    # lines, at most one every 5 s per unit and its last
+    live = sys.stdout.isatty() and sys.stderr.isatty()
+    last = [0.0]
+
     def progress(unit: rp.Unit, done: int, total: int) -> None:
-        if not args.quiet:
+        if args.quiet:
+            return
+        if live:
             print(f"\r{unit.name}: {done}/{total} runs", end="" if done < total else "\n", file=sys.stderr, flush=True)
+        elif done == total or time.monotonic() - last[0] >= 5.0:
+            last[0] = time.monotonic()
+            print(f"{unit.name}: {done}/{total} runs", file=sys.stderr, flush=True)
 
     try:
         res = rp.reproduce(
@@ -112,19 +125,29 @@ def command(argv: Sequence[str]) -> int:
     if not args.quiet:
         _print_table(res.table)
     counts = res.table["verdict"].value_counts().to_dict()
-    print(f"{paper.key} {scale}: {len(res.table)} claim rows ({counts}) in {res.wall_s:.0f} s -> {out / 'claims.csv'}")
+    print(
+        f"{paper.key} {scale}: {len(res.table)} claim rows ({counts}) in {res.wall_s:.0f} s wall, "
+        f"{res.cpu_s:.0f} s CPU -> {out / 'claims.csv'}, {out / 'claims.png'}"
+    )
     return 0
 
 
 def _print_table(table: object) -> None:
     from rich.table import Table
 
+    from aquasim_py.reproduce.report import ours_text, paper_text, short_statistic, wording
     from aquasim_py.runner import console
 
-    t = Table(title="claims (ours [95 % CI])")
-    for c in ("claim", "reading", "paper", "ours", "verdict"):
+    t = Table(title="claims: ours [95 % CI] in the claim's unit")
+    for c in ("claim", "reading", "paper", "ours", "statistic", "verdict"):
         t.add_column(c)
     for r in table.itertuples():  # type: ignore[attr-defined]
-        paper = r.paper_text or f"{r.paper_value:.4g}"
-        t.add_row(r.claim, r.reading, paper, f"{r.ours:.4g} [{r.ci95_low:.4g}, {r.ci95_high:.4g}]", str(r.verdict))
+        t.add_row(
+            r.claim,
+            r.reading,
+            paper_text(r),
+            ours_text(r),
+            short_statistic(r.kind, r.statistic_of_runs, r.n),
+            wording(r),
+        )
     console().print(t)

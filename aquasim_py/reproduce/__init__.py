@@ -5,10 +5,10 @@ every reading of the paper's open choices (``claims.csv``, ``index.html``: :mod:
     aquasim-py reproduce stvf --quick
     aquasim_py.reproduce.reproduce("stvf", "quick", "out/reproduce/stvf-quick")
 
-``DIR`` holds ``claims.csv`` (and the same as a markdown table, ``claims.md``), ``index.html``,
-``reproduce.json`` (what ran: paper, scale,
-command, units, timing) and ``units/<unit>/`` (each unit's row journal, ``sweep.csv`` and
-``summary.csv``).
+``DIR`` holds ``claims.csv`` (and the same as a markdown table, ``claims.md``), ``claims.png``
+(a panel per claim: the paper's number and ours with its CI), ``index.html``,
+``reproduce.json`` (what ran: paper, scale, command, units, timing) and ``units/<unit>/``
+(each unit's row journal, ``sweep.csv`` and ``summary.csv``).
 """
 
 from __future__ import annotations
@@ -21,12 +21,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from .claims import REL_TOL, Claim, Paper, Quantity, Reading, Scale
+from .claims import MIN_RUNS, REL_TOL, Claim, Paper, Quantity, Reading, Scale
 from .papers import PAPERS
+from .plot import plot_claims
 from .report import claims_table, markdown, write_csv, write_html
 from .runner import Unit, evaluate_claims, plan_units, run_units
 
 __all__ = [
+    "MIN_RUNS",
     "PAPERS",
     "REL_TOL",
     "Claim",
@@ -39,7 +41,7 @@ __all__ = [
     "select",
 ]
 
-OUTPUTS = ("claims.csv", "claims.md", "index.html", "reproduce.json")
+OUTPUTS = ("claims.csv", "claims.md", "claims.png", "index.html", "reproduce.json")
 
 
 @dataclass(frozen=True)
@@ -49,6 +51,7 @@ class Reproduction:
     units: list[Unit]
     table: pd.DataFrame  #: claims.csv
     wall_s: float
+    cpu_s: float
 
 
 def select(paper: Paper, only: Sequence[str] = ()) -> tuple[Claim, ...]:
@@ -85,27 +88,46 @@ def reproduce(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    c0 = _cpu()
     units = plan_units(p, sc, claims, runs=runs, sets=sets)
     rows = run_units(units, out, workers=workers, scheduler=scheduler, resume=resume, progress=progress)
     results = evaluate_claims(p, sc, claims, rows, units, sets=sets)
     table = claims_table(p, results)
     write_csv(table, out / "claims.csv")
     (out / "claims.md").write_text(markdown(table))
-    write_html(p, scale, sc, table, command, out / "index.html")
+    plot_claims(table, p.title, out / "claims.png")
+    write_html(p, scale, sc, table, command, out / "index.html", plot="claims.png")
     wall = time.perf_counter() - t0
+    cpu = _cpu() - c0
     info = {
         "paper": p.key,
         "scale": scale,
         "command": command,
-        "runs_per_quantity": units[0].runs if units else 0,
+        "runs_per_quantity": sorted({u.runs for u in units}),
         "sets": list(sets),
         "only": list(only),
         "units": [
-            {"name": u.name, "scenario": u.scenario.name, "overrides": list(u.overrides), "variants": list(u.variants)}
+            {
+                "name": u.name,
+                "scenario": u.scenario.name,
+                "overrides": list(u.overrides),
+                "variants": list(u.variants),
+                "runs": u.runs,
+                "windows": dict(u.windows),
+            }
             for u in units
         ],
         "wall_time_s": wall,  # of this invocation (a resumed one: the part run now)
+        "cpu_time_s": cpu,  # of this process and its finished worker processes
         "verdicts": table["verdict"].value_counts().to_dict(),
     }
     (out / "reproduce.json").write_text(json.dumps(info, indent=2) + "\n")
-    return Reproduction(p, scale, units, table, wall)
+    return Reproduction(p, scale, units, table, wall, cpu)
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and its waited-for children (local worker processes)."""
+    import resource
+
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime

@@ -4,8 +4,14 @@ The claims of one paper need runs of a few (scenario file, overrides) pairs, eac
 variants and the scale's seeds: one *unit* per pair, run as a sweep whose grid is the
 ``variant`` key, journalled in ``DIR/units/<unit>/rows.jsonl`` as runs finish (so a killed
 reproduction resumes without running a finished run again: :func:`aquasim_py.sweep.done_keys`)
-and written out as that directory's ``sweep.csv`` / ``summary.csv``. Every variant of a unit
-runs on the same seeds, so the claims' comparisons are paired.
+and written out as that directory's ``sweep.csv`` / ``summary.csv``. Every unit of a scenario
+file runs the same seeds (``run_seed(scenario seed, r)``: the same network and noise for every
+variant), so the claims' comparisons are paired by run, also between two units.
+
+Where a claim reads a run another way than its metrics (scored over another time window of
+the scale, or a per-interval series), each run's trace tables are kept while it finishes,
+read again into its row (``<window>.<metric>``; ``<metric>[k]`` from the protocols'
+``interval_metrics``) before the row is journalled, and removed.
 """
 
 from __future__ import annotations
@@ -13,6 +19,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shutil
+import tomllib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,29 +31,44 @@ import numpy as np
 from aquasim_py import scenario, sweep
 from aquasim_py.scenario import Scenario
 
-from .claims import Claim, Paper, Quantity, Reading, Scale
-from .verdict import Outcome, evaluate
+from .claims import Claim, Paper, Quantity, Reading, Scale, Statistic
+from .verdict import Outcome, evaluate, stat
 
-__all__ = ["ClaimResult", "Unit", "evaluate_claims", "plan_units", "run_units"]
+__all__ = ["ClaimResult", "Unit", "evaluate_claims", "plan_units", "resolved", "run_units"]
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
 class Unit:
-    """Runs of one scenario file with one set of overrides, over ``variants`` and ``runs`` seeds."""
+    """Runs of one scenario file with one set of overrides, over ``variants`` and ``runs`` seeds.
+
+    ``windows``: (name, time) pairs the runs' metrics are also scored from; ``intervals``:
+    whether the rows need the protocols' per-interval series."""
 
     name: str
     scenario: Path
     overrides: tuple[str, ...]
     variants: tuple[str | None, ...]
     runs: int
+    windows: tuple[tuple[str, float], ...] = ()
+    intervals: bool = False
 
     def load(self) -> Scenario:
-        """The scenario with a ``[sweep]`` of the unit's seeds and variants."""
+        """The scenario with a ``[sweep]`` of the unit's seeds and variants. The file's other
+        variants are left out: an override of one protocol's parameter (STVF's Nr) would not
+        validate in a variant running another protocol (SLMP)."""
+        raw = tomllib.loads(self.scenario.read_text(encoding="utf-8"))
+        if isinstance(raw.get("variants"), dict):
+            raw["variants"] = {k: v for k, v in raw["variants"].items() if k in self.variants}
         grid = {} if self.variants == (None,) else {"variant": list(self.variants)}
         sets = [*self.overrides, f"sweep.runs={self.runs}", f"sweep.grid={_toml_inline(grid)}"]
-        return scenario.load(self.scenario, overrides=sets)
+        return scenario.load_dict(raw, self.scenario, overrides=sets)
+
+    @property
+    def rereads(self) -> bool:
+        """Whether each run's traces are read again before its row is journalled."""
+        return bool(self.windows) or self.intervals
 
 
 def _toml_inline(grid: dict[str, list[Any]]) -> str:
@@ -53,15 +76,30 @@ def _toml_inline(grid: dict[str, list[Any]]) -> str:
     return "{" + items + "}"
 
 
-def _resolve(paper: Paper, scale: Scale, claim: Claim, reading: Reading) -> tuple[Path, tuple[str, ...]]:
+def _resolve(paper: Paper, scale: Scale, claim: Claim, reading: Reading) -> tuple[str, Path, tuple[str, ...]]:
     key = reading.scenarios.get(claim.scenario, claim.scenario)
     if key not in scale.scenarios:
         raise KeyError(f"{paper.key}: claim {claim.id!r} needs scenario {key!r}, not in the scale")
-    return ROOT / scale.scenarios[key], (*scale.overrides, *reading.overrides, *claim.overrides)
+    return key, ROOT / scale.scenarios[key], (*scale.overrides, *reading.overrides, *claim.overrides)
 
 
 def _variant(q: Quantity, reading: Reading) -> str | None:
     return reading.variants.get(q.variant, q.variant) if q.variant is not None else None
+
+
+def resolved(q: Quantity, reading: Reading) -> tuple[str, Statistic]:
+    """The column a quantity reads under ``reading`` and its statistic."""
+    metric, statistic = reading.metrics.get(q.metric, (q.metric, q.statistic))
+    return (f"{reading.window}.{metric}" if reading.window else metric), statistic
+
+
+def _quantity_overrides(scale: Scale, reading: Reading, q: Quantity) -> tuple[str, ...]:
+    """Overrides of one quantity's runs only: its variant's (the scale's, then the reading's)
+    and its own."""
+    v = _variant(q, reading)
+    if v is None:
+        return q.overrides
+    return (*scale.variant_overrides.get(v, ()), *reading.variant_overrides.get(v, ()), *q.overrides)
 
 
 def _quantities(claim: Claim) -> list[Quantity]:
@@ -74,19 +112,64 @@ def plan_units(
     """The units ``claims`` need at ``scale`` (``runs``, ``sets``: replace the scale's seed count,
     add overrides to every run), in a stable order."""
     found: dict[tuple[Path, tuple[str, ...]], set[str | None]] = {}
+    count: dict[tuple[Path, tuple[str, ...]], int] = {}
+    windows: dict[tuple[Path, tuple[str, ...]], set[str]] = {}
+    intervals: set[tuple[Path, tuple[str, ...]]] = set()
     for claim in claims:
         for reading in paper.claim_readings(claim):
-            path, over = _resolve(paper, scale, claim, reading)
-            key = (path, (*over, *sets))
-            found.setdefault(key, set()).update(_variant(q, reading) for q in _quantities(claim))
+            skey, path, over = _resolve(paper, scale, claim, reading)
+            if reading.window and reading.window not in scale.windows:
+                raise KeyError(f"{paper.key}: reading {reading.name!r} needs window {reading.window!r}")
+            for q in _quantities(claim):
+                key = (path, (*over, *_quantity_overrides(scale, reading, q), *sets))
+                found.setdefault(key, set()).add(_variant(q, reading))
+                count[key] = runs if runs is not None else scale.runs_by_scenario.get(skey, scale.runs)
+                if reading.window:
+                    windows.setdefault(key, set()).add(reading.window)
+                if resolved(q, reading)[1] in ("time_mean_rms", "interval_mean"):
+                    intervals.add(key)
     units = []
-    for (path, over), variants in found.items():
+    for key, variants in found.items():
+        path, over = key
         if None in variants and len(variants) > 1:
             raise ValueError(f"{paper.key}: {path.name} is used both as written and by variant")
-        tag = hashlib.sha256(json.dumps([path.name, list(over)]).encode()).hexdigest()[:8]
+        win = tuple((w, scale.windows[w]) for w in sorted(windows.get(key, ())))
+        ident = [path.name, list(over), [list(w) for w in win], key in intervals]
+        tag = hashlib.sha256(json.dumps(ident).encode()).hexdigest()[:8]
         vs = tuple(sorted(variants, key=lambda v: v or ""))
-        units.append(Unit(f"{path.stem}-{tag}", path, over, vs, runs if runs is not None else scale.runs))
+        units.append(Unit(f"{path.stem}-{tag}", path, over, vs, count[key], win, key in intervals))
     return sorted(units, key=lambda u: u.name)
+
+
+def _reread(unit: Unit, sc: Scenario, row: dict[str, Any], traces: Path) -> None:
+    """Add the run's other readings to ``row`` from its traces (``traces/<key>/``), then remove
+    them: its metrics scored over each window, and the protocols' per-interval series."""
+    from aquasim_py import metrics, registry, trace
+
+    d = traces / str(row["key"])
+    try:
+        if row.get("error") or not d.is_dir():
+            return
+        # read lazily: a table is parsed only when a metric asks for it
+        tables = trace.TraceFiles({f.stem: f for f in sorted(d.iterdir()) if f.suffix in (".csv", ".parquet")})
+        for name, t0 in unit.windows:
+            m = metrics.summarize(
+                tables, None, percentiles=sc.metrics.percentiles, warmup_s=t0, unknown_roles=sc.metrics.unknown_roles
+            )
+            row.update({f"{name}.{k}": _plain(v) for k, v in m.items() if not k.startswith("packets.")})
+        if unit.intervals:
+            nodes = tables.get("nodes")
+            names = [] if nodes is None else list(dict.fromkeys(nodes["protocol"].astype(str)))
+            for proto in names:
+                fn = getattr(registry.get(proto), "interval_metrics", None)
+                if fn is not None:
+                    row.update({f"{proto}.{k}": _plain(v) for k, v in fn(tables).items()})
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def _plain(v: Any) -> Any:
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def run_units(
@@ -118,8 +201,21 @@ def run_units(
             base = len(jobs) - len(todo)
             total = len(jobs)
             tick = None if progress is None else (lambda k, _n, u=unit, b=base, t=total: progress(u, b + k, t))
+            traces = d / "traces" if unit.rereads else None
             with sweep.Journal(journal) as j:
-                sweep.run_jobs(sc, todo, workers=workers, scheduler=scheduler, on_row=j.append, progress=tick)
+
+                def on_row(
+                    row: dict[str, Any], j: sweep.Journal = j, u: Unit = unit, s: Scenario = sc, t: Path | None = traces
+                ) -> None:
+                    if t is not None:
+                        _reread(u, s, row, t)
+                    j.append(row)
+
+                sweep.run_jobs(
+                    sc, todo, workers=workers, scheduler=scheduler, on_row=on_row, progress=tick, traces=traces
+                )
+            if traces is not None:
+                shutil.rmtree(traces, ignore_errors=True)
         rows[unit.name] = sweep.finish(d, jobs)[0]
     return rows
 
@@ -131,15 +227,40 @@ class ClaimResult:
     outcome: Outcome
     a_value: float  #: the statistic of quantity a alone
     b_value: float  #: and of b (nan without one)
+    a_metric: str  #: the column quantity a read under the reading, and its statistic
+    a_statistic: Statistic
+    b_metric: str
+    b_statistic: Statistic | None
 
 
-def _series(rows: Sequence[dict[str, Any]], q: Quantity, variant: str | None) -> dict[int, float]:
-    out: dict[int, float] = {}
+def _values(rows: Sequence[dict[str, Any]], metric: str, statistic: Statistic, variant: str | None) -> dict[int, Any]:
+    """Run -> the metric's value (a float), or for a per-interval statistic the run's series
+    ``metric[k]`` in k order (an array; NaN where missing)."""
+    out: dict[int, Any] = {}
+    prefix = f"{metric}["
     for r in rows:
         if r.get("error") or (variant is not None and r.get("variant") != variant):
             continue
-        v = r.get(q.metric)
-        out[int(r["run"])] = float(v) if isinstance(v, (int, float)) and v is not None else math.nan
+        if statistic in ("time_mean_rms", "interval_mean"):
+            keys = sorted((k for k in r if k.startswith(prefix)), key=lambda k: int(k[len(prefix) : -1]))
+            out[int(r["run"])] = np.array([_num(r[k]) for k in keys], float)
+        else:
+            out[int(r["run"])] = _num(r.get(metric))
+    return out
+
+
+def _num(v: Any) -> float:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else math.nan
+
+
+def _stack(values: list[Any]) -> np.ndarray:
+    """Per-run values as (runs,), or series as (runs, intervals), padded with NaN."""
+    if not values or np.ndim(values[0]) == 0:
+        return np.array(values, float)
+    k = max((len(v) for v in values), default=0)
+    out = np.full((len(values), k), math.nan)
+    for i, v in enumerate(values):
+        out[i, : len(v)] = v
     return out
 
 
@@ -157,23 +278,34 @@ def evaluate_claims(
     results = []
     for claim in claims:
         for reading in paper.claim_readings(claim):
-            path, over = _resolve(paper, scale, claim, reading)
-            unit = by_key[(path, (*over, *sets))]
-            urows = rows.get(unit.name, [])
-            sa = _series(urows, claim.a, _variant(claim.a, reading))
-            sb = _series(urows, claim.b, _variant(claim.b, reading)) if claim.b is not None else None
-            runs = sorted(set(sa) & set(sb) if sb is not None else set(sa))
-            a = np.array([sa[r] for r in runs], float)
-            b = np.array([sb[r] for r in runs], float) if sb is not None else None
-            out = evaluate(claim, a, b)
+            _key, path, over = _resolve(paper, scale, claim, reading)
 
-            def stat(x: np.ndarray, q: Quantity) -> float:
-                x = x[np.isfinite(x)]
-                if x.size == 0:
+            def rows_of(
+                q: Quantity, path: Path = path, over: tuple[str, ...] = over, reading: Reading = reading
+            ) -> list[dict[str, Any]]:
+                key = (path, (*over, *_quantity_overrides(scale, reading, q), *sets))
+                return rows.get(by_key[key].name, [])
+
+            ma, sa = resolved(claim.a, reading)
+            va = _values(rows_of(claim.a), ma, sa, _variant(claim.a, reading))
+            vb = None
+            mb, sb = "", None
+            if claim.b is not None:
+                mb, sb = resolved(claim.b, reading)
+                vb = _values(rows_of(claim.b), mb, sb, _variant(claim.b, reading))
+            runs = sorted(set(va) & set(vb) if vb is not None else set(va))
+            a = _stack([va[r] for r in runs])
+            b = _stack([vb[r] for r in runs]) if vb is not None else None
+            out = evaluate(claim, a, b, sa, sb)
+
+            def alone(x: np.ndarray, how: Statistic) -> float:
+                keep = np.isfinite(x) if x.ndim == 1 else np.isfinite(x).any(axis=1)
+                if not keep.any():
                     return math.nan
-                return float(np.sqrt(np.mean(x**2)) if q.statistic == "rms" else np.mean(x))
+                v = stat(x[keep], how)
+                return float(np.nanmean(v)) if v.ndim else float(v)  # a curve: its mean over intervals
 
-            av = stat(a, claim.a)
-            bv = stat(b, claim.b) if b is not None and claim.b is not None else math.nan
-            results.append(ClaimResult(claim, reading, out, av, bv))
+            av = alone(a, sa)
+            bv = alone(b, sb) if b is not None and sb is not None else math.nan
+            results.append(ClaimResult(claim, reading, out, av, bv, ma, sa, mb, sb))
     return results

@@ -80,6 +80,19 @@ def per_round(tables: Mapping[str, pd.DataFrame], name: str) -> pd.DataFrame:
     return out.fillna({"promoted": 0}) if "promoted" in out else out
 
 
+def round_series(tables: Mapping[str, pd.DataFrame], name: str) -> dict[str, float]:
+    """Per round r (:func:`per_round`): ``sync_error_s[r]``, the mean |sync error| (s) of the
+    ordinary nodes localized in round r, and ``nmse[r]``, the round's NMSE; r zero-padded to 3
+    digits. A run's curves of the paper's Figs 11-12 (``aquasim-py reproduce itmtl`` averages
+    them over runs, round by round)."""
+    pr = per_round(tables, name)
+    out: dict[str, float] = {}
+    for col, key in (("sync_mean_s", "sync_error_s"), ("loc_nmse", "nmse")):
+        if col in pr:
+            out.update({f"{key}[{int(r):03d}]": float(v) for r, v in pr[col].items() if np.isfinite(v)})
+    return out
+
+
 def coverage_upper_bound(tables: Mapping[str, pd.DataFrame], min_neighbours: int = 3) -> float:
     """Share of ordinary nodes reachable by iterated promotion on the observed link graph."""
     nodes, pk = tables.get("nodes"), tables.get("packets")

@@ -431,6 +431,12 @@ class ReqResNode(Node):
         return {f"{cls.name}_rounds": pr.reset_index()} if len(pr) else {}
 
     @classmethod
+    def interval_metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
+        """The run's curves over iterations (rounds, the paper's Figs 11-12), one number per
+        round, kept out of :meth:`metrics`: :func:`~.metrics.round_series`."""
+        return itmtl_metrics.round_series(tables, cls.name)
+
+    @classmethod
     def report(cls, tables: Mapping[str, pd.DataFrame]) -> str:
         m = itmtl_metrics.mac_metrics(tables, cls.name)
         lines = [

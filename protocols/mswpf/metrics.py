@@ -12,7 +12,7 @@ import pandas as pd
 
 from aquasim_py.metrics import positions_at
 
-__all__ = ["mswpf_metrics", "step_errors"]
+__all__ = ["interval_errors", "mswpf_metrics", "step_errors"]
 
 
 def _target_id(nodes: pd.DataFrame | None) -> int | None:
@@ -60,3 +60,10 @@ def mswpf_metrics(tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         out["step_ms"] = float(tm["step_ms"].mean())
         out["select_ms"] = float(np.nanmean(tm["select_ms"].to_numpy(float)))
     return out
+
+
+def interval_errors(tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
+    """``step_error_m[k]`` (k zero-padded to 3 digits) -> the fused estimate's position error (m)
+    at step k: a run's series for eq 37 (RMSE over runs at each interval, averaged over time)."""
+    e = step_errors(tables)
+    return {f"step_error_m[{int(k):03d}]": float(v) for k, v in zip(e["step"], e["error"])}

@@ -58,7 +58,7 @@ from aquasim_py.node import Node, Role
 from aquasim_py.registry import register
 
 from .math import MswpfConfig, MswpfTracker, sensor_mi, thresholds
-from .metrics import mswpf_metrics
+from .metrics import interval_errors, mswpf_metrics
 
 __all__ = ["MswpfNode"]
 
@@ -429,3 +429,10 @@ class MswpfNode(Node):
     @classmethod
     def metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
         return mswpf_metrics(tables)
+
+    @classmethod
+    def interval_metrics(cls, tables: Mapping[str, pd.DataFrame]) -> dict[str, float]:
+        """Each interval's position error of the fused estimate (m), ``step_error_m[k]`` for
+        step k: the per-run series whose RMS over runs eq 37 averages over time (kept out of
+        :meth:`metrics`, one number per interval; read by ``aquasim-py reproduce mswpf``)."""
+        return interval_errors(tables)
