@@ -36,7 +36,7 @@ def test_tiny_reproduction_writes_claims_and_page(tmp_path, capsys):
     assert (t["n"] == 2).all()
     assert set(t["verdict"]) == {"too few runs"}  # 2 runs: no verdict
     assert {"paper_in_ci", "pi95_low", "flag", "unit"} <= set(t.columns)
-    assert (t.loc[t["claim"] == "avg_rmse", "paper_value"] == 7.09).all()
+    assert (t.loc[t["claim"] == "avg_rmse", "paper_value"].astype(float) == 7.09).all()
     assert (t["unit"] == "m").all()
     num = t[["ci95_low", "ours", "ci95_high"]].astype(float)
     assert (num["ci95_low"] <= num["ours"]).all() and (num["ours"] <= num["ci95_high"]).all()

@@ -34,7 +34,7 @@ def main() -> None:
     t = time.process_time()
     for z, refs, mp, lp in cases:
         o = vf.variational_update(z, refs, mp, lp, prior, draws)
-        conf = vf.localization_confidence([1.0, 1.0, 1.0], o.position, refs, z, o.speed)
+        conf = vf.localization_confidence([1.0, 1.0, 1.0], o.position, refs, z, o.speed, absolute=True)
         for a in (o.state, o.mu_precision, np.float64(o.speed), np.int64(o.iterations), np.float64(conf)):
             h.update(np.asarray(a).tobytes())
     dt = time.process_time() - t

@@ -3,8 +3,9 @@
 One unknown node drifts at about 1 m/s (the meandering-current speed of Table 1); six references
 drift with it (small relative drift), 20-75 m away, positions known exactly. Every 1-s period
 the node measures one-way delays (ms, std 2 % of the delay), keeps the best Nr = 3 by gamma
-(eqs 27-29) and runs Algorithm 1 (``aquasim_py.estimation.variational``) from its previous
-q(mu), exactly as ``protocols/stvf.py`` does, but with no kernel, no packet loss and no
+(eqs 27-29, as the text reads eq 27: nearest references first; the protocol's default is eq 27
+as printed) and runs Algorithm 1 (``aquasim_py.estimation.variational``) from its previous
+q(mu), exactly as ``protocols/stvf/node.py`` does, but with no kernel, no packet loss and no
 promotion: only the filter's own dynamics are left. Each variant changes one thing in Table 1:
 
 - ``table1``: Table 1 as shipped (z in ms, Gam(3, 200), W = 5 I, n = 10, stop at 0.1 m).
@@ -93,7 +94,9 @@ def one_run(prior: vf.STVFPrior, n_ref: int, seed: int, periods: int) -> dict[st
         refs = truth[k] + offsets + drift * t[k]
         r = np.linalg.norm(refs - truth[k], axis=1)
         z_ms = 1e3 * r / SPEED * (1.0 + 0.02 * noise_rng.standard_normal(6))
-        gamma = vf.measurement_confidence(np.ones(6), z_ms, np.zeros(6))
+        # eq 27 as the text reads it (nearest first), the reading these measurements were taken
+        # with (docs/stvf.md); the protocol's default is eq 27 as printed (penalize=False)
+        gamma = vf.measurement_confidence(np.ones(6), z_ms, np.zeros(6), penalize=True)
         sel = vf.select_references(gamma, n_ref)
         sel3 = vf.select_references(gamma, 3)
         ranges = z_ms * SPEED / 1e3

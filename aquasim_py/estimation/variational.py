@@ -452,14 +452,15 @@ def localization_confidence(
     z: ArrayLike,
     speed: float,
     z_scale: float = 1e3,
-    absolute: bool = True,
+    absolute: bool = False,
 ) -> float:
     """Confidence of a localized node (eqs 24-26): eta = mean(eta_i) (1 - E / D),
     D = sum_i ||A(<s> - s_i)||^2, E = sum_i (||A(<s> - s_i)||^2 - (z_i <v>)^2).
 
-    ``absolute=True`` sums |.| of each term of E: the paper prints a signed sum, which lets errors
-    of opposite sign cancel and can push eta above the references' mean (even above 1); the
-    text calls E "the sum of errors", so by default each error counts. Clipped to [0, 1]."""
+    Default: E as printed, a signed sum, which lets errors of opposite sign cancel and can push
+    eta above the references' mean (even above 1); the STVF protocol's default too
+    (``absolute_error = false``). ``absolute=True`` sums |.| of each term, as the text reads E
+    ("the sum of errors"). Clipped to [0, 1]."""
     # np.add.reduce is what np.sum, ndarray.sum and np.mean reduce with (the same bits), without
     # their Python wrappers: this runs once per localization
     add = np.add.reduce
@@ -484,15 +485,16 @@ def measurement_confidence(
     z: ArrayLike,
     ref_speed: ArrayLike,
     weights: tuple[float, float, float] = (0.7, 0.2, 0.1),
-    penalize: bool = True,
+    penalize: bool = False,
 ) -> NDArray[np.float64]:
     """Measurement confidence gamma_i (eqs 27-29) from reference confidence eta_i, delay z_i and
     reference speed |v_i| = sqrt(vx^2 + vy^2), min-max normalized over the candidates.
 
-    ``penalize=False`` is eq 27 as printed: gamma = C1 eta + C2 f_z + C3 f_v, which gives the
-    *farthest* and *fastest* references the highest confidence. The text motivating eq 27 says
-    the opposite (long distances and high speeds incur larger errors), so by default the
-    normalized terms enter as (1 - f_z) and (1 - f_v)."""
+    Default: eq 27 as printed, gamma = C1 eta + C2 f_z + C3 f_v, which gives the *farthest* and
+    *fastest* references the highest confidence; the STVF protocol's default too
+    (``penalize_far_fast = false``). The text motivating eq 27 says the opposite (long distances
+    and high speeds incur larger errors): ``penalize=True`` enters the normalized terms as
+    (1 - f_z) and (1 - f_v)."""
     c1, c2, c3 = weights
     fz = _normalize(np.asarray(z, float))
     fv = _normalize(np.asarray(ref_speed, float))

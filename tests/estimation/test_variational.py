@@ -266,10 +266,9 @@ def test_localization_confidence_hand_computed():
     v = 1500.0
     z = Z * meas / v
     eta_refs = np.array([1.0, 0.9, 0.95])  # mean 0.95
-    assert vf.localization_confidence(eta_refs, pos, refs, z, v) == pytest.approx(0.95 * (1 - 36 / 2075))
-    assert vf.localization_confidence(eta_refs, pos, refs, z, v, absolute=False) == pytest.approx(
-        0.95 * (1 - 14 / 2075)
-    )
+    assert vf.localization_confidence(eta_refs, pos, refs, z, v, absolute=True) == pytest.approx(0.95 * (1 - 36 / 2075))
+    # the default is eq 26 as printed (signed E), as the protocol's
+    assert vf.localization_confidence(eta_refs, pos, refs, z, v) == pytest.approx(0.95 * (1 - 14 / 2075))
     d2 = np.array([25.0, 745.0, 1305.0])
     # Exact distances: eta is the references' mean confidence.
     exact = Z * np.sqrt(d2) / v
@@ -311,15 +310,15 @@ def test_measurement_confidence_hand_computed():
     eta = np.array([1.0, 0.92, 0.95])
     z = np.array([20.0, 40.0, 30.0])  # f_z = 0, 1, 0.5
     speed = np.array([0.5, 1.5, 1.0])  # f_v = 0, 1, 0.5
-    printed = vf.measurement_confidence(eta, z, speed, penalize=False)
+    printed = vf.measurement_confidence(eta, z, speed)  # the default: eq 27 as printed, as the protocol's
     assert np.allclose(printed, [0.7, 0.7 * 0.92 + 0.2 + 0.1, 0.7 * 0.95 + 0.1 + 0.05])
-    penal = vf.measurement_confidence(eta, z, speed)
+    penal = vf.measurement_confidence(eta, z, speed, penalize=True)
     assert np.allclose(penal, [0.7 + 0.2 + 0.1, 0.7 * 0.92, 0.7 * 0.95 + 0.1 + 0.05])
     assert list(vf.select_references(penal, 2)) == [0, 2]
     assert list(vf.select_references(printed, 2)) == [1, 2]
     # Equal delays and speeds: only eta ranks.
-    flat = vf.measurement_confidence(eta, np.ones(3), np.ones(3))
-    assert np.allclose(flat, 0.7 * eta + 0.3)
+    assert np.allclose(vf.measurement_confidence(eta, np.ones(3), np.ones(3)), 0.7 * eta)
+    assert np.allclose(vf.measurement_confidence(eta, np.ones(3), np.ones(3), penalize=True), 0.7 * eta + 0.3)
 
 
 def test_project_delay_is_horizontal_component():
@@ -367,7 +366,7 @@ def _drifting_node_errors(prior, seeds=range(8), periods=80, burn=20):
             truth = truth + v
             refs = truth + offsets + drift * k
             z = Z * np.linalg.norm(refs - truth, axis=1) / 1500.0 * (1 + 0.02 * rng.standard_normal(6))
-            sel = vf.select_references(vf.measurement_confidence(np.ones(6), z, np.zeros(6)), 3)
+            sel = vf.select_references(vf.measurement_confidence(np.ones(6), z, np.zeros(6), penalize=True), 3)
             r = z[sel] * 1500.0 / Z
             fix = least_squares(lambda p: np.linalg.norm(refs[sel] - p, axis=1) - r, refs[sel].mean(0)).x
             if mu is None:
