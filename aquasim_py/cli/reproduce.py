@@ -147,7 +147,7 @@ def _print_table(table: object) -> None:
             r.reading,
             paper_text(r),
             ours_text(r),
-            short_statistic(r.kind, r.statistic_of_runs, r.n),
+            short_statistic(r.kind, r.statistic_of_runs, r.n, r.reduce),
             wording(r),
         )
     console().print(t)

@@ -54,12 +54,14 @@ COLUMNS = [
     "b_metric",
     "b_value",
     "statistic_of_runs",
+    "reduce",
     "statistic",
     "verdict",
     "flag",
 ]
 
-_STAT_NAMES = {"mean": "means", "rms": "RMS", "time_mean_rms": "eq-37 RMSEs"}
+_STAT_NAMES = {"mean": "means", "rms": "RMS", "time_mean_rms": "eq-37 RMSEs", "interval_mean": "per-round means"}
+_REDUCE = {"max": "largest over rounds of the ", "median": "median over rounds of the "}
 
 
 def number_unit(kind: str, metric: str, values: Sequence[Any] = ()) -> Unit:
@@ -72,15 +74,19 @@ def number_unit(kind: str, metric: str, values: Sequence[Any] = ()) -> Unit:
     return unit_of(metric.rsplit(".", 1)[-1], values)
 
 
-def short_statistic(kind: str, statistic: str, n: int) -> str:
+def short_statistic(kind: str, statistic: str, n: int, reduce: str = "") -> str:
     """What the number is, in a few words: "paired difference of means, n = 100"."""
     s = _STAT_NAMES.get(statistic, statistic)
+    if isinstance(reduce, str) and reduce:
+        kind = f"{reduce}_{kind}"
     what = {
         "value": s if statistic != "mean" else "mean",
         "reference": s if statistic != "mean" else "mean",
         "less": f"paired difference of {s}",
         "gap_pct": f"gap between {s}",
         "ratio": f"ratio of {s}",
+        "max_gap_pct": f"{_REDUCE['max']}gap between {s}",
+        "median_gap_pct": f"{_REDUCE['median']}gap between {s}",
     }.get(kind, s)
     return f"{what}, n = {n}"
 
@@ -119,6 +125,7 @@ def claims_table(paper: Paper, results: Sequence[ClaimResult]) -> pd.DataFrame:
                 "b_metric": r.b_metric,
                 "b_value": r.b_value,
                 "statistic_of_runs": r.a_statistic,
+                "reduce": c.reduce,
                 "statistic": c.statistic,
                 "verdict": o.verdict,
                 "flag": o.flag,
@@ -207,7 +214,7 @@ def write_html(
             x = next(iter(row.itertuples()))
             cls = {"holds": "ok", "does not hold": "no", "inconclusive": "tie"}.get(str(x.verdict), "")
             cells.append(
-                f'<td class="{cls}">{esc(ours_text(x))}<br><small>{esc(short_statistic(x.kind, x.statistic_of_runs, x.n))}'
+                f'<td class="{cls}">{esc(ours_text(x))}<br><small>{esc(short_statistic(x.kind, x.statistic_of_runs, x.n, x.reduce))}'
                 f"</small><br>{esc(wording(x))}</td>"
             )
         body.append(
@@ -257,7 +264,7 @@ def markdown(table: pd.DataFrame) -> str:
         verdict = wording(r)
         if r.verdict in ("holds", "does not hold"):
             verdict = f"**{r.verdict}**" + verdict[len(str(r.verdict)) :]
-        stat_text = short_statistic(r.kind, r.statistic_of_runs, r.n)
+        stat_text = short_statistic(r.kind, r.statistic_of_runs, r.n, r.reduce)
         lines.append(
             f"| {r.claim}: {r.text} | {r.figure} | {r.reading} | {paper_text(r)} | {ours_text(r)} | {stat_text} | {verdict} |"
         )
