@@ -4,6 +4,7 @@ again over a window, resume after a kill, progress in a log, and bad input. The 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -36,6 +37,12 @@ def test_tiny_reproduction_writes_claims_and_page(tmp_path, capsys):
     assert (t["n"] == 2).all()
     assert set(t["verdict"]) == {"too few runs"}  # 2 runs: no verdict
     assert {"paper_in_ci", "pi95_low", "flag", "unit"} <= set(t.columns)
+    # the set-ups the claims ran in (Sec. 5.2.3 at Ns = 200, Fig. 7 at Nr = 2 on the mean error)
+    avg = t[t["claim"] == "avg_rmse"]
+    assert avg["a_overrides"].str.contains("n_samples=200").all()
+    fig7 = t[t["claim"] == "stvf_vs_slmp_error"]
+    assert fig7["a_overrides"].str.contains("n_ref=2").all() and not fig7["b_overrides"].str.contains("n_ref").any()
+    assert set(fig7["a_metric"]) == {"stvf.mean_error_m", "after_training.stvf.mean_error_m"}
     assert (t.loc[t["claim"] == "avg_rmse", "paper_value"].astype(float) == 7.09).all()
     assert (t["unit"] == "m").all()
     num = t[["ci95_low", "ours", "ci95_high"]].astype(float)
@@ -63,7 +70,8 @@ def test_tiny_reproduction_writes_claims_and_page(tmp_path, capsys):
 def test_a_window_at_zero_reads_the_runs_own_metrics(tmp_path):
     """The metrics read again from a run's traces over a window from t = 0 are the run's own:
     the re-reading changes nothing but the window."""
-    paper = rp.PAPERS["stvf"]
+    stvf = rp.PAPERS["stvf"]
+    paper = dataclasses.replace(stvf, readings=(rp.Reading("all", "every row, re-read", window="all"),))
     claim = next(c for c in paper.claims if c.id == "coverage_vs_slmp")
     scale = rp.Scale(paper.quick.scenarios, 1, paper.quick.overrides, windows={"all": 0.0})
     units = [u for u in rp.plan_units(paper, scale, [claim], sets=TINY_SETS[1:]) if "slmp" in u.variants]
@@ -120,6 +128,7 @@ def test_resume_after_a_kill_runs_only_the_missing_runs(tmp_path):
         (["stvf", "--quick", "--full"], "not allowed with argument"),
         (["stvf", "--only", "nosuch"], "has no claim 'nosuch'"),
         (["stvf", "--runs", "0"], "positive integer"),
+        (["ramezani", "--full", "--runs", "nosuch=3"], "no scenario 'nosuch'"),
         (["stvf", "--set", "simulation.duration_s=-1"], "duration_s"),
         (["stvf", "--workers", "2", "--scheduler", "tcp://x:1"], "not allowed with argument"),
     ],

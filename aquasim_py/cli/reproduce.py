@@ -21,6 +21,7 @@ examples:
   aquasim-py reproduce mswpf --full --workers 2     # the paper's scale
   aquasim-py reproduce itmtl --quick --resume       # after Ctrl-C, a crash or a kill
   aquasim-py reproduce svlpf --quick --only s1_svlpf --runs 3
+  aquasim-py reproduce ramezani --full --runs track=500      # fewer tracking trials only
   aquasim-py reproduce stvf --full --scheduler tcp://10.0.0.5:8786   # Dask cluster
 
 DIR (--out, default out/reproduce/PAPER-SCALE) gets claims.csv (per claim and reading: the
@@ -48,12 +49,25 @@ def parser(papers: Sequence[str]) -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="keep the finished runs in DIR and run only the others")
     p.add_argument("--out", metavar="DIR", help="output directory (default: out/reproduce/PAPER-SCALE)")
     p.add_argument("--only", action="append", default=[], metavar="CLAIM", help="run only this claim (repeatable)")
-    p.add_argument("--runs", type=common.positive_int, metavar="N", help="seeds per quantity instead of the scale's")
+    p.add_argument(
+        "--runs",
+        action="append",
+        default=[],
+        type=_runs,
+        metavar="N|KEY=N",
+        help="seeds per quantity instead of the scale's; KEY=N for the scale's scenario KEY only (repeatable)",
+    )
     p.add_argument(
         "--set", action="append", default=[], metavar="KEY.PATH=VALUE", help="override on every run (repeatable)"
     )
     p.add_argument("--quiet", action="store_true", help="no progress and no table")
     return p
+
+
+def _runs(text: str) -> tuple[str | None, int]:
+    """``N`` or ``KEY=N`` of ``--runs``."""
+    key, _, n = text.rpartition("=")
+    return (key or None), common.positive_int(n)
 
 
 def command(argv: Sequence[str]) -> int:
@@ -76,8 +90,15 @@ def command(argv: Sequence[str]) -> int:
             raise common.UsageError("--scheduler needs dask.distributed: pip install 'aquasim-py[dask]'") from None
     out = Path(args.out) if args.out else Path("out") / "reproduce" / f"{paper.key}-{scale}"
     refuse_foreign(out, None, "--out")
+    sc = getattr(paper, scale)
+    runs: dict[str | None, int] = dict(args.runs)
+    bad = [k for k in runs if k is not None and k not in sc.scenarios]
+    if bad:
+        raise common.UsageError(
+            f"reproduce --runs: no scenario {bad[0]!r} at this scale (keys: {', '.join(sc.scenarios)})"
+        )
     # every unit's scenario is checked before anything runs (a bad --set fails here, exit 2)
-    units = rp.plan_units(paper, getattr(paper, scale), rp.select(paper, args.only), runs=args.runs, sets=args.set)
+    units = rp.plan_units(paper, sc, rp.select(paper, args.only), runs=runs or None, sets=args.set)
     for u in units:
         u.load()
     out.mkdir(parents=True, exist_ok=True)
@@ -86,7 +107,7 @@ def command(argv: Sequence[str]) -> int:
     workers = args.workers if args.workers is not None else (os.cpu_count() or 1)
 
     # on a terminal one line rewritten in place; in a log (stdout or stderr redirected) whole
-    # lines, at most one every 5 s per unit and its last
+    # lines, at most one every 5 s, and the last of each unit
     live = sys.stdout.isatty() and sys.stderr.isatty()
     last = [0.0]
 
@@ -108,7 +129,7 @@ def command(argv: Sequence[str]) -> int:
             scheduler=args.scheduler,
             resume=args.resume,
             only=args.only,
-            runs=args.runs,
+            runs=runs or None,
             sets=args.set,
             command=cmd,
             progress=progress,

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -74,14 +74,15 @@ def reproduce(
     scheduler: str | None = None,
     resume: bool = False,
     only: Sequence[str] = (),
-    runs: int | None = None,
+    runs: int | Mapping[str | None, int] | None = None,
     sets: Sequence[str] = (),
     command: str = "",
     progress: Callable[[Unit, int, int], None] | None = None,
 ) -> Reproduction:
     """Run (or, with ``resume``, finish) ``paper``'s claims at ``scale`` ("quick" | "full") into
     ``out`` and write ``claims.csv`` and ``index.html`` there. ``only``: claim ids; ``runs``:
-    seeds per quantity instead of the scale's; ``sets``: ``--set`` overrides on every run."""
+    seeds per quantity instead of the scale's (an int, or scenario key -> count, None for the
+    others: :func:`.runner.plan_units`); ``sets``: ``--set`` overrides on every run."""
     p = PAPERS[paper] if isinstance(paper, str) else paper
     sc: Scale = getattr(p, scale)
     claims = select(p, only)

@@ -21,7 +21,7 @@ import json
 import math
 import shutil
 import tomllib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -107,10 +107,17 @@ def _quantities(claim: Claim) -> list[Quantity]:
 
 
 def plan_units(
-    paper: Paper, scale: Scale, claims: Sequence[Claim], *, runs: int | None = None, sets: Sequence[str] = ()
+    paper: Paper,
+    scale: Scale,
+    claims: Sequence[Claim],
+    *,
+    runs: int | Mapping[str | None, int] | None = None,
+    sets: Sequence[str] = (),
 ) -> list[Unit]:
-    """The units ``claims`` need at ``scale`` (``runs``, ``sets``: replace the scale's seed count,
-    add overrides to every run), in a stable order."""
+    """The units ``claims`` need at ``scale``, in a stable order. ``runs``: seeds per quantity
+    instead of the scale's, for every scenario (an int, or the key None) or for the scale's
+    scenario keys given; ``sets``: overrides of every run."""
+    counts: Mapping[str | None, int] = runs if isinstance(runs, Mapping) else ({None: runs} if runs is not None else {})
     found: dict[tuple[Path, tuple[str, ...]], set[str | None]] = {}
     count: dict[tuple[Path, tuple[str, ...]], int] = {}
     windows: dict[tuple[Path, tuple[str, ...]], set[str]] = {}
@@ -123,7 +130,7 @@ def plan_units(
             for q in _quantities(claim):
                 key = (path, (*over, *_quantity_overrides(scale, reading, q), *sets))
                 found.setdefault(key, set()).add(_variant(q, reading))
-                count[key] = runs if runs is not None else scale.runs_by_scenario.get(skey, scale.runs)
+                count[key] = counts.get(skey, counts.get(None, scale.runs_by_scenario.get(skey, scale.runs)))
                 if reading.window:
                     windows.setdefault(key, set()).add(reading.window)
                 if resolved(q, reading)[1] in ("time_mean_rms", "interval_mean"):
@@ -231,6 +238,8 @@ class ClaimResult:
     a_statistic: Statistic
     b_metric: str
     b_statistic: Statistic | None
+    a_overrides: tuple[str, ...] = ()  #: the ``--set`` overrides of quantity a's runs (its unit's)
+    b_overrides: tuple[str, ...] = ()
 
 
 def _values(rows: Sequence[dict[str, Any]], metric: str, statistic: Statistic, variant: str | None) -> dict[int, Any]:
@@ -280,19 +289,22 @@ def evaluate_claims(
         for reading in paper.claim_readings(claim):
             _key, path, over = _resolve(paper, scale, claim, reading)
 
-            def rows_of(
+            def unit_of(
                 q: Quantity, path: Path = path, over: tuple[str, ...] = over, reading: Reading = reading
-            ) -> list[dict[str, Any]]:
-                key = (path, (*over, *_quantity_overrides(scale, reading, q), *sets))
-                return rows.get(by_key[key].name, [])
+            ) -> Unit:
+                return by_key[(path, (*over, *_quantity_overrides(scale, reading, q), *sets))]
 
             ma, sa = resolved(claim.a, reading)
-            va = _values(rows_of(claim.a), ma, sa, _variant(claim.a, reading))
+            ua = unit_of(claim.a)
+            va = _values(rows.get(ua.name, []), ma, sa, _variant(claim.a, reading))
             vb = None
             mb, sb = "", None
+            ub_over: tuple[str, ...] = ()
             if claim.b is not None:
                 mb, sb = resolved(claim.b, reading)
-                vb = _values(rows_of(claim.b), mb, sb, _variant(claim.b, reading))
+                ub = unit_of(claim.b)
+                ub_over = ub.overrides
+                vb = _values(rows.get(ub.name, []), mb, sb, _variant(claim.b, reading))
             runs = sorted(set(va) & set(vb) if vb is not None else set(va))
             a = _stack([va[r] for r in runs])
             b = _stack([vb[r] for r in runs]) if vb is not None else None
@@ -307,5 +319,5 @@ def evaluate_claims(
 
             av = alone(a, sa)
             bv = alone(b, sb) if b is not None and sb is not None else math.nan
-            results.append(ClaimResult(claim, reading, out, av, bv, ma, sa, mb, sb))
+            results.append(ClaimResult(claim, reading, out, av, bv, ma, sa, mb, sb, ua.overrides, ub_over))
     return results

@@ -135,6 +135,8 @@ def test_statistics_and_numbers_are_the_papers():
     assert "L = 8" in next(c for c in mswpf.claims if c.id == "t3_gw").text
     ram = rp.PAPERS["ramezani"]
     assert ram.full.runs_by_scenario["track"] == 5000
+    counts = {u.scenario.stem: u.runs for u in rp.plan_units(ram, ram.full, ram.claims, runs={"track": 500})}
+    assert counts == {"ramezani_localization": 50, "ramezani_tracking": 500}  # --runs track=500
     for c in ram.claims:
         if c.kind == "ratio":
             assert c.bound
