@@ -145,7 +145,23 @@ def paper_table(paper: Any, base: Scenario, results: Mapping[str, RunResult], wi
     """The protocols' papers beside this run (:func:`aquasim_py.runner.paper_comparison`): the
     paper named (each protocol's ``citation``) and the network described in the title, one
     row (or block) per claim with what the paper's number is a statistic of."""
-    return tables.paper_table(paper, tables.paper_title(base, paper_citations(results)), width)
+    from rich.console import Group
+    from rich.text import Text
+
+    table = tables.paper_table(paper, tables.paper_title(base, paper_citations(results)), width)
+    where = reproductions_of(results)
+    if not where:
+        return table
+    said = ", ".join(f"`aquasim-py reproduce {key}` (docs/reproductions/{key}.md)" for key in where)
+    return Group(table, Text(f"one network and seed; the verdict on each claim, over seeds and readings: {said}"))
+
+
+def reproductions_of(results: Mapping[str, RunResult]) -> list[str]:
+    """The papers (``aquasim-py reproduce`` names) of the protocols these variants ran."""
+    from aquasim_py.reproduce.papers import PAPERS
+
+    names = {getattr(cls, "name", "") for res in results.values() for cls in res.scenario.protocols()}
+    return [key for key in PAPERS if key in names]
 
 
 def _warn_missing(res: RunResult) -> None:
