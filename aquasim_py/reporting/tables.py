@@ -55,7 +55,7 @@ def below_bound(metrics: Mapping[str, Any]) -> bool:
     interval's upper end, ``..._ci95_high``, under 1): an error smaller than the bound allows,
     so one of the bound's assumptions does not hold (the noise model, one-shot fixes)."""
     high = metrics.get("localization.rmse_over_crb_ci95_high")
-    return _reported(high) and high < 1.0
+    return bool(_reported(high) and float(high or 0.0) < 1.0)
 
 
 def metrics_table(metrics: Mapping[str, Any], title: str) -> TextTable:
