@@ -330,6 +330,31 @@ def test_version_and_help(capsys):
     assert rc == 0 and "--workers" in out and "--scheduler" in out and "examples:" in out
 
 
+def test_help_lists_every_subcommand_and_help_is_one(capsys):
+    from aquasim_py.cli import _COMMANDS
+
+    rc, out, _ = run(capsys, "--help")
+    assert rc == 0
+    for name in (*_COMMANDS, "help"):
+        assert re.search(rf"^  aquasim-py {name} ", out, re.M), name
+    assert run(capsys, "help")[:2] == (0, out)
+    for name in _COMMANDS:
+        rc, page, _ = run(capsys, "help", name)
+        assert rc == 0 and page.startswith(f"usage: aquasim-py {name}"), name
+    rc, _, err = run(capsys, "help", "nosuch")
+    assert rc == 2 and err.count("\n") == 1 and "no command 'nosuch'" in err
+
+
+def test_a_run_that_heard_nothing_warns_naming_the_key(scen, tmp_path, capsys):
+    """max_range_m = 3.5 typed for 3.5 km: every packet is sent and none received."""
+    rc, _, err = run(capsys, scen, "--out", tmp_path / "o", "--quiet", "--set", "channel.max_range_m=3.5")
+    assert rc == 0
+    line = next(x for x in err.splitlines() if "none received" in x)
+    assert line.startswith("warning: ") and "channel.max_range_m = 3.5 m" in line and "nearest two nodes" in line
+    rc, _, err = run(capsys, scen, "--out", tmp_path / "p", "--quiet")
+    assert rc == 0 and "none received" not in err
+
+
 def test_real_subprocess(scen, tmp_path):
     exe = Path(sys.executable).parent / "aquasim-py"
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "aquasim_py.cli"]

@@ -74,12 +74,26 @@ def _interruptible() -> Iterator[None]:
         INTERRUPTIONS.clear()
 
 
+_COMMANDS = ("sweep", "report", "arrivals", "reproduce")
+
+
+def _help(rest: Sequence[str]) -> list[str]:
+    """The argv that shows the help ``aquasim-py help [COMMAND]`` asks for."""
+    if not rest or rest[0] == "help":
+        return ["--help"]
+    if rest[0] not in _COMMANDS:
+        raise UsageError(f"help: no command {rest[0]!r} (commands: {', '.join(_COMMANDS)}; see aquasim-py --help)")
+    return [rest[0], "--help"]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``aquasim-py``; returns the exit status."""
     from aquasim_py.cli import arrivals, report, run, sweep
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["help"]:  # "aquasim-py help [COMMAND]": that command's --help
+            argv = _help(argv[1:])
         with _interruptible(), _one_line_warnings():
             if argv and argv[0] == "sweep":
                 return sweep.command(argv[1:])

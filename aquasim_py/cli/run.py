@@ -25,7 +25,20 @@ from aquasim_py.runner import (
 )
 from aquasim_py.scenario import Scenario
 
-EXAMPLES = """\
+#: every subcommand and what it does (the first line of ``aquasim-py --help``'s epilog)
+SUBCOMMANDS = (
+    ("SCENARIO.toml", "run a scenario (this page)"),
+    ("sweep", "a Monte Carlo or parameter sweep of a scenario, on local cores or a Dask cluster"),
+    ("report", "plots and report.html of a finished run, variants run or sweep"),
+    ("reproduce", "rerun a paper's claims over seeds and readings and give each a verdict"),
+    ("arrivals", "the eigenrays (delay, level, angles, bounces) of a link in a scenario's environment"),
+    ("help", "this page; 'aquasim-py help COMMAND' is 'aquasim-py COMMAND --help'"),
+)
+
+EXAMPLES = (
+    "commands:\n"
+    + "".join(f"  aquasim-py {name:<14} {what}\n" for name, what in SUBCOMMANDS)
+    + """
 examples:
   aquasim-py scenarios/beacon.toml
   aquasim-py scenarios/beacon.toml --seed 7 --out out/beacon-7
@@ -44,14 +57,15 @@ index: nodes.1.count or nodes[1].count. --set applies on top of every variant.
 A scenario with [variants.NAME] tables runs every variant on the same network and seed,
 writes each under DIR/NAME/ and the comparison to DIR/variants.csv.
 """
+)
 
 
 def parser() -> argparse.ArgumentParser:
     p = common.Parser(
         prog="aquasim-py",
         description="Simulate an underwater acoustic sensor network scenario and write its trace "
-        "tables and metrics. Use 'aquasim-py sweep SCENARIO.toml' for a Monte Carlo "
-        "or parameter sweep (see 'aquasim-py sweep --help').",
+        "tables and metrics. Other commands (below): sweep, report, reproduce, arrivals; "
+        "'aquasim-py COMMAND --help' for each.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -164,7 +178,58 @@ def reproductions_of(results: Mapping[str, RunResult]) -> list[str]:
     return [key for key in PAPERS if key in names]
 
 
+#: drop reason -> the scenario key that most often causes it
+_DROP_KEYS = {
+    "range": "channel.max_range_m",
+    "snr": "channel.snr_threshold_db",
+    "no_path": "environment",
+    "collision": "channel.collision",
+    "half_duplex": "the protocols' timing",
+}
+
+
+def nothing_heard(res: RunResult) -> str | None:
+    """A warning when packets were sent but none was received, naming the key to look at
+    (the commonest drop reason's, else ``channel.max_range_m`` against the nearest two nodes'
+    distance, as with 3.5 typed for 3.5 km); None when something was heard or nothing sent."""
+    m = res.metrics
+    sent, received = m.get("packets.sent", 0), m.get("packets.received", 0)
+    if not sent or received:
+        return None
+    drops = {k.removeprefix("packets.dropped."): v for k, v in m.items() if k.startswith("packets.dropped.") and v}
+    c = res.scenario.channel
+    head = f"{sent} packets sent and none received"
+    if drops:
+        reason = max(drops, key=lambda k: drops[k])
+        key = _DROP_KEYS.get(reason, "channel")
+        value = f" = {c.max_range_m:g} m" if key == "channel.max_range_m" else ""
+        return f"{head} ({drops[reason]} dropped: {reason}); check {key}{value}"
+    nearest = _nearest_pair_m(res)
+    apart = f" while the nearest two nodes are {nearest:.4g} m apart" if nearest is not None else ""
+    return f"{head}: no node was within channel.max_range_m = {c.max_range_m:g} m of a sender{apart}"
+
+
+def _nearest_pair_m(res: RunResult) -> float | None:
+    """The smallest distance (m) between two nodes at the first position sample, if sampled."""
+    import numpy as np
+
+    try:
+        pos = res.tables["positions"]
+    except LookupError:
+        return None
+    if not len(pos):
+        return None
+    first = pos[pos["time"] == pos["time"].min()][["x", "y", "z"]].to_numpy(float)
+    if len(first) < 2:
+        return None
+    d = np.linalg.norm(first[:, None, :] - first[None, :, :], axis=-1)
+    return float(d[np.triu_indices(len(first), 1)].min())
+
+
 def _warn_missing(res: RunResult) -> None:
+    silent = nothing_heard(res)
+    if silent is not None:
+        print(f"warning: {res.name}: {silent}", file=sys.stderr)
     for name in res.missing_tables:
         print(f"warning: trace table {name!r} was not produced by this run", file=sys.stderr)
     for family, problem in res.metric_errors.items():
