@@ -54,8 +54,14 @@ def _interruptible() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    import tempfile
+
     from aquasim_py.outdir import INTERRUPTIONS
 
+    # tempfile finds the temporary directory on first use by writing and removing a probe file
+    # of a bare random name there; an interruption raised between the two would leave it (seen
+    # once in CI as a stray 8-letter name in TMPDIR after a SIGTERM): find it before handling
+    tempfile.gettempdir()
     sigs = (signal.SIGINT, signal.SIGTERM)
 
     def handler(signum: int, frame: Any) -> None:
