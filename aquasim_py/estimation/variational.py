@@ -177,8 +177,8 @@ def _sample_gaussian(
 ) -> NDArray[np.float64]:
     """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision): ``mean``
     (..., 4), ``precision`` (..., 4, 4), ``eps`` (..., Ns, 4), leading axes a batch."""
-    chol_cov = np.linalg.cholesky(_sym(_inv(precision)))
-    return mean[..., None, :] + _matvec(chol_cov[..., None, :, :], eps)
+    chol_cov = cast(_F64, np.linalg.cholesky(_sym(_inv(precision))))
+    return cast(_F64, mean[..., None, :] + _matvec(chol_cov[..., None, :, :], eps))
 
 
 def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -298,7 +298,7 @@ def mean_update(
     lp = np.asarray(mu_p_precision, float)
     prec = _sym(lam + lp)
     rhs = _matvec(lam, np.asarray(state, float)) + _matvec(lp, np.asarray(mu_p, float))
-    return np.linalg.solve(prec, rhs[..., None])[..., 0], prec
+    return cast(_F64, np.linalg.solve(prec, rhs[..., None])[..., 0]), prec
 
 
 def _outer(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
