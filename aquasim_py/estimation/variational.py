@@ -178,7 +178,7 @@ def _sample_gaussian(
     """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision): ``mean``
     (..., 4), ``precision`` (..., 4, 4), ``eps`` (..., Ns, 4), leading axes a batch."""
     chol_cov = cast(_F64, np.linalg.cholesky(_sym(_inv(precision))))
-    return cast(_F64, mean[..., None, :] + _matvec(chol_cov[..., None, :, :], eps))
+    return mean[..., None, :] + _matvec(chol_cov[..., None, :, :], eps)
 
 
 def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
