@@ -84,6 +84,7 @@ class PeriodicBeaconNode(Node):
         """The family's ToA error: each of its nodes draws ``noise_ratio`` x delay onto the
         delays it measures (STVF, SLMP and their baselines), a range std relative to the range."""
         return 0.0, float(getattr(params, "noise_ratio", 0.0))
+
     #: take the inbox at once and localize in turn (_Turns) instead of one recv() event per
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)
     drain_inbox = True
