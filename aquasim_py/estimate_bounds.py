@@ -124,7 +124,7 @@ def applied_range_noise(sc: Any) -> RangeNoise:
     for g in sc.nodes:
         n = int(g.count or 0)
         stamp.extend([math.hypot(sc.channel.jitter_std_s, g.clock.jitter_std_s)] * n)
-        cls = registry.get(g.protocol, base=sc.base_dir)
+        cls: Any = registry.get(g.protocol, base=sc.base_dir)  # a Node subclass (registry checks)
         std_m, rel = cls.measurement_noise(cls.Params.model_validate(dict(g.params)))
         own_std.extend([float(std_m)] * n)
         own_rel.extend([float(rel)] * n)
