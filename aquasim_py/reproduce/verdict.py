@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from .claims import REL_TOL, Claim
 
@@ -42,6 +41,8 @@ def _t_interval(x: NDArray[np.float64]) -> tuple[float, float, float]:
     m = float(np.mean(x))
     if x.size < 2:
         return m, math.nan, math.nan
+    from scipy import stats
+
     half = float(stats.t.ppf(0.5 + CONFIDENCE / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size))
     return m, m - half, m + half
 
