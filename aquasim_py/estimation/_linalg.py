@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import SingularMatrixError
@@ -21,6 +20,8 @@ def cho_factor(S: ArrayLike, what: str = "matrix") -> tuple[NDArray[np.float64],
     S = np.asarray(S, dtype=float)
     if not np.all(np.isfinite(S)):
         raise SingularMatrixError(f"{what} has non-finite entries")
+    import scipy.linalg as sla
+
     try:
         return sla.cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError as exc:
@@ -28,6 +29,8 @@ def cho_factor(S: ArrayLike, what: str = "matrix") -> tuple[NDArray[np.float64],
 
 
 def cho_solve(c: tuple[NDArray[np.float64], bool], b: ArrayLike) -> NDArray[np.float64]:
+    import scipy.linalg as sla
+
     return sla.cho_solve(c, np.asarray(b, dtype=float), check_finite=False)
 
 

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize as sopt
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, EstimationError, InsufficientMeasurementsError
@@ -143,6 +142,8 @@ def gauss_newton(
                 return last[1]
             res(z)
             return cache["last"][1]
+
+        import scipy.optimize as sopt
 
         try:
             sol = sopt.least_squares(

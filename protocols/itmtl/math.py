@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from aquasim_py.channel import straight_line_time, travel_time, travel_time_gradient
 from aquasim_py.channel.ssp import SoundSpeedProfile
@@ -176,6 +175,8 @@ def position_fix(
         return sw[:, None] * model.gradients(ref, full(u))[0][:, axes]
 
     # scale: residuals in s, unknowns in m; x_scale keeps the trust region in metres
+    from scipy.optimize import least_squares
+
     sol = least_squares(
         res, p0[axes], jac=jac, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=50
     )

@@ -25,8 +25,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg
-from scipy.optimize import least_squares
 
 from aquasim_py.estimation.errors import DegenerateGeometryError
 from aquasim_py.estimation.lsq import multilaterate
@@ -239,6 +237,7 @@ def lssvr_fit(X: ArrayLike, Y: ArrayLike, *, c: float, width: float) -> LssvrMod
     alpha = nu - eta b; one Cholesky factorization (scipy.linalg.cho_factor), on one BLAS
     thread (BLAS threads contend badly on shared machines for matrices this small).
     """
+    from scipy import linalg
     from threadpoolctl import threadpool_limits
 
     X = np.asarray(X, float)
@@ -405,6 +404,8 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     def jac(x: Array) -> Array:
         d = x - S
         return d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+
+    from scipy.optimize import least_squares
 
     res = least_squares(lambda x: np.linalg.norm(S - x, axis=1) - R, x0, jac=jac, bounds=(lo, hi), method="trf")
     return np.asarray(res.x, float)
