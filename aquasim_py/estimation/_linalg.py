@@ -17,11 +17,11 @@ def symmetrize(A: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def cho_factor(S: ArrayLike, what: str = "matrix") -> tuple[NDArray[np.float64], bool]:
     """Cholesky factor of a symmetric positive-definite matrix; SingularMatrixError otherwise."""
+    import scipy.linalg as sla
+
     S = np.asarray(S, dtype=float)
     if not np.all(np.isfinite(S)):
         raise SingularMatrixError(f"{what} has non-finite entries")
-    import scipy.linalg as sla
-
     try:
         return sla.cho_factor(S, lower=True, check_finite=False)
     except np.linalg.LinAlgError as exc:

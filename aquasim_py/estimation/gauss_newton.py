@@ -124,6 +124,8 @@ def gauss_newton(
             break
     method = "gauss-newton"
     if fallback and (trouble or not converged):
+        import scipy.optimize as sopt  # only the fallback needs it
+
         xb = best[0]
         cache: dict[str, tuple[Array, Array]] = {}
 
@@ -142,8 +144,6 @@ def gauss_newton(
                 return last[1]
             res(z)
             return cache["last"][1]
-
-        import scipy.optimize as sopt
 
         try:
             sol = sopt.least_squares(

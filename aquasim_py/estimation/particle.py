@@ -64,10 +64,10 @@ def _rows_times(X: Array, A: Array) -> Array:
 
 def gaussian_log_likelihood(z: ArrayLike, z_pred: ArrayLike, R: ArrayLike) -> Array:
     """log N(z; z_pred[i], R) per particle: z (m,), z_pred (M, m), R (m, m) -> (M,)."""
-    z = np.asarray(z, dtype=float).reshape(-1)
-    Zp = np.asarray(z_pred, dtype=float).reshape(-1, z.size)
     from scipy.linalg import solve_triangular
 
+    z = np.asarray(z, dtype=float).reshape(-1)
+    Zp = np.asarray(z_pred, dtype=float).reshape(-1, z.size)
     c, _ = cho_factor(np.atleast_2d(np.asarray(R, dtype=float)), "measurement covariance R")
     # whiten with the Cholesky factor: ||L^-1 (z - z_pred)||^2 for all particles at once
     Linv = solve_triangular(c, np.eye(z.size), lower=True, check_finite=False)

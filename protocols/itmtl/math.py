@@ -147,6 +147,8 @@ def position_fix(
     eigenray time (Ramezani et al.'s GNA on the ToF equations). ``weights`` (one per
     reference, e.g. inverse variances) make it a weighted least squares.
     """
+    from scipy.optimize import least_squares
+
     ref = np.asarray(ref_pos, dtype=float).reshape(-1, 3)
     tau = np.asarray(tau, dtype=float).reshape(-1)
     p0 = np.asarray(p0, dtype=float).reshape(3).copy()
@@ -175,8 +177,6 @@ def position_fix(
         return sw[:, None] * model.gradients(ref, full(u))[0][:, axes]
 
     # scale: residuals in s, unknowns in m; x_scale keeps the trust region in metres
-    from scipy.optimize import least_squares
-
     sol = least_squares(
         res, p0[axes], jac=jac, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-15, gtol=1e-15, max_nfev=50
     )

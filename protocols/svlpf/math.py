@@ -395,6 +395,8 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     """A subnetwork's local estimate: the range least-squares fix constrained to the monitored
     region [lo, hi] (always exists: the "regional optimal solution" that avoids the
     no-solution case), started from the linear multilateration fix clipped to the region."""
+    from scipy.optimize import least_squares
+
     try:
         x0 = multilaterate(S, R) if S.shape[0] >= 4 else S.mean(axis=0)
     except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):
@@ -404,8 +406,6 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     def jac(x: Array) -> Array:
         d = x - S
         return d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
-
-    from scipy.optimize import least_squares
 
     res = least_squares(lambda x: np.linalg.norm(S - x, axis=1) - R, x0, jac=jac, bounds=(lo, hi), method="trf")
     return np.asarray(res.x, float)
