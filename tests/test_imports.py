@@ -141,10 +141,11 @@ def test_startup_loads_no_heavy_module(step):
 
 def test_a_run_loads_heavy_modules_only_where_used():
     """The kernel, the runner and every built-in protocol load neither scipy nor the plotting,
-    graph, learning or compiler libraries; pandas comes with the trace (its CSV writer and tables)."""
+    graph, learning or compiler libraries; pandas may come with the trace (its CSV writer and
+    tables use it in every run)."""
     loaded = _python(_STEP, "run-modules")
     assert isinstance(loaded, list) and "aquasim_protocols" in loaded
-    assert [m for m in HEAVY if m in loaded] == ["pandas"]
+    assert set(HEAVY) & set(loaded) <= {"pandas"}
 
 
 def test_version_is_quick():
