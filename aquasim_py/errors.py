@@ -3,7 +3,7 @@
 
 A leaf module (standard library only), so that the command can catch and filter them before
 it has loaded anything heavy (``aquasim-py --version`` loads neither numpy nor pydantic).
-:mod:`aquasim_py.scenario` re-exports all three, where they are documented and raised.
+:mod:`aquasim_py.scenario`, which raises them, re-exports all three.
 """
 
 from __future__ import annotations
