@@ -38,11 +38,11 @@ def _stat(x: NDArray[np.float64], how: str, axis: int = -1) -> NDArray[np.float6
 
 
 def _t_interval(x: NDArray[np.float64]) -> tuple[float, float, float]:
+    from scipy import stats
+
     m = float(np.mean(x))
     if x.size < 2:
         return m, math.nan, math.nan
-    from scipy import stats
-
     half = float(stats.t.ppf(0.5 + CONFIDENCE / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size))
     return m, m - half, m + half
 
