@@ -73,15 +73,15 @@ def _environment(path: str) -> tuple[Any, Any]:
 
 
 def command(argv: Sequence[str]) -> int:
-    from aquasim_py.channel.arrivals import arrivals
-
     # "--from -1500,0,40": a negative x is a value, not an option (argparse would say so only
     # for a plain number)
     argv = list(argv)
     for i in range(len(argv) - 1):
         if argv[i] in ("--from", "--to") and argv[i + 1].startswith("-"):
             argv[i : i + 2] = [f"{argv[i]}={argv[i + 1]}", ""]
-    args = parser().parse_args([a for a in argv if a != ""])
+    args = parser().parse_args([a for a in argv if a != ""])  # --help exits here
+    from aquasim_py.channel.arrivals import arrivals
+
     sc, env = _environment(args.scenario)
     for name, pt in (("--from", args.src), ("--to", args.dst)):
         floor = float(env.depth(pt[0], pt[1]))

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from aquasim_py import registry
+from aquasim_py.errors import ScenarioDeprecationWarning
 from aquasim_py.scenario import ocean
 from aquasim_py.scenario.errors import ScenarioError
 from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
@@ -66,10 +67,6 @@ DEPRECATED_MOBILITY = {
         "model, now named 'kinematic'; the Bower/Caruso meandering current is 'meandering_jet'"
     ),
 }
-
-
-class ScenarioDeprecationWarning(DeprecationWarning):
-    """A scenario uses a deprecated name; the CLI prints it as one ``warning:`` line."""
 
 
 def warn_deprecated_mobility(model: str, file: Path | None) -> None:
