@@ -31,6 +31,8 @@ from .channel.config import ChannelConfig, LossModel
 from .channel.environment import Environment
 from .channel.ssp import Constant, SoundSpeedProfile
 from .mobility import Mobility
+from .net.mac import Direct, Mac
+from .net.mac import get as get_mac
 from .node import Node, Role, Sensors
 from .nodecore import Group, NodeCore
 from .trace import Trace, TraceConfig
@@ -217,6 +219,8 @@ class Simulation:
         params: Mapping[str, Any] | BaseModel | None = None,
         sensors: Sensors | None = None,
         name: str | None = None,
+        mac: str | type[Mac] | None = None,
+        mac_params: Mapping[str, Any] | BaseModel | None = None,
     ) -> list[Node]:
         """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
 
@@ -226,6 +230,8 @@ class Simulation:
         ``(node_id, rng) -> Clock`` (rng = stream ("node", id, "clock")).
         params: the protocol's parameters (validated by ``node_cls.Params``).
         sensors: depth / velocity sensor noise (:class:`~aquasim_py.node.Sensors`).
+        mac: the MAC of every node of the group (:mod:`aquasim_py.net.mac`: a name or a class;
+        None = ``direct``), with ``mac_params`` (validated by its ``Params``).
         """
         if not (isinstance(node_cls, type) and issubclass(node_cls, Node)):
             raise TypeError(f"add_group: {node_cls!r} is not a Node subclass")
@@ -257,7 +263,12 @@ class Simulation:
                 f"add_group {gname!r}: mobility gives positions of shape {p0.shape}, expected ({count}, 3)"
             )
         start = len(self.nodes)
-        group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility))
+        mac_cls = get_mac(mac) if isinstance(mac, str) else (mac if mac is not None else Direct)
+        if isinstance(mac_params, mac_cls.Params):
+            mp = mac_params
+        else:
+            mp = mac_cls.Params.model_validate(dict(mac_params or {}))
+        group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility), mac=mac_cls, mac_params=mp)
         if params is None:
             p = node_cls.Params()
         elif isinstance(params, node_cls.Params):

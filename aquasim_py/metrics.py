@@ -40,6 +40,8 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
+from .net.metrics import NetWindow, net_metrics
+
 __all__ = [
     "UNKNOWN_ROLES",
     "coverage",
@@ -475,6 +477,7 @@ def summarize(
     warmup_s: float = 0.0,
     unknown_roles: Iterable[str] = UNKNOWN_ROLES,
     errors: dict[str, str] | None = None,
+    network: NetWindow | None = None,
 ) -> dict[str, float]:
     """Every metric of a run, as a flat {name: number} dict (the CLI table, summary.json, sweep.csv).
 
@@ -487,6 +490,8 @@ def summarize(
     its name as prefix. ``None``: the protocols named in the ``nodes`` table, through the registry.
     ``warmup_s``: ``estimates`` and ``clocks`` rows before it are dropped, for the generic
     metrics and the protocols' alike (one time window for every family).
+    ``network``: the window and airtime of the network metrics (``net.*``,
+    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given.
     """
     out: dict[str, float] = {}
     tally = getattr(tables, "tally", None)  # a streamed run's files: counted as written
@@ -530,6 +535,8 @@ def summarize(
         ("localization", localization),
         ("sync", sync),
     ]
+    if network is not None:
+        families.append(("net", functools.partial(net_metrics, tables, network)))
     if protocols is None:
         protocols = _protocols_from_nodes(nodes)
     seen: set[str] = set()

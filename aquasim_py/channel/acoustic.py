@@ -105,8 +105,12 @@ class AcousticChannel:
         self._max_duration = 0.0  # the longest packet so far (s)
         # overlaps matter only with a collision model
         self._track = config.collision in ("destructive", "capture")
+        # signals are recorded at the receivers for a collision model, or for carrier sense
+        self._record = self._track
         self._pressure_kind = config.pressure_kind
-        self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
+        # (packet, source position) of the last emission heard: keyed by the packet object, not
+        # its uid, which a MAC's retransmission repeats from another position
+        self._emitter: tuple[Packet | None, Any] = (None, None)
 
     @property
     def ssp(self) -> SoundSpeedProfile | None:
@@ -120,6 +124,34 @@ class AcousticChannel:
         if port.index != len(self._modems):
             raise ValueError(f"attach: expected the port of node {len(self._modems)}, got node {port.index}")
         self._modems.append(Modem(port))
+
+    def sense_carrier(self) -> None:
+        """Record every signal at its receivers, so that their modems can sense it
+        (:meth:`carrier_busy`), also without a collision model (called before the run by a
+        node whose MAC senses the carrier)."""
+        self._record = True
+
+    def carrier_busy(self, node: int) -> bool:
+        """Whether node ``node``'s own modem senses a carrier now: it is transmitting, or a
+        signal recorded at it is arriving (:meth:`~.modem.Modem.busy_at`)."""
+        return self._modems[node].busy_at(self._env.now)
+
+    def airtime(self, bits: int) -> float:
+        """How long a packet of ``bits`` bits lasts on the air (s): :meth:`.ChannelConfig.airtime`."""
+        return self.config.airtime(bits)  # type: ignore[no-any-return]
+
+    def new_uid(self) -> int:
+        """A packet uid not used before (a MAC numbers a frame when it is offered; its
+        transmissions, the first and any retransmission, carry it)."""
+        uid = self._uid
+        self._uid = uid + 1
+        return uid
+
+    def mac_row(self, node: int, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int) -> None:
+        """A ``packets`` row a node's MAC writes now about a frame of its own: ``"offer"`` (the
+        protocol handed it the frame) or ``"drop"`` with the reason it gave the frame up."""
+        nan = math.nan
+        self._row((self._env.now, event, reason, node, node, -1 if dst is None else dst, uid, kind, bits, nan, nan, None, nan))
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks
@@ -136,26 +168,39 @@ class AcousticChannel:
 
     # -- transmit ---------------------------------------------------------------------------------
 
-    def transmit(self, src: int, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+    def transmit(
+        self,
+        src: int,
+        dst: int | None,
+        kind: str,
+        payload: Any,
+        bits: int,
+        uid: int | None = None,
+        overhear: bool = False,
+    ) -> simpy.Event:
         """Queue a packet on node ``src``'s modem; the event fires when its last bit has left,
-        with the sender's MAC transmit stamp (local s) as its value."""
+        with the sender's MAC transmit stamp (local s) as its value.
+
+        ``uid``: the packet's uid (a MAC's frame, :meth:`new_uid`); None: the next one when its
+        first bit leaves. ``overhear``: a unicast that every node decoding it is handed, not
+        only ``dst`` (a MAC's RTS / CTS, which the nodes around must hear to defer)."""
         if bits <= 0:
             raise ValueError(f"a packet needs bits > 0, got {bits}")
         modem = self._modems[src]
         env = self._env
         now = env.now
-        duration = bits / self.config.bitrate_bps
+        duration = self.airtime(bits)
         if duration > self._max_duration:
             self._max_duration = duration
         start = modem.tx_free_at if modem.tx_free_at > now else now
         modem.tx_free_at = start + duration
         if start == now:
-            tx_local = self._start(modem, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration, uid, overhear)
             return env.timeout(duration, tx_local)
         done = env.event()
 
         def later(_: simpy.Event) -> None:
-            tx_local = self._start(modem, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration, uid, overhear)
 
             def sent(_e: simpy.Event) -> None:
                 done.succeed(tx_local)
@@ -175,12 +220,23 @@ class AcousticChannel:
             s += float(rng.normal(0.0, self._jitter_std))
         return s
 
-    def _start(self, modem: Modem, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
+    def _start(
+        self,
+        modem: Modem,
+        dst: int | None,
+        kind: str,
+        payload: Any,
+        bits: int,
+        duration: float,
+        uid: int | None = None,
+        overhear: bool = False,
+    ) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         t0 = self._env.now
         src = modem.index
-        uid = self._uid
-        self._uid = uid + 1
+        if uid is None:
+            uid = self._uid
+            self._uid = uid + 1
         tx_local = self._stamp(modem, t0)
         pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
         dst_code = -1 if dst is None else dst
@@ -193,12 +249,12 @@ class AcousticChannel:
         if dst is not None and dst not in in_range:
             row((t0, "drop", "range", dst, src, dst, uid, kind, bits, nan, nan, None, nan))
         for rid, reason, T, path, s in lost:
-            if dst is None or dst == rid:
+            if dst is None or dst == rid or overhear:
                 if reason == "no_path":
                     row((t0, "drop", reason, rid, src, dst_code, uid, kind, bits, nan, nan, path, nan))
                 else:
                     row((t0 + T, "drop", reason, rid, src, dst_code, uid, kind, bits, T, s, path, nan))
-        track = self._track
+        track = self._record
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
         forget = t0 - 2.0 * self._max_duration
@@ -215,9 +271,10 @@ class AcousticChannel:
                     modems[rid].record(sig, forget)
                 sigs.append(sig)
         else:
-            # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
+            # a unicast is heard (and interferes) everywhere in range; only its addressee
+            # delivers (every node decoding it, where it is to be overheard)
             for rid, T, path, s in heard:
-                intended = rid == dst
+                intended = rid == dst or overhear
                 if not (track or intended):
                     continue
                 arr = t0 + T
@@ -270,9 +327,9 @@ class AcousticChannel:
         with the noise drawn from the receiver's own ("node", id, "pressure") stream."""
         from .pressure import received_pressure
 
-        if self._emitter[0] != pkt.uid:  # one source position per emission, shared by its receivers
+        if self._emitter[0] is not pkt:  # one source position per emission, shared by its receivers
             src = self._net.positions_at(np.array([pkt.src]), np.array([t_send]))[0]
-            self._emitter = (pkt.uid, src)
+            self._emitter = (pkt, src)
         c = self.config
         here = self._net.positions_at(np.array([rx.index]), np.array([t_arr]))[0]
         h = float(received_pressure(self._emitter[1], here, c.pressure_source_level, c.pressure_exponent))

@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -108,6 +108,10 @@ class ChannelConfig:
             raise ValueError(
                 f"ChannelConfig.detection_threshold_db must be finite, got {self.detection_threshold_db!r}"
             )
+
+    def airtime(self, bits: Any) -> Any:
+        """How long a packet of ``bits`` bits lasts on the air (s); elementwise on an array."""
+        return bits / self.bitrate_bps
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,

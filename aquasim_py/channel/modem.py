@@ -1,5 +1,6 @@
 """One node's modem as the channel keeps it: its transmit queue, its own transmissions and the
-signals heard, and the verdict they give a reception (half-duplex, collision).
+signals heard, the verdict they give a reception (half-duplex, collision), and the carrier its
+hydrophone senses (:meth:`Modem.busy_at`).
 
 No SimPy: the channel (:mod:`.acoustic`) records transmissions and signals as they start and
 asks :func:`verdict` when a reception's last bit arrives.
@@ -34,6 +35,7 @@ class Modem:
         "index",
         "jitter",
         "log_cap",
+        "longest",
         "port",
         "pressure_rng",
         "rx_arr",
@@ -63,6 +65,7 @@ class Modem:
         # so a scan does not chase a tuple and two float objects per signal
         self.rx_arr = array("d")
         self.rx_end = array("d")
+        self.longest = 0.0  # the longest signal recorded (s): how far back busy_at looks
         self.log_cap = 8  # prune the own transmissions beyond this many (see transmitting)
 
     def transmitting(self, start: float, end: float, now: float, max_duration: float) -> None:
@@ -95,11 +98,37 @@ class Modem:
         if keys and keys[0] < forget:
             j = bisect_left(keys, forget)
             del keys[:j], self.rx_end[:j], self.rx_log[:j]
-        arr = sig[0]
+        arr, end = sig[0], sig[1]
+        if end - arr > self.longest:
+            self.longest = end - arr
         j = bisect_right(keys, arr)
         keys.insert(j, arr)
-        self.rx_end.insert(j, sig[1])
+        self.rx_end.insert(j, end)
         self.rx_log.insert(j, sig)
+
+    def busy_at(self, t: float) -> bool:
+        """Carrier sense at true time ``t`` (s): whether this modem is transmitting, or a signal
+        recorded here is arriving (arrival <= t < end), at ``t``.
+
+        Causal: a signal is recorded when its first bit leaves the sender, before it arrives,
+        so only arrivals at or before ``t`` count. It senses what the channel records: the
+        signals of the links it hears (within range, above the SNR threshold)."""
+        if self.busy_until > t:
+            # own transmissions never overlap (one queue): only the last one started by t can cover t
+            i = bisect_right(self.tx_start, t)
+            if i and self.tx_end[i - 1] > t:
+                return True
+        keys = self.rx_arr
+        ends = self.rx_end
+        j = bisect_right(keys, t) - 1
+        # a signal that arrived before t - longest ended by t (twice that, so the rounding of
+        # arrival + duration cannot hide one)
+        first = t - 2.0 * self.longest
+        while j >= 0 and keys[j] >= first:
+            if ends[j] > t:
+                return True
+            j -= 1
+        return False
 
 
 def verdict(

@@ -28,6 +28,7 @@ from aquasim_py.scenario.schema import (
     LayeredSSP,
     MunkSSP,
     NodeGroupSpec,
+    RingPlacement,
     UniformPlacement,
 )
 
@@ -164,11 +165,16 @@ def placement_positions(
 
     uniform: i.i.d. uniform in the placement box (default the volume), drawn from ``rng``;
     grid: ``shape`` points per axis from lo to hi inclusive (one point: the middle), the last
-    axis varying fastest; explicit: as given.
+    axis varying fastest; explicit: as given; ring: evenly on a horizontal circle.
     """
     p = g.placement
     if isinstance(p, ExplicitPlacement):
         return np.asarray(p.positions, dtype=float).reshape(-1, 3)
+    if isinstance(p, RingPlacement):
+        assert g.count is not None
+        phi = 2.0 * np.pi * np.arange(g.count) / g.count
+        ring = np.stack([np.cos(phi), np.sin(phi), np.zeros(g.count)], axis=1)
+        return np.asarray(p.center, dtype=float) + p.radius_m * ring
     lo = np.asarray(p.lo if p.lo is not None else volume_lo, dtype=float)
     hi = np.asarray(p.hi if p.hi is not None else volume_hi, dtype=float)
     if isinstance(p, UniformPlacement):
@@ -306,6 +312,8 @@ def build(sc: Scenario) -> Any:
             clocks=_clock_factory(g.clock),
             params=g.params,
             name=g.name,
+            mac=g.mac,
+            mac_params=g.mac_params,
             sensors=Sensors(
                 depth_std=s.depth_noise_std_m,
                 velocity_std=s.velocity_noise_std_mps,

@@ -255,7 +255,18 @@ class ExplicitPlacement(Strict):
     positions: Annotated[list[Vec3], Field(min_length=1)]
 
 
-PlacementSpec = Annotated[UniformPlacement | GridPlacement | ExplicitPlacement, Field(discriminator="kind")]
+class RingPlacement(Strict):
+    """``count`` nodes evenly spaced on a horizontal circle of ``radius_m`` around ``center``,
+    the first on the +x side (e.g. many nodes at one distance from a receiver)."""
+
+    kind: Literal["ring"]
+    center: Vec3 = Field(description="centre of the circle (m); the nodes are at its depth")
+    radius_m: PosFloat
+
+
+PlacementSpec = Annotated[
+    UniformPlacement | GridPlacement | ExplicitPlacement | RingPlacement, Field(discriminator="kind")
+]
 
 
 class MobilitySpec(BaseModel):
@@ -310,6 +321,22 @@ class NodeGroupSpec(Strict):
     sensors: SensorSpec = Field(default_factory=SensorSpec)
     protocol: str
     params: dict[str, Any] = Field(default_factory=dict, description="the protocol's parameters")
+    mac: str | None = Field(
+        None,
+        description="the MAC of the group's nodes (aquasim_py.net.mac): direct, aloha, slotted_aloha, csma, "
+        "sfama, tdma; unset: direct, and no net.* metrics unless a protocol asks for them",
+    )
+    mac_params: dict[str, Any] = Field(default_factory=dict, description="the MAC's parameters")
+
+    @model_serializer(mode="wrap")
+    def _without_unset_mac(self, handler: Any) -> Any:
+        # a group without a MAC resolves exactly as before MACs existed
+        d = handler(self)
+        if isinstance(d, dict) and d.get("mac") is None:
+            d.pop("mac", None)
+            if not d.get("mac_params"):
+                d.pop("mac_params", None)
+        return d
 
 
 # --------------------------------------------------------------------------- the rest
