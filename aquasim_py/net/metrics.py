@@ -93,4 +93,3 @@ def net_metrics(tables: Mapping[str, Any], window: NetWindow) -> dict[str, float
         collisions_per_packet=collisions / len(tx) if len(tx) else nan,
     )
     return out
-
