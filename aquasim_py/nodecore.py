@@ -18,6 +18,7 @@ import numpy as np
 import simpy
 from pydantic import BaseModel
 
+from .energy import EnergyMeter
 from .estimation.bounds import range_geometry
 from .node import NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
@@ -73,6 +74,7 @@ class Group:
     start: int
     count: int
     static: bool
+    battery_j: float | None = None  # each node's battery capacity (J); None: unlimited
     # the group's positions at the last true time a node asked for its own (NodeCore.position):
     # nodes of a group often ask at one instant (a period's depth readings and estimates)
     pos_t: float = field(default=math.nan, repr=False)
@@ -95,6 +97,7 @@ class NodeCore:
         "affine",
         "channel",
         "clock",
+        "energy",
         "env",
         "exact_stamp",
         "group",
@@ -153,6 +156,9 @@ class NodeCore:
         self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
         # the waiting recv events in the order they were made, each with its kinds (None: any)
         self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        # the modem's energy meter (aquasim_py.energy) when the channel config gives its power
+        powers = sim.channel_config.powers
+        self.energy = None if powers is None else EnergyMeter(powers, group.battery_j)
         self.channel.attach(self)
 
     # -- truth ------------------------------------------------------------------------------------
@@ -201,6 +207,15 @@ class NodeCore:
             raise ValueError(f"node {self.index}: no node with id {dst}")
         # the packet carries a snapshot: the sender's later changes to its object reach no one
         return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
+
+    def modem_sleep(self) -> None:
+        self.channel.sleep(self.index)
+
+    def modem_wake(self) -> None:
+        self.channel.wake(self.index)
+
+    def modem_asleep(self) -> bool:
+        return bool(self.channel.asleep(self.index))
 
     def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
         # What the node gets: the modem's SNR estimate (the channel traced the true SNR), drawn
