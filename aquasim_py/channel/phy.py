@@ -43,6 +43,7 @@ __all__ = [
     "ber_mfsk_nc",
     "ber_qpsk",
     "packet_error",
+    "packet_error_at",
     "sinr_pieces",
 ]
 
@@ -143,23 +144,31 @@ class ErrorModel:
             raise ValueError("modulation 'table' needs a PER table")
         if self.modulation == "mfsk" and not (self.order >= 2 and self.order & (self.order - 1) == 0):
             raise ValueError(f"M-ary FSK needs an order that is a power of 2 (>= 2), got {self.order}")
+        # computed once: a verdict asks for a bit error rate or two
+        object.__setattr__(self, "_scale", self.bandwidth_hz / self.bitrate_bps * 10.0 ** (self.coding_gain_db / 10.0))
 
     @property
     def ebn0_per_sinr(self) -> float:
         """Eb/N0 per unit of SINR (linear): B / R x 10^(G / 10)."""
-        return self.bandwidth_hz / self.bitrate_bps * 10.0 ** (self.coding_gain_db / 10.0)
+        return self._scale  # type: ignore[attr-defined,no-any-return]
 
     def bit_error(self, sinr_lin: float) -> float:
         """The bit error rate at SINR ``sinr_lin`` (linear, over the receiver's band)."""
         if self.table is not None:
             return self.table.bit_error(sinr_lin)
-        g = sinr_lin * self.ebn0_per_sinr
+        g = sinr_lin * self._scale  # type: ignore[attr-defined]
         m = self.modulation
         if m == "bfsk":
-            return ber_bfsk_nc(g)
+            return 0.5 * math.exp(-0.5 * g)  # ber_bfsk_nc, inline: once or twice per reception
         if m == "mfsk":
             return ber_mfsk_nc(g, self.order)
-        return ber_bpsk(g)  # bpsk, qpsk
+        return 0.5 * math.erfc(math.sqrt(g))  # ber_bpsk (bpsk, qpsk)
+
+
+def packet_error_at(model: ErrorModel, sinr: float, bits: float) -> float:
+    """PER of ``bits`` bits all at SINR ``sinr`` (linear): -expm1(bits log1p(-BER))."""
+    ber = model.bit_error(sinr)
+    return 1.0 if ber >= 1.0 else -math.expm1(bits * math.log1p(-ber))
 
 
 def packet_error(model: ErrorModel, pieces: Iterable[tuple[float, float]]) -> float:

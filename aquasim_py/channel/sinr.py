@@ -41,7 +41,7 @@ from __future__ import annotations
 from bisect import bisect_left
 from typing import TYPE_CHECKING
 
-from .phy import ErrorModel, packet_error, sinr_pieces
+from .phy import ErrorModel, packet_error, packet_error_at, sinr_pieces
 
 if TYPE_CHECKING:  # pragma: no cover
     from .config import ChannelConfig
@@ -126,7 +126,10 @@ class SinrReceiver:
             if p < self.threshold * (1.0 + _interference(rx, i, arr, max_duration)):
                 return "collision"
         else:
-            self.advance(rx, end, max_duration)
+            # "first": a decided signal's state is final; "relock": a signal that arrived
+            # during it may still take the receiver over
+            if rx.acq_n <= i or self.lock == "relock":
+                self.advance(rx, end, max_duration)
             if rx.rx_acq[i] != ACQUIRED:
                 return "collision"
         # the data part's SINR pieces, and the PER with and without the interference
@@ -134,12 +137,12 @@ class SinrReceiver:
         others = _overlapping(rx, i, start, end, max_duration)
         model = self.model
         bits = float(sig[4].bits)
-        per0 = packet_error(model, ((p, bits),))
+        per0 = packet_error_at(model, p, bits)
         if others:
             pieces = sinr_pieces(start, end, p, others)
             span = end - start
             if self.worst:
-                per = packet_error(model, ((min(s for s, _ in pieces), bits),))
+                per = packet_error_at(model, min(s for s, _ in pieces), bits)
             else:
                 per = packet_error(model, [(s, bits * d / span) for s, d in pieces])
         else:
@@ -161,6 +164,8 @@ def _deaf(rx: Modem, t: float, max_duration: float) -> bool:
             if rx.tx_end[j] > t:
                 return True
             j += 1
+    if rx.energy is None and not rx.sleeps:
+        return False
     return rx.offline(t, t) is not None
 
 

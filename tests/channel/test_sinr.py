@@ -172,6 +172,10 @@ def test_lock_rules_on_a_hand_case() -> None:
     assert at_r("first") == {1: "collision", 2: "collision"}
     assert at_r("relock") == {1: "collision", 2: "rx"}
     assert at_r("none") == {1: "collision", 2: "rx"}
+    # B outlasting A ([1.125, 2.125)): A's verdict now comes before B's
+    plan[2] = [(1.0, None, 1024)]
+    assert at_r("relock") == {1: "collision", 2: "rx"}
+    assert at_r("first") == {1: "collision", 2: "collision"}
 
 
 def test_weak_signals_interfere_under_sinr_not_under_the_threshold_model() -> None:
