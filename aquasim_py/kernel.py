@@ -30,6 +30,7 @@ from .channel.acoustic import AcousticChannel
 from .channel.config import ChannelConfig, LossModel
 from .channel.environment import Environment
 from .channel.ssp import Constant, SoundSpeedProfile
+from .energy import ENERGY_COLUMNS
 from .mobility import Mobility
 from .net.mac import Direct, Mac
 from .net.mac import get as get_mac
@@ -219,6 +220,7 @@ class Simulation:
         params: Mapping[str, Any] | BaseModel | None = None,
         sensors: Sensors | None = None,
         name: str | None = None,
+        battery_j: float | None = None,
         mac: str | type[Mac] | None = None,
         mac_params: Mapping[str, Any] | BaseModel | None = None,
     ) -> list[Node]:
@@ -230,6 +232,8 @@ class Simulation:
         ``(node_id, rng) -> Clock`` (rng = stream ("node", id, "clock")).
         params: the protocol's parameters (validated by ``node_cls.Params``).
         sensors: depth / velocity sensor noise (:class:`~aquasim_py.node.Sensors`).
+        battery_j: each node's battery capacity (J; :mod:`aquasim_py.energy`); needs the modem's
+        power in the channel config. None: unlimited.
         mac: the MAC of every node of the group (:mod:`aquasim_py.net.mac`: a name or a class;
         None = ``direct``), with ``mac_params`` (validated by its ``Params``).
         """
@@ -239,6 +243,11 @@ class Simulation:
         if count < 1:
             raise ValueError(f"add_group: count must be >= 1, got {count}")
         role = Role(role)
+        if battery_j is not None and self.channel_config.powers is None:
+            raise ValueError(
+                "add_group: a battery needs the modem's power (ChannelConfig tx_power_w, rx_power_w, idle_power_w, "
+                "sleep_power_w, or a modem preset)"
+            )
         gname = name if name is not None else f"group{len(self.groups)}"
         if any(g.name == gname for g in self.groups):
             raise ValueError(f"add_group: a group named {gname!r} exists already")
@@ -268,7 +277,9 @@ class Simulation:
             mp = mac_params
         else:
             mp = mac_cls.Params.model_validate(dict(mac_params or {}))
-        group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility), mac=mac_cls, mac_params=mp)
+        group = Group(
+            gname, node_cls, role, mobility, start, count, _is_static(mobility), battery_j, mac=mac_cls, mac_params=mp
+        )
         if params is None:
             p = node_cls.Params()
         elif isinstance(params, node_cls.Params):
@@ -477,7 +488,17 @@ class Simulation:
             self.env.run(until=until)
         if progress is not None:
             progress(until, until)
+        self._write_energy(until)
         self._warn_unawaited()
+
+    def _write_energy(self, t: float) -> None:
+        """One ``energy`` row per node whose energy is counted, charged up to ``t`` (true s)."""
+        if self.channel_config.powers is None:
+            return
+        table = self.trace.table("energy")
+        for core in self._cores:
+            if core.energy is not None:
+                table.append((t, core.index, *core.energy.row(t)), ENERGY_COLUMNS)
 
     def note_unawaited(self, protocol: str, what: str) -> None:
         """Count an event made by a node of ``protocol`` (its ``what`` call) that fired unawaited."""

@@ -18,6 +18,7 @@ import numpy as np
 import simpy
 from pydantic import BaseModel
 
+from .energy import EnergyMeter
 from .estimation.bounds import range_geometry
 from .net.mac.base import Mac, MacParams
 from .net.mac.direct import Direct
@@ -75,6 +76,7 @@ class Group:
     start: int
     count: int
     static: bool
+    battery_j: float | None = None  # each node's battery capacity (J); None: unlimited
     #: the MAC every node of the group runs (:mod:`aquasim_py.net.mac`), and its parameters
     mac: type[Mac] = Direct
     mac_params: MacParams = field(default_factory=MacParams)
@@ -100,6 +102,7 @@ class NodeCore:
         "affine",
         "channel",
         "clock",
+        "energy",
         "env",
         "exact_stamp",
         "group",
@@ -160,6 +163,9 @@ class NodeCore:
         self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
         # the waiting recv events in the order they were made, each with its kinds (None: any)
         self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        # the modem's energy meter (aquasim_py.energy) when the channel config gives its power
+        powers = sim.channel_config.powers
+        self.energy = None if powers is None else EnergyMeter(powers, group.battery_j)
         self.channel.attach(self)
         mac_cls = group.mac
         #: the node's MAC, which takes its frames (transmit) and sees its receptions first
@@ -218,6 +224,15 @@ class NodeCore:
             raise ValueError(f"a packet needs bits > 0, got {bits}")
         # the packet carries a snapshot: the sender's later changes to its object reach no one
         return self.mac.offer(dst, str(kind), snapshot_payload(payload), bits)
+
+    def modem_sleep(self) -> None:
+        self.channel.sleep(self.index)
+
+    def modem_wake(self) -> None:
+        self.channel.wake(self.index)
+
+    def modem_asleep(self) -> bool:
+        return bool(self.channel.asleep(self.index))
 
     def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
         """A reception (RadioPort): to the MAC first, then, unless the MAC keeps it, up to the node."""
