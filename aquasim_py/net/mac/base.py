@@ -121,10 +121,6 @@ class MacPort(Protocol):
         """Carrier sense now, from the node's own modem: it is transmitting or receiving a signal."""
         ...
 
-    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
-        """Hand a reception up to the protocol (its waiting ``recv`` or its inbox)."""
-        ...
-
     def new_uid(self) -> int:
         """A packet uid never used before."""
         ...
