@@ -29,6 +29,7 @@ from aquasim_py.scenario.schema import (
     LayeredSSP,
     MunkSSP,
     NodeGroupSpec,
+    RingPlacement,
     UniformPlacement,
 )
 
@@ -161,11 +162,16 @@ def placement_positions(
 
     uniform: i.i.d. uniform in the placement box (default the volume), drawn from ``rng``;
     grid: ``shape`` points per axis from lo to hi inclusive (one point: the middle), the last
-    axis varying fastest; explicit: as given.
+    axis varying fastest; explicit: as given; ring: evenly on a horizontal circle.
     """
     p = g.placement
     if isinstance(p, ExplicitPlacement):
         return np.asarray(p.positions, dtype=float).reshape(-1, 3)
+    if isinstance(p, RingPlacement):
+        assert g.count is not None
+        phi = 2.0 * np.pi * np.arange(g.count) / g.count
+        ring = np.stack([np.cos(phi), np.sin(phi), np.zeros(g.count)], axis=1)
+        return np.asarray(p.center, dtype=float) + p.radius_m * ring
     lo = np.asarray(p.lo if p.lo is not None else volume_lo, dtype=float)
     hi = np.asarray(p.hi if p.hi is not None else volume_hi, dtype=float)
     if isinstance(p, UniformPlacement):
@@ -225,6 +231,22 @@ def channel_config(sc: Scenario) -> Any:
         max_bounces=c.max_bounces,
         detection_threshold_db=c.detection_threshold_db,
         direct_only=c.direct_only,
+        reception=c.reception,
+        modulation=c.modulation,
+        modulation_order=c.modulation_order,
+        coding_gain_db=c.coding_gain_db,
+        per_table=None if c.per_table is None else tuple((p[0], p[1]) for p in c.per_table),
+        per_table_bits=c.per_table_bits,
+        lock=c.lock,
+        per_combining=c.per_combining,
+        interference_floor_db=c.interference_floor_db,
+        noise_band=c.noise_band,
+        overhead_s=c.overhead_s,
+        modem=c.modem,
+        tx_power_w=c.tx_power_w,
+        rx_power_w=c.rx_power_w,
+        idle_power_w=c.idle_power_w,
+        sleep_power_w=c.sleep_power_w,
     )
 
 
@@ -303,6 +325,8 @@ def build(sc: Scenario) -> Any:
             clocks=_clock_factory(g.clock),
             params=g.params,
             name=g.name,
+            mac=g.mac,
+            mac_params=g.mac_params,
             sensors=Sensors(
                 depth_std=s.depth_noise_std_m,
                 velocity_std=s.velocity_noise_std_mps,
@@ -310,5 +334,6 @@ def build(sc: Scenario) -> Any:
                 position_std=s.position_noise_std_m,
                 position=s.position_fix,
             ),
+            battery_j=None if g.battery is None else g.battery.capacity_j,
         )
     return sim
