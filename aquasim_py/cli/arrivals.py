@@ -65,11 +65,10 @@ def parser() -> argparse.ArgumentParser:
 def _environment(path: str) -> tuple[Any, Any]:
     from aquasim_py.scenario import load
     from aquasim_py.scenario.build import make_ssp
-    from aquasim_py.scenario.ocean import make_environment, range_dependent
+    from aquasim_py.scenario.ocean import depth_profile, make_environment
 
     sc = load(path)
-    profile = None if range_dependent(sc) and sc.environment.sound_speed.model in ("section", "grid") else make_ssp(sc)
-    return sc, make_environment(sc, profile)
+    return sc, make_environment(sc, make_ssp(sc) if depth_profile(sc) else None)
 
 
 def command(argv: Sequence[str]) -> int:
