@@ -296,11 +296,14 @@ def _read(
         with open_dataset(p, decode_times=False) as ds:
             if name in ds.variables:
                 return (p, *_variable_grid(ds, p, name, frame, kinds, period, box))
-            seen += [str(v) for v in ds.data_vars]
+            seen += [v for v in _gridded(ds) if v not in seen]
     where = ", ".join(str(p) for p in paths)
-    raise DataFileError(
-        where, name, f"no such variable (the file{'s' * (len(paths) > 1)} hold: {', '.join(seen) or 'none'})"
-    )
+    raise DataFileError(where, name, f"no such variable (gridded variables there: {', '.join(seen) or 'none'})")
+
+
+def _gridded(ds: Any) -> list[str]:
+    """The data variables of two or more dimensions but bounds: for messages."""
+    return [str(v) for v, da in ds.data_vars.items() if da.ndim >= 2 and not str(v).endswith(("_bnds", "_bounds"))]
 
 
 def read_woa(
@@ -354,9 +357,11 @@ def read_gebco(
     with open_dataset(p, decode_times=False) as ds:
         name = next((n for n in names if n in ds.variables), None)
         if name is None:
-            held = ", ".join(str(v) for v in ds.data_vars) or "none"
+            held = ", ".join(_gridded(ds)) or "none"
             want = names[0] if variable else "elevation"
-            raise DataFileError(p, want, f"no such variable (GEBCO's elevation or ETOPO's z; the file holds: {held})")
+            raise DataFileError(
+                p, want, f"no such variable (GEBCO's elevation or ETOPO's z; gridded variables there: {held})"
+            )
         values, grid, _ = _variable_grid(ds, p, name, frame, ("latitude", "longitude"), None, box)
         attrs = ds[name].attrs
     if not np.all(np.isfinite(values)):
