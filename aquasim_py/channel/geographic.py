@@ -128,8 +128,8 @@ class LatLonGrid:
     def __init__(self, frame: LocalFrame, latitude: ArrayLike, longitude: ArrayLike) -> None:
         lat = np.asarray(latitude, float).ravel().copy()
         lon = np.asarray(longitude, float).ravel().copy()
-        if lon.size > 1:
-            lon = np.rad2deg(np.unwrap(np.deg2rad(lon)))  # a subset across the antimeridian
+        # a subset across the antimeridian (179.75, 180.0, -179.75 ...) runs on past 180
+        lon = lon + 360.0 * np.concatenate([[0], np.cumsum(np.diff(lon) < -180.0)])
         for name, a in (("latitude", lat), ("longitude", lon)):
             if a.size < 1 or not np.all(np.isfinite(a)) or np.any(np.diff(a) <= 0.0):
                 raise ValueError(f"LatLonGrid: {name} must be finite and strictly increasing")

@@ -49,6 +49,11 @@ SEASONS: dict[str, tuple[int, ...]] = {
 }
 
 
+#: what TEOS-10 is asked about: in-situ temperature and practical salinity of sea water
+_PLAUSIBLE_T = (-5.0, 45.0, "an in-situ temperature in deg C")
+_PLAUSIBLE_S = (0.0, 50.0, "a practical salinity")
+
+
 class DataFileError(ValueError):
     """A data file lacks what is needed, or does not cover what is asked: ``path: variable: problem``."""
 
@@ -336,10 +341,15 @@ def read_woa(
     if not same:
         raise DataFileError(s_path, salinity, f"is not on the grid of {temperature} in {t_path}")
     filled = []
-    for path, name, v in ((t_path, temperature, t), (s_path, salinity, s)):
+    for path, name, v, (lo, hi, what) in (
+        (t_path, temperature, t, _PLAUSIBLE_T),
+        (s_path, salinity, s, _PLAUSIBLE_S),
+    ):
         f = _fill(v)
         if f is None:
             raise DataFileError(path, name, "has no value over the scenario's volume (all cells masked)")
+        if f.min() < lo or f.max() > hi:
+            raise DataFileError(path, name, f"values {f.min():g} .. {f.max():g} are not {what} ({lo:g} .. {hi:g})")
         filled.append(f)
     return GeographicField.from_ts(grid, depth, filled[0], filled[1])
 

@@ -122,6 +122,13 @@ def test_a_missing_variable_names_the_file_and_the_variable(tmp_path: Path) -> N
     assert e.value.variable == "elevation" and str(WOA[0]) in str(e.value)
 
 
+def test_temperatures_in_kelvin_are_refused(tmp_path: Path) -> None:
+    paths = _woa_variant(tmp_path, lambda ds, name: ds.assign({name: ds[name] + 273.15}), only="t_an")
+    with pytest.raises(DataFileError, match=r"not an in-situ temperature in deg C \(-5 .. 45\)") as e:
+        read_woa(paths, FRAME, month=8)
+    assert e.value.variable == "t_an"
+
+
 def test_a_volume_outside_the_files_names_the_file_and_the_variable() -> None:
     far = LocalFrame(40.3, -70.0)  # the volume north of the GEBCO sample's 40.25 N
     box = far.footprint([-3000, 1000], [3000, 5000])
