@@ -15,6 +15,7 @@ from aquasim_py.cli import common
 EXAMPLES = """examples:
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120 --json --max-bounces 3
+  aquasim-py arrivals scenarios/geographic.toml --from -2000,7500,40 --to 600,3900,90
 """
 
 
