@@ -3,8 +3,9 @@
 A scenario placed on the globe has an origin (latitude, longitude) and works in metres: x east,
 y north, z depth. :class:`LocalFrame` is that map: the azimuthal equidistant projection about
 the origin on the WGS 84 ellipsoid (pyproj / PROJ ``aeqd``), so that distances and bearings from
-the origin are true and, over a few tens of kilometres, distances between any two points are
-true to ~1e-6 (the frame's x / y axes point east / north at the origin).
+the origin are true and, within 20 km of it, distances between any two points are true to a few
+1e-6 (the scale across the radius is ~1 + (r / R)^2 / 6; the x / y axes point east / north at
+the origin).
 
 Data files (World Ocean Atlas temperature and salinity, GEBCO or ETOPO bathymetry,
 :mod:`.oceanfiles`) stay on their own grid: :class:`LatLonGrid` takes a point of the frame back
