@@ -15,6 +15,7 @@ from aquasim_py.cli import common
 EXAMPLES = """examples:
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120 --json --max-bounces 3
+  aquasim-py arrivals scenarios/geographic.toml --from -2000,7500,40 --to 600,3900,90
 """
 
 
@@ -65,11 +66,10 @@ def parser() -> argparse.ArgumentParser:
 def _environment(path: str) -> tuple[Any, Any]:
     from aquasim_py.scenario import load
     from aquasim_py.scenario.build import make_ssp
-    from aquasim_py.scenario.ocean import make_environment, range_dependent
+    from aquasim_py.scenario.ocean import depth_profile, make_environment
 
     sc = load(path)
-    profile = None if range_dependent(sc) and sc.environment.sound_speed.model in ("section", "grid") else make_ssp(sc)
-    return sc, make_environment(sc, profile)
+    return sc, make_environment(sc, make_ssp(sc) if depth_profile(sc) else None)
 
 
 def command(argv: Sequence[str]) -> int:

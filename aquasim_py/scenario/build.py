@@ -20,7 +20,6 @@ from aquasim_py import registry
 from aquasim_py.errors import ScenarioDeprecationWarning
 from aquasim_py.scenario import ocean
 from aquasim_py.scenario.errors import ScenarioError
-from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
 from aquasim_py.scenario.schema import (
     ConstantSSP,
     CtdSSP,
@@ -128,7 +127,7 @@ def make_ssp(sc: Scenario) -> Any:
 
     spec = sc.environment.sound_speed
     bottom = sc.environment.bottom_m
-    if isinstance(spec, (SectionSSP, GridSSP)):
+    if not ocean.depth_profile(sc):
         return ocean.centre_profile(sc)  # what the scenario checks look at
     try:
         if isinstance(spec, ConstantSSP):
@@ -267,8 +266,7 @@ def _obstacles(o: Any) -> Any:
 
 def _environment(sc: Scenario, ssp: Any) -> Any:
     """The scenario's Environment (its depth profile ``ssp`` where the sound speed is one)."""
-    profile = None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else ssp
-    return ocean.make_environment(sc, profile)
+    return ocean.make_environment(sc, ssp if ocean.depth_profile(sc) else None)
 
 
 def build(sc: Scenario) -> Any:
