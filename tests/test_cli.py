@@ -11,9 +11,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from console_table import assert_printed
 
 from aquasim_py import cli, metrics, trace
-from aquasim_py.reporting import display
 
 SCENARIO = """\
 [simulation]
@@ -401,16 +401,3 @@ def test_progress_bar_follows_simulated_time(scen, tmp_path, capsys, monkeypatch
     seen.clear()
     assert run(capsys, scen, "--out", tmp_path / "b", "--quiet")[0] == 0
     assert seen == []
-
-
-def assert_printed(stdout: str, k: str, v: float | None) -> None:
-    """Metric ``k`` of value ``v`` is in a run's printed table as printed: under its family's
-    heading, its name without the family with its unit and its value in that unit; or named
-    in the note of the metrics printed once because another one has the same values."""
-    once = next((line for line in stdout.splitlines() if line.startswith("equal, printed once:")), "")
-    if re.search(rf"(^|[ ;:]){re.escape(k)} = ", once):
-        return
-    shown, (cell,) = display.format_row(k, [v if v is not None else math.nan])
-    family, _, rest = shown.partition(".")
-    assert re.search(rf"│ {re.escape(family)} +│", stdout), (k, family)
-    assert re.search(rf"│   {re.escape(rest)} +│ +{re.escape(cell)} │", stdout), (k, shown, cell)
