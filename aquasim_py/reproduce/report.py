@@ -8,14 +8,15 @@ import html
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from aquasim_py.reporting.display import Unit, format_in, unit_of
 
 from .claims import MIN_RUNS, REL_TOL, Paper, Scale
 from .runner import ClaimResult
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "claims_table",
@@ -96,6 +97,8 @@ def short_statistic(kind: str, statistic: str, n: int, reduce: str = "") -> str:
 def claims_table(paper: Paper, results: Sequence[ClaimResult]) -> pd.DataFrame:
     """One row per (claim, reading): the paper's value, ours with its CI (and the prediction
     interval of one run where the paper's number is one run), the verdict and its flag."""
+    import pandas as pd
+
     rows = []
     for r in results:
         c, o = r.claim, r.outcome

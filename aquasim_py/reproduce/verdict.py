@@ -18,7 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from .claims import MIN_RUNS, REL_TOL, Claim, Statistic
 
@@ -76,6 +75,8 @@ def _reduce(v: Array, how: str) -> Array:
 
 def _t_interval(x: Array, predict: bool = False) -> tuple[float, float, float]:
     """Mean and its 95 % t-interval; ``predict``: the prediction interval of one more value."""
+    from scipy import stats
+
     m = float(np.mean(x))
     if x.size < 2:
         return m, math.nan, math.nan
