@@ -10,6 +10,7 @@ import textwrap
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
 from aquasim_py.reporting.figures import DPI, plt
 
@@ -58,6 +59,11 @@ def plot_claims(table: pd.DataFrame, title: str, path: Path, ncols: int = 4) -> 
         ax.invert_yaxis()
         ax.set_title(textwrap.fill(f"{cid} ({first.figure})", 48), fontsize=8)
         ax.tick_params(axis="x", labelsize=7)
+        # unitless numbers far from 1 (an NMSE of 1e-4) in powers of ten: fixed-point labels
+        # of such numbers are long and overlap
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+        ax.xaxis.get_offset_text().set_fontsize(7)
         ax.set_xlabel(f"{_what(str(first.kind))} ({u.unit})" if u.unit else _what(str(first.kind)), fontsize=7)
     handles = [plt.Line2D([], [], color=c, marker="o", lw=2.5, label=v) for v, c in _COLOURS.items()]
     handles.append(plt.Line2D([], [], color="0.5", marker="o", lw=2.5, label="too few runs / reference"))
