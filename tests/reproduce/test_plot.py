@@ -3,6 +3,7 @@ short enough not to overlap."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pandas as pd
@@ -39,5 +40,5 @@ def test_tick_labels_of_small_unitless_numbers_do_not_overlap(tmp_path, monkeypa
     boxes = [t.get_window_extent(renderer) for t in ax.get_xticklabels() if t.get_text()]
     assert len(boxes) >= 3
     boxes.sort(key=lambda b: b.x0)
-    assert all(a.x1 <= b.x0 for a, b in zip(boxes, boxes[1:]))
+    assert all(a.x1 <= b.x0 for a, b in itertools.pairwise(boxes))
     assert ax.xaxis.get_offset_text().get_text()  # the power of ten beside the axis
