@@ -399,10 +399,18 @@ def test_summary_csv_is_summarize_runs_of_sweep_csv(scen, tmp_path):
         "std",
         "ci95_low",
         "ci95_high",
+        "center_stat",
+        "center",
+        "center_ci95_low",
+        "center_ci95_high",
     ]
     rmse = s[(s["metric"] == "beacon.range_rmse_m") & (s["nodes.1.count"] == 4) & (s["channel.jitter_std_s"] == 1e-3)]
     vals = runs[(runs["nodes.1.count"] == 4) & (runs["channel.jitter_std_s"] == 1e-3)]["beacon.range_rmse_m"]
     assert int(rmse["n"].iloc[0]) == 2 and rmse["mean"].iloc[0] == pytest.approx(vals.mean(), rel=1e-12)
+    # beside the mean, the centre the reports draw: an error's geometric mean, named
+    assert rmse["center_stat"].iloc[0] == "geometric mean"
+    assert rmse["center"].iloc[0] == pytest.approx(np.exp(np.log(vals).mean()), rel=1e-12)
+    assert 0 < rmse["center_ci95_low"].iloc[0] <= rmse["center"].iloc[0] <= rmse["center_ci95_high"].iloc[0]
     assert len(s) == len(
         summarize_runs(
             runs,

@@ -43,7 +43,7 @@ import pandas as pd
 from aquasim_py import trace
 from aquasim_py.reporting import sweep as sweep_report
 from aquasim_py.reporting import tables
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import plt, save_figure, subplots
 
 __all__ = ["ReportError", "report_run", "report_sweep", "write_report"]
 
@@ -65,7 +65,7 @@ def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     nodes = t.get("nodes")
     if pos is None or len(pos) == 0:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 6.0))
+    fig, ax = subplots(figsize=(7.0, 6.0))
     first = pos.sort_values("time").groupby("node").first()
     pk = t.get("packets")
     if pk is not None and len(pk):
@@ -107,9 +107,12 @@ def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
 
 
 def _per_node_lines(df: pd.DataFrame, y: pd.Series, ax: Any) -> None:
-    for node, g in df.assign(_y=y).groupby("node"):
-        ax.plot(g["time"], g["_y"], lw=0.9, label=f"node {node}")
-    if df["node"].nunique() <= 12:
+    """A line per node; a legend for up to 20 nodes (each its own colour)."""
+    groups = df.assign(_y=y).groupby("node")
+    colours = plt.get_cmap("tab10" if len(groups) <= 10 else "tab20")  # listed: an integer picks a colour
+    for i, (node, g) in enumerate(groups):
+        ax.plot(g["time"], g["_y"], lw=0.9, color=colours(i % colours.N), label=f"node {node}")
+    if len(groups) <= 20:
         ax.legend(fontsize=7, ncol=2)
 
 
@@ -117,7 +120,7 @@ def _plot_error_vs_time(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None
     est = t.get("estimates")
     if est is None or len(est) == 0 or "error" not in est:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     _per_node_lines(est, est["error"], ax)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("localization error (m)")
@@ -130,7 +133,7 @@ def _plot_sync(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     clk = t.get("clocks")
     if clk is None or len(clk) == 0 or "error" not in clk:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     err_us = 1e6 * clk["error"].abs()
     _per_node_lines(clk, err_us, ax)
     if (err_us > 0).all():
@@ -149,16 +152,16 @@ def _plot_cdf(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     e = e[np.isfinite(e)]
     if e.size == 0:
         return None
-    fig, ax = plt.subplots(figsize=(6.0, 4.0))
-    ax.step(e, np.arange(1, e.size + 1) / e.size, where="post")
-    for q in (0.5, 0.9):
+    fig, ax = subplots(figsize=(6.0, 4.0))
+    ax.step(e, np.arange(1, e.size + 1) / e.size, where="post", label="every estimate")
+    for q, style in ((0.5, ":"), (0.9, "--")):
         v = float(np.quantile(e, q))
-        ax.axvline(v, color="0.6", ls=":", lw=0.8)
-        ax.text(v, q, f" {int(q * 100)} %: {v:.3g} m", fontsize=8, va="bottom")
+        ax.axvline(v, color="0.45", ls=style, lw=0.9, label=f"{'median' if q == 0.5 else '90 %'}: {v:.3g} m")
     ax.set_xlabel("localization error (m)")
     ax.set_ylabel("fraction of estimates")
     ax.set_ylim(0, 1.02)
     ax.set_title(f"Error CDF ({e.size} estimates)")
+    ax.legend(fontsize=8)
     return save_figure(fig, out / "error_cdf.png")
 
 
@@ -174,7 +177,7 @@ def _plot_packets(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     nbins = int(np.clip(span / 10.0, 10, 60))
     edges = np.linspace(float(rows["time"].min()), float(rows["time"].max()) + 1e-9, nbins + 1)
     mids = 0.5 * (edges[:-1] + edges[1:])
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     bottom = np.zeros(len(mids))
     times = rows["time"].to_numpy(dtype=float)
     for label in sorted(set(outcome), key=lambda o: (o != "received", o)):
