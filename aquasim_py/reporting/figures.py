@@ -447,6 +447,12 @@ def problems(fig: Any) -> list[str]:
     for ax, leg in _legends(fig):
         where = "figure legend" if ax is None else f"legend of {ax.get_title()!r}"
         out += [f"{where} covers {what}" for what in _legend_covers(fig, leg, renderer)]
+        box = leg.get_window_extent(renderer)
+        out += [
+            f"{where} covers the text {t.get_text()!r}"
+            for t in _labels(fig)
+            if t.get_window_extent(renderer).overlaps(box)
+        ]
         styles: dict[tuple[Any, ...], str] = {}
         for text, handle in zip(leg.get_texts(), leg.legend_handles):
             key = _style(handle)
@@ -466,6 +472,12 @@ def problems(fig: Any) -> list[str]:
                 if f"{NOTE} {first}" not in s.label and f"{_name(s.label)} {NOTE} {first}" not in ax.get_title():
                     out.append(f"{s.label!r} coincides with {first!r} in {ax.get_title()!r} without a note")
     return out
+
+
+def _labels(fig: Any) -> list[Text]:
+    """The figure's titles and axis labels that show."""
+    texts = [*fig.texts, *(t for ax in fig.axes for t in (ax.title, ax.xaxis.label, ax.yaxis.label))]
+    return [t for t in texts if t.get_visible() and t.get_text()]
 
 
 def _style(handle: Any) -> tuple[Any, ...] | None:

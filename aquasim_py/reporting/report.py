@@ -21,9 +21,12 @@ Run directory (``summary.json`` and the trace tables):
 Variants run (``variants.csv`` and a run directory per variant): the variants side by side
 (:mod:`aquasim_py.reporting.variants`), each variant's own report in its directory.
 
-Sweep directory (``sweep.csv``): each metric against each swept value, a line per
-combination of the other grid keys (:mod:`aquasim_py.reporting.sweep`), and the table per grid
-point with n and the interval.
+Sweep directory (``sweep.csv``): each metric against each swept value, the other grid keys
+as lines and panels (:mod:`aquasim_py.reporting.sweep`), and the table per grid point with n
+and the interval.
+
+Every plot goes through :func:`aquasim_py.reporting.figures.save_figure`: coinciding series
+drawn in turns and noted, no legend over data, no tick labels over each other.
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
 """
@@ -271,7 +274,8 @@ def _sweep_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tu
     body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
     if (directory / "summary.csv").is_file():
         body += (
-            "<details><summary>summary.csv: arithmetic mean, std and Student-t 95 % CI per grid point</summary>"
+            "<details><summary>summary.csv: per grid point the arithmetic mean, std and Student-t 95 % CI, "
+            "and the centre the plots draw (center_stat, center, center_ci95_low, center_ci95_high)</summary>"
             + pd.read_csv(directory / "summary.csv").to_html(index=False)
             + "</details>"
         )

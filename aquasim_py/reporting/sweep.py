@@ -2,10 +2,13 @@
 
 Drawn from ``sweep.csv`` alone (plan order, so the first appearance of each grid value is its
 order in the scenario). For a metric and an x key (each numeric grid key; with none, the
-first grid key), the runs are grouped by x and by every other grid key: one line per
-combination of the other keys (and variant), in scenario order, so a grid ``model x sigma_t``
-draws ESSP and ASSP apart against sigma_t instead of pooling them. Each point is the
-sign-respecting centre and 95 % interval of :mod:`aquasim_py.reporting.intervals` over its runs.
+first grid key), the runs are grouped by x and by every other grid key (:func:`lines`: one
+line per combination of the other keys, and variant, in scenario order), so a grid ``model x
+sigma_t`` draws ESSP and ASSP apart against sigma_t instead of pooling them. The plot shows
+them as small multiples (:func:`layout`, :func:`draw`): in each panel a line per value of one
+other key (the one with the fewest values, at most :data:`MAX_LINES`), a panel per
+combination of the rest. Each point is the sign-respecting centre and 95 % interval of
+:mod:`aquasim_py.reporting.intervals` over its runs, the ``center`` columns of ``summary.csv``.
 
 Axes: an x key whose values are positive and closer to evenly spaced in log than in linear
 terms (``[1e-5, 1e-4, 1e-3]``, ``[10, 20, 40]``) gets a log axis, a metric whose centres are
@@ -366,7 +369,7 @@ def draw(
             proxies = [
                 Line2D([], [], color=f"C{i}", marker="o", ms=4, lw=1.2, label=hue_text[h]) for i, h in enumerate(hues)
             ]
-            fig.legend(handles=proxies, loc="outside right upper", fontsize=8, title=title, title_fontsize=8)
+            fig.legend(handles=proxies, loc="outside right center", fontsize=8, title=title, title_fontsize=8)
     return fig, panels
 
 

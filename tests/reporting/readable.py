@@ -50,6 +50,20 @@ def legend_over_data(fig: Any) -> list[str]:
     return found
 
 
+def legend_over_titles(fig: Any) -> list[str]:
+    """Legends over the figure's title or a panel's title or axis label."""
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None] + list(fig.legends)
+    texts = [
+        *fig.texts,
+        *(t for ax in fig.axes if ax.get_visible() for t in (ax.title, ax.xaxis.label, ax.yaxis.label)),
+    ]
+    boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in texts if t.get_text()]
+    return [
+        f"legend over {text!r}" for leg in legends for text, b in boxes if b.overlaps(leg.get_window_extent(renderer))
+    ]
+
+
 def overlapping_ticks(fig: Any) -> list[str]:
     """Pairs of tick labels (of one axis) whose boxes overlap."""
     renderer = fig.canvas.get_renderer()
@@ -95,4 +109,4 @@ def unnoted_identical(fig: Any) -> list[str]:
 def findings(fig: Any) -> list[str]:
     """Everything the checks above find in ``fig`` (drawn first)."""
     fig.draw_without_rendering()
-    return legend_over_data(fig) + overlapping_ticks(fig) + unnoted_identical(fig)
+    return legend_over_data(fig) + legend_over_titles(fig) + overlapping_ticks(fig) + unnoted_identical(fig)
