@@ -96,8 +96,9 @@ def test_rows_depend_on_swept_values(scen):
 
 def test_two_workers_give_the_same_csv_as_one(scen, tmp_path, capsys):
     a, b = tmp_path / "w1", tmp_path / "w2"
-    assert cli.main(["sweep", str(scen), "--workers", "1", "--out", str(a), "--quiet"]) == 0
-    assert cli.main(["sweep", str(scen), "--workers", "2", "--out", str(b), "--quiet"]) == 0
+    short = ["--set", "simulation.duration_s=10"]  # the rows' order and bytes, not the runs' length, are tested
+    assert cli.main(["sweep", str(scen), "--workers", "1", "--out", str(a), "--quiet", *short]) == 0
+    assert cli.main(["sweep", str(scen), "--workers", "2", "--out", str(b), "--quiet", *short]) == 0
     assert (a / "sweep.csv").read_bytes() == (b / "sweep.csv").read_bytes()
     with open(a / "sweep.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -447,6 +448,7 @@ def _interrupt_after(monkeypatch, n: int) -> None:
 def test_an_interrupted_sweep_is_refused_without_resume_and_kept(scen, tmp_path, monkeypatch, capsys, killed):
     out = tmp_path / "o"
     argv = ["sweep", str(scen), "--workers", "1", "--out", str(out), "--quiet", "--set", "sweep.runs=1"]
+    argv += ["--set", "simulation.duration_s=10"]  # what is kept and refused, not the runs' length, is tested
     with monkeypatch.context() as m:
         _interrupt_after(m, 3)
         assert cli.main(argv) == 130

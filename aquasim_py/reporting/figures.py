@@ -107,7 +107,10 @@ class _Series:
     data: tuple[np.ndarray, ...]
 
     def same_data(self, other: _Series) -> bool:
-        """Whether the two series draw the same data (NaNs alike)."""
+        """Whether the two series draw the same data (NaNs alike; nothing is not data: an empty
+        legend proxy coincides with nothing)."""
+        if not any(a.size for a in self.data):
+            return False
         return len(self.data) == len(other.data) and all(
             a.shape == b.shape and np.array_equal(a, b, equal_nan=True) for a, b in zip(self.data, other.data)
         )
@@ -199,19 +202,36 @@ def _series(ax: Any) -> list[_Series]:
     return out
 
 
-def _covered_fraction(a: np.ndarray, b: np.ndarray, tol: float = TOL_PX) -> float:
-    """The fraction of the points ``a`` within ``tol`` pixels of the points ``b``."""
-    from scipy.spatial import cKDTree
-
+def _covered_fraction(a: np.ndarray, b: np.ndarray) -> float:
+    """The fraction of the display points ``a`` that fall on a pixel within :data:`TOL_PX` of
+    one of the points ``b`` (both rounded to pixels; the pixels around ``b`` marked on a grid)."""
     if not len(a) or not len(b):
         return 0.0
-    d, _ = cKDTree(b).query(a, distance_upper_bound=tol)
-    return float(np.mean(np.isfinite(d)))
+    reach = int(np.floor(TOL_PX))
+    ia, ib = np.rint(a).astype(np.int64), np.rint(b).astype(np.int64)
+    lo = np.minimum(ia.min(axis=0), ib.min(axis=0)) - reach
+    size = np.maximum(ia.max(axis=0), ib.max(axis=0)) - lo + reach + 1
+    near = np.zeros((int(size[0]), int(size[1])), dtype=bool)
+    for dx in range(-reach, reach + 1):
+        for dy in range(-reach, reach + 1):
+            if dx * dx + dy * dy <= TOL_PX * TOL_PX:
+                near[ib[:, 0] - lo[0] + dx, ib[:, 1] - lo[1] + dy] = True
+    return float(np.mean(near[ia[:, 0] - lo[0], ia[:, 1] - lo[1]]))
+
+
+def _apart(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the boxes around two point sets (grown by :data:`TOL_PX`) do not meet."""
+    if not len(a) or not len(b):
+        return True
+    lo_a, hi_a, lo_b, hi_b = a.min(axis=0), a.max(axis=0), b.min(axis=0), b.max(axis=0)
+    return bool(np.any(lo_a > hi_b + TOL_PX) or np.any(lo_b > hi_a + TOL_PX))
 
 
 def coincides(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether two series drawn at the display points ``a`` and ``b`` coincide: each within
     :data:`TOL_PX` of the other over :data:`COINCIDE_FRACTION` of its points."""
+    if _apart(a, b):
+        return False
     return _covered_fraction(a, b) >= COINCIDE_FRACTION and _covered_fraction(b, a) >= COINCIDE_FRACTION
 
 
@@ -262,40 +282,64 @@ def _name(label: str) -> str:
     return label.split(" (", 1)[0]
 
 
+def _below_gid(ax: Any) -> str:
+    return f"legend of axes {id(ax)}"
+
+
 def _legend_of(ax: Any) -> Legend | None:
+    """The axes' own legend, also once moved below the figure."""
     leg = ax.get_legend()
-    return leg if isinstance(leg, Legend) else None
+    if isinstance(leg, Legend):
+        return leg
+    return next((f for f in ax.figure.legends if f.get_gid() == _below_gid(ax)), None)
+
+
+def _plain(label: str) -> str:
+    """A label without the note :func:`finish` gave it."""
+    return label.split(f" ({NOTE} ", 1)[0]
 
 
 def _note_coincident(fig: Any) -> bool:
     """Draw coinciding series in turns and say so (the legend entry, or the panel's title);
-    whether any did."""
-    noted = False
+    whether anything changed. Run again after the layout moved, it mends only what differs."""
+    changed = False
     for ax in fig.axes:
         series = _series(ax)
-        notes = []
+        leg = _legend_of(ax)
+        entries = {t.get_text(): (t, h) for t, h in zip(leg.get_texts(), leg.legend_handles)} if leg else {}
+        notes, later = [], set()
         for group in _groups(series):
-            first = series[group[0]]
+            first = _name(_plain(series[group[0]].label))
             for turn, i in enumerate(group[1:], start=1):
                 s = series[i]
+                later.add(i)
                 if s.line is not None:
                     _take_turns(s.line, turn, len(group))
-                noted = True
-                note = f"{NOTE} {_name(first.label)}"
-                leg = _legend_of(ax)
-                texts = {t.get_text(): (t, h) for t, h in zip(leg.get_texts(), leg.legend_handles)} if leg else {}
-                if s.label in texts:
-                    text, handle = texts[s.label]
-                    text.set_text(f"{s.label} ({note})")
-                    if isinstance(handle, Line2D) and s.line is not None:
-                        _take_turns(handle, turn, len(group))
-                    s.artist.set_label(f"{s.label} ({note})")
-                else:
-                    notes.append(f"{_name(s.label)} {note}")
-        if notes:
-            title = ax.get_title()
-            ax.set_title((title + "\n" if title else "") + "; ".join(notes), fontsize=8)
-    return noted
+                if s.label not in entries:
+                    notes.append(f"{_name(_plain(s.label))} {NOTE} {first}")
+                    continue
+                text, handle = entries[s.label]
+                if isinstance(handle, Line2D) and s.line is not None:
+                    _take_turns(handle, turn, len(group))
+                label = f"{_plain(s.label)} ({NOTE} {first})"
+                if label != s.label:
+                    text.set_text(label)
+                    s.artist.set_label(label)
+                    changed = True
+        for i, s in enumerate(series):  # noted before, alone now: plain again
+            if i not in later and s.label != _plain(s.label):
+                if s.label in entries:
+                    entries[s.label][0].set_text(_plain(s.label))
+                s.artist.set_label(_plain(s.label))
+                if s.line is not None:
+                    s.line.set_linestyle("-")
+                changed = True
+        kept = [line for line in ax.get_title().split("\n") if f" {NOTE} " not in line and line]
+        title = "\n".join(kept + (["; ".join(notes)] if notes else []))
+        if title != ax.get_title():
+            ax.set_title(title, fontsize=8 if notes else None)
+            changed = True
+    return changed
 
 
 def _data_covered(ax: Any, box: Bbox, renderer: Any) -> list[str]:
@@ -329,12 +373,14 @@ def _data_covered(ax: Any, box: Bbox, renderer: Any) -> list[str]:
 
 
 def _legends(fig: Any) -> Iterable[tuple[Any, Legend]]:
-    """(its axes or None, legend) for every legend of the figure."""
+    """(its axes or None, legend) for every legend of the figure (a legend moved below the
+    figure keeps its axes)."""
+    owners = {_below_gid(ax): ax for ax in fig.axes}
     for ax in fig.axes:
-        if (leg := _legend_of(ax)) is not None:
+        if isinstance(leg := ax.get_legend(), Legend):
             yield ax, leg
     for leg in fig.legends:
-        yield None, leg
+        yield owners.get(leg.get_gid()), leg
 
 
 def _legend_covers(fig: Any, leg: Legend, renderer: Any) -> list[str]:
@@ -342,22 +388,24 @@ def _legend_covers(fig: Any, leg: Legend, renderer: Any) -> list[str]:
     return [what for ax in fig.axes for what in _data_covered(ax, box, renderer)]
 
 
-def _move_legends_off_data(fig: Any, renderer: Any) -> Any:
+def _move_legends_off_data(fig: Any, renderer: Any) -> bool:
     """A legend that covers data leaves its axes: below the figure, across its width, when its
     axes is the figure's only one (a colour bar aside); else to the right of its axes.
-    Returns the renderer of the figure laid out again."""
+    Whether any moved."""
     panels = [ax for ax in fig.axes if not _is_colorbar(ax)]
-    for ax, leg in list(_legends(fig)):
-        if ax is None or not _legend_covers(fig, leg, renderer):
+    moved = False
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is None or not _legend_covers(fig, leg, renderer):
             continue
         if len(panels) == 1:
             _legend_below(fig, ax, leg)
         else:
             leg.set_loc("upper left")
             leg.set_bbox_to_anchor((1.02, 1.0), transform=ax.transAxes)
-            leg.set_ncols(1 if len(leg.get_texts()) <= 16 else 2)
         renderer = _draw(fig)
-    return renderer
+        moved = True
+    return moved
 
 
 def _is_colorbar(ax: Any) -> bool:
@@ -365,17 +413,18 @@ def _is_colorbar(ax: Any) -> bool:
 
 
 def _legend_below(fig: Any, ax: Any, leg: Legend) -> None:
-    """Replace the axes legend ``leg`` by a figure legend below the axes, in as many columns
-    as fit the figure's width."""
-    shown = [t.get_text() for t in leg.get_texts()]
-    size = leg.get_texts()[0].get_fontsize() if shown else None
+    """Replace ``leg`` (the axes' legend, inside it or already below the figure) by a figure
+    legend below the axes with the same entries (their labels as they are now), in as many
+    columns (at most 4) as fit the figure's width."""
     by_label = dict(zip(*ax.get_legend_handles_labels()[::-1]))
-    handles = [by_label[label] for label in shown if label in by_label]
-    labels = [label for label in shown if label in by_label]
+    labels = [t.get_text() for t in leg.get_texts() if t.get_text() in by_label]
+    size = leg.get_texts()[0].get_fontsize() if labels else None
     leg.remove()
     for ncols in range(min(len(labels), 4), 0, -1):
-        new = fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize=size)
-        if ncols == 1 or new.get_window_extent(_draw(fig)).width <= 0.98 * fig.bbox.width:
+        new = fig.legend([by_label[x] for x in labels], labels, loc="outside lower center", ncols=ncols, fontsize=size)
+        new.set_gid(_below_gid(ax))  # still this axes' legend (its notes go there)
+        # a legend's size does not depend on where the layout puts it: measured without one
+        if ncols == 1 or new.get_window_extent(fig.canvas.get_renderer()).width <= 0.98 * fig.bbox.width:
             return
         new.remove()
 
@@ -413,14 +462,19 @@ def _thin(axis: Any, rounds: int, renderer: Any) -> None:
         axis.set_major_locator(MaxNLocator(nbins=max(1, shown // 2), steps=[1, 2, 5, 10]))
 
 
-def _thin_crowded_ticks(fig: Any, renderer: Any) -> None:
+def _thin_crowded_ticks(fig: Any, renderer: Any) -> bool:
+    """Thin or slant crowded tick labels until none overlap (a few steps at most); whether
+    any were."""
+    thinned = False
     for rounds in range(6):
         crowded = [axis for ax in fig.axes for axis in (ax.xaxis, ax.yaxis) if _crowded(axis, renderer)]
         if not crowded:
-            return
+            break
         for axis in crowded:
             _thin(axis, rounds, renderer)
         renderer = _draw(fig)
+        thinned = True
+    return thinned
 
 
 def finish(fig: Any) -> None:
@@ -428,10 +482,19 @@ def finish(fig: Any) -> None:
     turns and noted, legends off the data, tick labels apart. Each step lays the figure out
     again only if it changed it."""
     renderer = _draw(fig)
-    if _note_coincident(fig):
+    for _ in range(4):  # a step may undo another's work (a legend grown by a note): until none acts
+        moved = _move_legends_off_data(fig, renderer)
+        if moved:
+            renderer = _draw(fig)
+        noted = _note_coincident(fig)
+        if noted:
+            for ax, leg in list(_legends(fig)):  # a note made a legend below the figure wider
+                if ax is not None and leg.get_gid() == _below_gid(ax):
+                    _legend_below(fig, ax, leg)
+            renderer = _draw(fig)
+        if not (_thin_crowded_ticks(fig, renderer) or moved or noted):
+            break
         renderer = _draw(fig)
-    renderer = _move_legends_off_data(fig, renderer)
-    _thin_crowded_ticks(fig, renderer)
     fig.set_layout_engine("none")  # laid out: saving keeps this layout instead of computing it again
 
 

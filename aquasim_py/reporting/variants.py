@@ -41,7 +41,7 @@ def _cdf(samples: Mapping[str, np.ndarray], quantity: str, unit: str, title: str
     samples = {k: v for k, v in samples.items() if v.size}
     if not samples:
         return None
-    fig, ax = subplots(figsize=(7.5, 4.5))
+    fig, ax = subplots(figsize=(7.5, 5.5))  # room for a legend of seven below
     positive = all(v.min() > 0 for v in samples.values())
     for name, v in samples.items():
         v = np.sort(v)

@@ -112,3 +112,32 @@ def test_dodged_series_keep_their_data() -> None:
     pb = b.lines[0].get_transform().transform(b.lines[0].get_xydata())
     assert np.allclose(pb[:, 0] - pa[:, 0], 7.0 / 72.0 * fig.dpi) and np.allclose(pb[:, 1], pa[:, 1])
     _close(fig)
+
+
+def test_a_legend_moved_below_carries_the_note_and_finishing_again_changes_nothing() -> None:
+    fig, ax = figures.subplots(figsize=(5.0, 3.5))
+    x = np.linspace(0.0, 1.0, 50)
+    ax.plot(x, x, label="a")
+    ax.plot(x, x, label="b")
+    ax.plot(x, 1.0 - x, label="c")
+    ax.legend(loc="center")  # over the crossing: moves below the figure
+    figures.finish(fig)
+    (below,) = fig.legends
+    assert ax.get_legend() is None
+    assert [t.get_text() for t in below.get_texts()] == ["a", "b (coincides with a)", "c"]
+    figures.finish(fig)  # a note is not noted twice, nor the legend moved again
+    (again,) = fig.legends
+    assert [t.get_text() for t in again.get_texts()] == ["a", "b (coincides with a)", "c"]
+    assert [line.get_label() for line in ax.lines] == ["a", "b (coincides with a)", "c"]
+    assert figures.problems(fig) == [] and findings(fig) == []
+    _close(fig)
+
+
+def test_coincidence_is_measured_in_pixels() -> None:
+    """Points within TOL_PX of each other cover each other; a shift of 3 px does not; far apart
+    sets meet nowhere."""
+    a = np.column_stack([np.linspace(10.0, 200.0, 400), np.full(400, 50.0)])
+    assert figures.coincides(a, a + [0.0, 1.0])
+    assert not figures.coincides(a, a + [0.0, 3.0])
+    assert not figures.coincides(a, a + [0.0, 500.0])
+    assert figures.coincides(a, a[::-1] + [0.4, -0.4])  # order does not matter
