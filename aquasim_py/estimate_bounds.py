@@ -64,42 +64,79 @@ class RangeNoise:
     round trip from four stamps, two of each node: var = (s_i^2 + s_j^2) / 2 s^2, so a range
     has variance speed^2 (s_i^2 + s_j^2) / 2 + (rel_std r)^2 (m^2); with equal stamp noise s
     its std is speed x s. A one-way range between synchronized clocks has twice the stamp
-    variance: the bound of the two-way exchange is the lower of the two. The simulator applies
+    variance: the bound of the two-way exchange is the lower of the two. The channel applies
     no other ranging noise: stamps are not quantized (no timestamp resolution), and the stamp
-    of a reception does not depend on its SNR."""
+    of a reception does not depend on its SNR.
+
+    ``meas_std_m``, ``meas_rel_std`` (one per node id, or None for none): the noise a node's
+    protocol draws onto the ranges it measures itself (its measurement model, e.g. STVF's ToA
+    error of 2 % of the delay; :meth:`aquasim_py.node.Node.measurement_noise`), added to the
+    ranges that node measures: variance + meas_std^2 + (meas_rel_std r)^2."""
 
     stamp_std_s: NDArray[np.float64]
     speed_mps: float
     rel_std: float = 0.0
+    meas_std_m: NDArray[np.float64] | None = None
+    meas_rel_std: NDArray[np.float64] | None = None
+
+    def fixed_std(self, node: NDArray[np.int64], refs: NDArray[np.int64]) -> NDArray[np.float64]:
+        """The part of the range std (m) that does not grow with the range, from ``node``
+        (..., 1) to ``refs`` (..., N): the stamps' and the node's own absolute noise."""
+        s = self.stamp_std_s
+        var = self.speed_mps**2 * (s[node] ** 2 + s[refs] ** 2) / 2.0
+        if self.meas_std_m is not None:
+            var = var + self.meas_std_m[node] ** 2
+        return np.sqrt(var)
+
+    def relative_std(self, node: NDArray[np.int64]) -> NDArray[np.float64]:
+        """The relative std of the ranges ``node`` (...) measures: the sound-speed deviation's
+        and the node's own relative noise."""
+        rel = np.full(np.shape(node), self.rel_std)
+        if self.meas_rel_std is not None:
+            rel = np.hypot(rel, self.meas_rel_std[node])
+        return rel
 
     def range_std(
         self, node: NDArray[np.int64], refs: NDArray[np.int64], r: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         """Std (m) of the range from ``node`` (..., 1) to ``refs`` (..., N) at distance ``r`` (..., N)."""
-        s = self.stamp_std_s
-        var = self.speed_mps**2 * (s[node] ** 2 + s[refs] ** 2) / 2.0 + (self.rel_std * r) ** 2
-        return np.sqrt(var)
+        return np.hypot(self.fixed_std(node, refs), self.relative_std(node) * r)
 
     @property
     def zero(self) -> bool:
         """True when no noise is applied (every bound is 0)."""
-        return not (np.any(self.stamp_std_s > 0.0) or self.rel_std > 0.0)
+        own = [a for a in (self.meas_std_m, self.meas_rel_std) if a is not None]
+        return not (np.any(self.stamp_std_s > 0.0) or self.rel_std > 0.0 or any(np.any(a > 0.0) for a in own))
 
 
 def applied_range_noise(sc: Any) -> RangeNoise:
     """The :class:`RangeNoise` of a resolved scenario: per node, in the groups' id order, the
-    channel's ``jitter_std_s`` and its group's ``clock.jitter_std_s``; the speed is the mean of
-    the sound-speed profile over the volume's depths (at its centre for a range-dependent
-    field)."""
+    channel's ``jitter_std_s`` and its group's ``clock.jitter_std_s``, and the noise its
+    protocol's own measurement model adds (:meth:`~aquasim_py.node.Node.measurement_noise` of
+    the group's protocol with its parameters); the speed is the mean of the sound-speed
+    profile over the volume's depths (at its centre for a range-dependent field)."""
+    from . import registry
     from .scenario.build import make_ssp
 
-    stamp = []
+    stamp: list[float] = []
+    own_std: list[float] = []
+    own_rel: list[float] = []
     for g in sc.nodes:
-        s = math.hypot(sc.channel.jitter_std_s, g.clock.jitter_std_s)
-        stamp.extend([s] * int(g.count or 0))
+        n = int(g.count or 0)
+        stamp.extend([math.hypot(sc.channel.jitter_std_s, g.clock.jitter_std_s)] * n)
+        cls: Any = registry.get(g.protocol, base=sc.base_dir)  # a Node subclass (registry checks)
+        std_m, rel = cls.measurement_noise(cls.Params.model_validate(dict(g.params)))
+        own_std.extend([float(std_m)] * n)
+        own_rel.extend([float(rel)] * n)
     lo, hi = sc.environment.volume.lo[2], sc.environment.volume.hi[2]
     speed = float(np.mean(make_ssp(sc).speed(np.linspace(lo, hi, 101))))
-    return RangeNoise(np.asarray(stamp, dtype=float), speed, sc.channel.sound_speed_std_mps / speed)
+    return RangeNoise(
+        np.asarray(stamp, dtype=float),
+        speed,
+        sc.channel.sound_speed_std_mps / speed,
+        np.asarray(own_std, dtype=float),
+        np.asarray(own_rel, dtype=float),
+    )
 
 
 def parse_refs(refs: pd.Series) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
@@ -178,8 +215,9 @@ def estimate_bounds(tables: Mapping[str, Any], noise: RangeNoise | None) -> pd.D
         calc = ~quiet.any(axis=1)
         if calc.any():
             i = idx[calc]
-            stamp = noise.range_std(node[i, None], ids[i], np.zeros_like(r[i]))
-            applied[i] = _crb_h(here[i], ref_pos[i], mask[i], plane, np.where(mask[i], stamp, 1.0), noise.rel_std)
+            fixed = noise.fixed_std(node[i, None], ids[i])
+            rel_i = noise.relative_std(node[i])[:, None]
+            applied[i] = _crb_h(here[i], ref_pos[i], mask[i], plane, np.where(mask[i], fixed, 1.0), rel_i)
     d = e[["x", "y"]].to_numpy(float) - here[:, :2]
     out = pd.DataFrame(
         {

@@ -42,6 +42,8 @@ from aquasim_py.scenario.load import Overrides, variant_error
 if TYPE_CHECKING:
     import pandas as pd
 
+    from aquasim_py.net.metrics import NetWindow
+
 __all__ = [
     "RunResult",
     "check_output_format",
@@ -49,6 +51,7 @@ __all__ = [
     "compare",
     "execute",
     "json_safe",
+    "network_window",
     "paper_citations",
     "relocate_results",
     "run_scenario",
@@ -383,6 +386,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
         unknown_roles=sc.metrics.unknown_roles,
         errors=errors,
         bounds=bounds,
+        network=network_window(sc),
     )
     return RunResult(
         scenario=sc,
@@ -393,6 +397,17 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
         metric_errors=errors,
         bounds=bounds,
     )
+
+
+def network_window(sc: Scenario) -> NetWindow | None:
+    """The window of a run's network metrics (``net.*``): computed where a node group names
+    its MAC or runs a protocol that asks for them (``net_metrics = True``, the traffic
+    protocol); None elsewhere (a run as before MACs existed gets no new metrics)."""
+    from aquasim_py.net.metrics import NetWindow
+
+    if not (any(g.mac is not None for g in sc.nodes) or any(getattr(c, "net_metrics", False) for c in sc.protocols())):
+        return None
+    return NetWindow(sc.metrics.warmup_s, sc.simulation.duration_s, _scenario.channel_config(sc).airtime)
 
 
 def _run(sim: Any, sc: Scenario, progress: Progress) -> float:

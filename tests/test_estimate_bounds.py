@@ -135,3 +135,21 @@ def test_variants_of_one_run_share_the_applied_noise():
         assert np.isfinite(m[v]["localization.rmse_over_crb"]) and np.isfinite(
             m[v]["localization.rmse_over_crb_declared"]
         )
+
+
+def test_a_protocols_own_measurement_noise_is_applied_noise():
+    """STVF and SLMP draw their ToA error (noise_ratio x delay) themselves: the applied noise
+    of their nodes includes it, beside the channel's sound-speed deviation, and a range's std
+    is the two relative parts combined; a protocol that draws none (ITMTL) adds nothing."""
+    stvf = scenario.load(ITMTL.parent / "stvf_quick.toml", variant="stvf")
+    noise = applied_range_noise(stvf)
+    assert noise.meas_rel_std is not None and noise.meas_std_m is not None
+    np.testing.assert_array_equal(noise.meas_rel_std, np.full(noise.meas_rel_std.size, 0.02))
+    assert not np.any(noise.meas_std_m)
+    speed_rel = stvf.channel.sound_speed_std_mps / noise.speed_mps
+    r = np.array([[50.0, 80.0]])
+    got = noise.range_std(np.array([[0]]), np.array([[1, 2]]), r)
+    np.testing.assert_allclose(got, math.hypot(0.02, speed_rel) * r, rtol=1e-12)
+
+    itmtl = applied_range_noise(scenario.load(ITMTL, variant="itmtl"))
+    assert itmtl.meas_rel_std is not None and not np.any(itmtl.meas_rel_std)

@@ -95,10 +95,10 @@ def reports_for(out: Path, metrics: Sequence[str] | None = None, link: tuple[int
 
 
 def command(argv: Sequence[str]) -> int:
+    args = parser().parse_args(argv)  # --help exits here
     from aquasim_py.outdir import refuse_foreign
     from aquasim_py.reporting.report import ReportError
 
-    args = parser().parse_args(argv)
     directory = Path(args.directory)
     if not directory.is_dir():
         raise common.UsageError(f"{directory}: no such directory")

@@ -7,23 +7,13 @@ import argparse
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from aquasim_py.cli import common
-from aquasim_py.reporting import tables
-from aquasim_py.runner import (
-    RunResult,
-    check_output_format,
-    console,
-    paper_citations,
-    paper_comparison,
-    relocate_results,
-    resolve_variants,
-    run_resolved_into,
-    run_staged,
-    staged_output,
-)
-from aquasim_py.scenario import Scenario
+
+if TYPE_CHECKING:  # the modules that run a scenario are imported when one runs (--help stays light)
+    from aquasim_py.runner import RunResult
+    from aquasim_py.scenario import Scenario
 
 #: every subcommand and what it does (the first line of ``aquasim-py --help``'s epilog)
 SUBCOMMANDS = (
@@ -49,6 +39,7 @@ examples:
   aquasim-py sweep scenarios/beacon.toml --workers 2
   aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786
   aquasim-py report out/beacon                       # plots and report.html of a finished run
+  aquasim-py modems                                  # the modem presets ([channel] modem = "NAME")
 
 --set values are TOML (numbers, strings in quotes, [arrays], {inline tables}, true/false);
 anything that is not valid TOML is taken as a plain string. List items are addressed by
@@ -84,9 +75,11 @@ def parser() -> argparse.ArgumentParser:
 
 
 def command(argv: Sequence[str]) -> int:
+    args = parser().parse_args(argv)  # --help and --version exit here
     from aquasim_py import scenario
+    from aquasim_py.reporting import tables
+    from aquasim_py.runner import console, run_staged
 
-    args = parser().parse_args(argv)
     sc = scenario.load(args.scenario, overrides=args.set, seed=args.seed, variant=args.variant)
     progress = common._progress_wanted(args.quiet)
     if args.variant is None and sc.variant_names:
@@ -113,6 +106,16 @@ def command(argv: Sequence[str]) -> int:
 
 
 def _all_variants(base: Scenario, args: argparse.Namespace, progress: bool) -> int:
+    from aquasim_py.runner import (
+        check_output_format,
+        console,
+        paper_comparison,
+        relocate_results,
+        resolve_variants,
+        run_resolved_into,
+        staged_output,
+    )
+
     resolved = resolve_variants(base)  # every variant validated and built before any runs
     out, key = common.output_dir(base, args.out)
     for sc in resolved.values():
@@ -148,6 +151,8 @@ def _report(out: Path, args: argparse.Namespace) -> None:
 def comparison_table(results: Mapping[str, RunResult], base: Scenario, width: int | None = None) -> Any:
     """The variants side by side: a row per metric (each unit shown), a column per variant, in
     blocks of columns that fit ``width`` (:func:`aquasim_py.reporting.tables.comparison_table`)."""
+    from aquasim_py.reporting import tables
+
     sim = base.simulation
     title = f"{base.name}: variants (seed {sim.seed}, {sim.duration_s:g} s simulated)"
     table = tables.comparison_table({name: res.metrics for name, res in results.items()}, title)
@@ -161,6 +166,9 @@ def paper_table(paper: Any, base: Scenario, results: Mapping[str, RunResult], wi
     row (or block) per claim with what the paper's number is a statistic of."""
     from rich.console import Group
     from rich.text import Text
+
+    from aquasim_py.reporting import tables
+    from aquasim_py.runner import paper_citations
 
     table = tables.paper_table(paper, tables.paper_title(base, paper_citations(results)), width)
     where = reproductions_of(results)

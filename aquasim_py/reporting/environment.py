@@ -180,8 +180,7 @@ def report_plot(
     range-dependent environment; None for any other run, or without packets or positions."""
     from aquasim_py.scenario import load_dict
     from aquasim_py.scenario.build import make_ssp
-    from aquasim_py.scenario.ocean import make_environment, range_dependent
-    from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
+    from aquasim_py.scenario.ocean import depth_profile, make_environment, range_dependent
 
     scen = summary.get("scenario")
     pk, pos = tables.get("packets"), tables.get("positions")
@@ -190,7 +189,7 @@ def report_plot(
     sc = load_dict(scen, summary.get("scenario_file"))
     if not range_dependent(sc):
         return None
-    env = make_environment(sc, None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else make_ssp(sc))
+    env = make_environment(sc, make_ssp(sc) if depth_profile(sc) else None)
     if env.range_independent:
         return None
     pair = link if link is not None else choose_link(pk)
