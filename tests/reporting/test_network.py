@@ -50,3 +50,41 @@ def test_no_network_metrics_no_plot(tmp_path):
         {"x": [1, 2], "run": [0, 0], "seed": [0, 0], "key": ["a", "b"], "error": ["", ""], "m": [1.0, 2.0]}
     ).to_csv(tmp_path / "sweep.csv", index=False)
     assert network.throughput_plot(sweep_report.load(tmp_path), tmp_path / "s.png") is None
+
+
+def test_lines_meeting_at_light_load_each_show(tmp_path, checked_figures):
+    """Six MACs whose points share a place at light load (S = G there): each its own hollow
+    marker shape, so that every one shows; the figure passes the checks conftest.py runs."""
+    rows = []
+    for i, mac in enumerate(("aloha", "slotted_aloha", "csma", "sfama", "tdma", "direct")):
+        for rate, g in ((0.001, 0.1), (0.005, 0.5), (0.02, 2.0)):
+            s = g if g < 0.2 else network.aloha_throughput(np.array([g]))[0] * (1 + 0.3 * i)
+            rows += [
+                {
+                    "variant": mac,
+                    "rate": rate,
+                    "run": run,
+                    "seed": run,
+                    "key": "k",
+                    "error": "",
+                    "net.offered_load": g,
+                    "net.throughput": s * (1 + 0.001 * (run - 1)),
+                }
+                for run in range(3)
+            ]
+    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    drawn = []
+    save = network.save_figure
+
+    def keep(fig, path):
+        drawn.append(fig)
+        return save(fig, path)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(network, "save_figure", keep)
+        assert network.throughput_plot(sweep_report.load(tmp_path), tmp_path / "s.png").is_file()
+    (ax,) = drawn[0].axes
+    points = [c.lines[0] for c in ax.containers]
+    assert len(points) == 6 and len({p.get_marker() for p in points}) == 6
+    assert all(p.get_markerfacecolor() == "none" for p in points)
+    assert checked_figures == [str(tmp_path / "s.png")]
