@@ -17,25 +17,36 @@ def test_aloha_throughput_formulas():
     assert network.aloha_throughput(np.array([1.0]), slotted=True)[0] == pytest.approx(math.exp(-1.0))
 
 
+def _write_sweep(directory, throughput):
+    """A sweep.csv of three runs per grid point: ``throughput`` maps a variant to its (rate, G,
+    S) points; run k's throughput is S (1 + 0.001 (k - 1)), so the runs' mean is S."""
+    rows = [
+        {
+            "variant": variant,
+            "rate": rate,
+            "run": run,
+            "seed": run,
+            "key": "k",
+            "error": "",
+            "net.offered_load": g,
+            "net.throughput": s * (1 + 0.001 * (run - 1)),
+        }
+        for variant, points in throughput.items()
+        for rate, g, s in points
+        for run in range(3)
+    ]
+    pd.DataFrame(rows).to_csv(directory / "sweep.csv", index=False)
+
+
 def test_points_are_the_runs_means_and_the_plot_is_written(tmp_path):
-    rows = []
-    for variant in ("pure", "slotted"):
-        for rate, g in ((0.001, 0.1), (0.005, 0.5)):
-            for run in range(3):
-                s = network.aloha_throughput(np.array([g]), slotted=variant == "slotted")[0] + 0.001 * (run - 1)
-                rows.append(
-                    {
-                        "variant": variant,
-                        "rate": rate,
-                        "run": run,
-                        "seed": run,
-                        "key": "k",
-                        "error": "",
-                        "net.offered_load": g,
-                        "net.throughput": s,
-                    }
-                )
-    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    s = network.aloha_throughput
+    _write_sweep(
+        tmp_path,
+        {
+            v: [(r, g, s(np.array([g]), slotted=v == "slotted")[0]) for r, g in ((0.001, 0.1), (0.005, 0.5))]
+            for v in ("pure", "slotted")
+        },
+    )
     data = sweep_report.load(tmp_path)
     pts = network.load_points(data)
     assert len(pts) == 4 and (pts["n"] == 3).all()
@@ -55,24 +66,13 @@ def test_no_network_metrics_no_plot(tmp_path):
 def test_lines_meeting_at_light_load_each_show(tmp_path, checked_figures):
     """Six MACs whose points share a place at light load (S = G there): each its own hollow
     marker shape, so that every one shows; the figure passes the checks conftest.py runs."""
-    rows = []
-    for i, mac in enumerate(("aloha", "slotted_aloha", "csma", "sfama", "tdma", "direct")):
-        for rate, g in ((0.001, 0.1), (0.005, 0.5), (0.02, 2.0)):
-            s = g if g < 0.2 else network.aloha_throughput(np.array([g]))[0] * (1 + 0.3 * i)
-            rows += [
-                {
-                    "variant": mac,
-                    "rate": rate,
-                    "run": run,
-                    "seed": run,
-                    "key": "k",
-                    "error": "",
-                    "net.offered_load": g,
-                    "net.throughput": s * (1 + 0.001 * (run - 1)),
-                }
-                for run in range(3)
-            ]
-    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    macs = ("aloha", "slotted_aloha", "csma", "sfama", "tdma", "direct")
+    pure = network.aloha_throughput(np.array([0.5, 2.0]))
+    points = {
+        m: [(0.001, 0.1, 0.1), (0.005, 0.5, pure[0] * (1 + 0.3 * i)), (0.02, 2.0, pure[1] * (1 + 0.3 * i))]
+        for i, m in enumerate(macs)
+    }
+    _write_sweep(tmp_path, points)
     drawn = []
     save = network.save_figure
 
