@@ -260,15 +260,16 @@ def layout(data: SweepData, x: str) -> Layout:
     return Layout(hue, panels[0] if panels else None, panels[1:])
 
 
-def _panel_grid(data: SweepData, lay: Layout) -> tuple[int, int, list[tuple[str, ...]]]:
-    """(rows, columns, the facet values of each panel in reading order)."""
+def _panel_grid(values: Mapping[str, list[str]], lay: Layout) -> tuple[int, int, list[tuple[str, ...]]]:
+    """(rows, columns, the facet values of each panel in reading order), from the ``values`` of
+    each facet key."""
     if lay.cols is None:
         return 1, 1, [()]
-    cols = data.grid[lay.cols]
+    cols = values[lay.cols]
     if not lay.rows:
         ncols = min(len(cols), MAX_COLUMNS)
         return -(-len(cols) // ncols), ncols, [(c,) for c in cols]
-    row_combos = list(itertools.product(*(data.grid[k] for k in lay.rows)))
+    row_combos = list(itertools.product(*(values[k] for k in lay.rows)))
     return len(row_combos), len(cols), [(c, *r) for r in row_combos for c in cols]
 
 
@@ -276,7 +277,8 @@ def draw(
     data: SweepData, x: str, metric: str, table: pd.DataFrame | None = None
 ) -> tuple[Any, dict[tuple[str, ...], Any]] | None:
     """The figure of ``metric`` against ``x`` (:func:`layout`: a line per value of one other
-    grid key, a panel per combination of the rest), not yet saved: (figure, panel axes by
+    grid key, a panel per combination of the rest; a value with no run that has the metric gets
+    no panel, a combination without runs says so), not yet saved: (figure, panel axes by
     their facet values in :attr:`Layout.facets` order), or None when no run has the metric.
     Every panel shares the axes' scales; the lines of a panel are drawn a few points apart
     sideways (:func:`aquasim_py.reporting.figures.dodge`) so that their error bars stay apart. A caller may draw more into the panels before
@@ -291,7 +293,9 @@ def draw(
     nums = _numbers(data.grid[x])
     xu = display.unit_of(names[x], nums or [])
     log_x = nums is not None and is_log_spaced(nums)
-    nrows, ncols, combos = _panel_grid(data, lay)
+    # a facet value no run with the metric has gets no panel (a variant without the metric)
+    present = {k: [v for v in data.grid[k] if any(dict(ln.fixed)[k] == v for ln in ls)] for k in lay.facets}
+    nrows, ncols, combos = _panel_grid(present, lay)
     one = nrows * ncols == 1
     size = (7.0, 4.5) if one else (0.6 + 3.1 * ncols, 0.9 + 2.5 * nrows)
     fig, axes = subplots(nrows, ncols, figsize=size, sharex=True, sharey=True, squeeze=False)
@@ -333,6 +337,8 @@ def draw(
             # matplotlib takes no data limits from a shifted transform: the points' own
             pts = np.column_stack([np.tile(xv, 3), np.concatenate([c, lo, hi])])
             ax.update_datalim(pts[np.isfinite(pts).all(axis=1)])
+        if not drawn:  # a combination of present values that no run has
+            ax.text(0.5, 0.5, "no runs", transform=ax.transAxes, ha="center", va="center", color="0.4")
         if fixed:
             ax.set_title(point_label(data, fixed), fontsize=9)
         ax.grid(True, which="both", alpha=0.25)

@@ -179,3 +179,28 @@ def test_a_sweep_of_three_keys_draws_what_summary_csv_holds(tmp_path, checked_fi
                 assert (center, lo, hi) == pytest.approx(
                     (row["center"], row["center_ci95_low"], row["center_ci95_high"]), rel=1e-12
                 )
+
+
+def test_a_variant_without_the_metric_gets_no_panel(tmp_path):
+    """itmtl.coverage exists for ITMTL's variants only: the others draw no empty panel; a
+    combination of present values without runs says so."""
+    grid = {"variant": ["itmtl", "wsc", "tshl"], "x_m": ["1", "2"], "count": ["3", "5"], "noise": ["a", "b", "c", "d"]}
+    rows = []
+    for combo in itertools.product(*grid.values()):
+        row = dict(zip(grid, combo), run=0, seed=1, key="k", error="")
+        if combo[0] != "tshl" and (combo[0], combo[3]) != ("wsc", "d"):
+            row["itmtl.coverage"] = 0.8
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    data = report_sweep.load(tmp_path)
+    lay = report_sweep.layout(data, "x_m")
+    assert (lay.hue, lay.cols, lay.rows) == ("count", "variant", ["noise"])
+    fig, panels = report_sweep.draw(data, "x_m", "itmtl.coverage")
+    assert set(panels) == {(v, n) for v in ("itmtl", "wsc") for n in grid["noise"]}
+    assert [t.get_text() for t in panels[("wsc", "d")].texts] == ["no runs"] and not panels[("wsc", "d")].containers
+    assert [t.get_text() for t in panels[("itmtl", "d")].texts] == [] and len(panels[("itmtl", "d")].containers) == 2
+    figures.plt.close(fig)
+    data.runs.loc[(data.runs["noise"] == "d"), "itmtl.coverage"] = np.nan
+    fig, panels = report_sweep.draw(data, "x_m", "itmtl.coverage")
+    assert ("wsc", "d") not in panels
+    figures.plt.close(fig)
