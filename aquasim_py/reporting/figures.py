@@ -24,6 +24,7 @@ that their error bars stay apart.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -266,15 +267,28 @@ def _draw(fig: Any) -> Any:
     return fig.canvas.get_renderer()
 
 
+#: a line's style before it took turns (line style, marker fill, marker size), to restore it
+_DRAWN_AS: weakref.WeakKeyDictionary[Line2D, tuple[Any, Any, float]] = weakref.WeakKeyDictionary()
+
+
+def _restore(line: Line2D) -> None:
+    """Draw a line as it was before it took turns."""
+    if (style := _DRAWN_AS.pop(line, None)) is not None:
+        line.set_linestyle(style[0])
+        line.set_fillstyle(style[1])
+        line.set_markersize(style[2])
+
+
 def _take_turns(line: Line2D, turn: int, k: int) -> None:
     """Dash the ``turn``-th (1..k-1) of ``k`` coinciding lines so that its dashes fall where
     the others' leave gaps (the first, solid, shows in the remaining one), markers hollow and
     larger so that the ones below show inside."""
+    size = _DRAWN_AS.setdefault(line, (line.get_linestyle(), line.get_fillstyle(), line.get_markersize()))[2]
     on = 3.0
     line.set_linestyle((on * (k - turn), (on, on * (k - 1))))
     if line.get_marker() not in (None, "None", "none", ""):
         line.set_fillstyle("none")
-        line.set_markersize(line.get_markersize() + 2.5 * turn)
+        line.set_markersize(size + 2.5 * turn)  # from its own size: the same however often it is finished
 
 
 def _name(label: str) -> str:
@@ -329,10 +343,13 @@ def _note_coincident(fig: Any) -> bool:
         for i, s in enumerate(series):  # noted before, alone now: plain again
             if i not in later and s.label != _plain(s.label):
                 if s.label in entries:
-                    entries[s.label][0].set_text(_plain(s.label))
+                    text, handle = entries[s.label]
+                    text.set_text(_plain(s.label))
+                    if isinstance(handle, Line2D):
+                        _restore(handle)
                 s.artist.set_label(_plain(s.label))
                 if s.line is not None:
-                    s.line.set_linestyle("-")
+                    _restore(s.line)
                 changed = True
         kept = [line for line in ax.get_title().split("\n") if f" {NOTE} " not in line and line]
         title = "\n".join(kept + (["; ".join(notes)] if notes else []))

@@ -141,3 +141,23 @@ def test_coincidence_is_measured_in_pixels() -> None:
     assert not figures.coincides(a, a + [0.0, 3.0])
     assert not figures.coincides(a, a + [0.0, 500.0])
     assert figures.coincides(a, a[::-1] + [0.4, -0.4])  # order does not matter
+
+
+def test_a_series_that_no_longer_coincides_is_drawn_as_before() -> None:
+    fig, ax = figures.subplots(figsize=(5.0, 3.5))
+    x = np.linspace(0.0, 1.0, 50)
+    ax.plot(x, x, label="a")
+    (b,) = ax.plot(x, x, ":", marker="s", ms=4, label="b")
+    ax.legend(loc="lower right")
+    figures.finish(fig)
+    assert b.get_label() == "b (coincides with a)" and b.get_linestyle() == "--" and b.get_fillstyle() == "none"
+    figures.finish(fig)  # again: the same turns, the markers no larger
+    assert b.get_label() == "b (coincides with a)" and b.get_markersize() == 4 + 2.5
+    b.set_ydata(x**3)  # apart now: the note and the turns go, b's own style comes back
+    figures.finish(fig)
+    assert b.get_label() == "b" and b.get_linestyle() == ":" and b.get_fillstyle() == "full" and b.get_markersize() == 4
+    (leg,) = [ax.get_legend()] if ax.get_legend() else fig.legends
+    assert [t.get_text() for t in leg.get_texts()] == ["a", "b"]
+    assert leg.legend_handles[1].get_linestyle() == ":"
+    assert figures.problems(fig) == [] and findings(fig) == []
+    _close(fig)
