@@ -83,6 +83,7 @@ def test_a_window_at_zero_reads_the_runs_own_metrics(tmp_path):
         assert row[k] == pytest.approx(row[k[len("all.") :]], rel=1e-12, nan_ok=True), k
 
 
+@pytest.mark.slow  # a reproduction killed and resumed; the journal it resumes from is the sweep's (test_sweep)
 def test_resume_after_a_kill_runs_only_the_missing_runs(tmp_path):
     out = tmp_path / "r"
     cmd = [
