@@ -304,7 +304,7 @@ def packet_counts(
 
 
 #: the tables the generic metrics of :func:`summarize` read
-GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes")
+GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "routes")
 
 
 def tables_read(protocols: Iterable[type]) -> set[str] | None:
