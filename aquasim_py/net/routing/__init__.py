@@ -4,6 +4,7 @@ carries packets over several hops to the surface sinks, chosen per node group by
 
 ==================  ==========================================================================
 ``flooding``        every node forwards every datagram once (:mod:`.flooding`)
+``dbr``             depth-based routing, Yan, Shi and Cui 2008 (:mod:`.dbr`)
 ==================  ==========================================================================
 
 The contract every router keeps with its node, its MAC and the sinks is in :mod:`.base`; the
@@ -13,12 +14,14 @@ network metrics from its ``routes`` trace in :mod:`.metrics`.
 from __future__ import annotations
 
 from .base import ROUTE_COLUMNS, Datagram, Header, Router, RouterParams, RouterPort
+from .dbr import Dbr
 from .flooding import Flooding
 
 __all__ = [
     "ROUTERS",
     "ROUTE_COLUMNS",
     "Datagram",
+    "Dbr",
     "Flooding",
     "Header",
     "Router",
@@ -29,7 +32,7 @@ __all__ = [
 ]
 
 #: name -> router class
-ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding,)}
+ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding, Dbr)}
 
 
 class UnknownRouterError(KeyError):

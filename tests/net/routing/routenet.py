@@ -85,3 +85,46 @@ def rows(tables: dict[str, pd.DataFrame], event: str) -> pd.DataFrame:
     if r is None:
         return pd.DataFrame(columns=["time", "node", "event", "origin", "seq", "hops", "prev", "value"])
     return r[r["event"] == event]
+
+
+class FakePort:
+    """A RouterPort for unit tests of one router's rules: a plain SimPy environment (local time
+    = true time), a settable depth and position, and lists of what the router offered and
+    wrote."""
+
+    def __init__(self, index: int = 1, depth: float = 100.0, position=(0.0, 0.0, 100.0), sink: bool = False):
+        import simpy
+
+        self.index = index
+        self.env = simpy.Environment()
+        self.rng = np.random.default_rng(0)
+        self.is_sink = sink
+        self.max_range_m = 100.0
+        self.directory: dict[str, Any] = {}
+        self.depth_m = depth
+        self.pos = tuple(position)
+        self.offered: list[tuple[float, Any]] = []
+        self.rows: list[tuple[float, tuple]] = []
+        self.delivered: list[Any] = []
+
+    def local_time(self) -> float:
+        return float(self.env.now)
+
+    def depth(self) -> float:
+        return self.depth_m
+
+    def position(self):
+        return self.pos
+
+    def offer(self, dst, kind, payload, bits):
+        self.offered.append((self.env.now, payload))
+        return self.env.timeout(0.0)
+
+    def deliver(self, packet, rx_local, snr_db, pressure):
+        self.delivered.append(packet)
+
+    def row(self, values):
+        self.rows.append((self.env.now, values))
+
+    def events(self, name: str) -> list[tuple]:
+        return [v for _, v in self.rows if v[0] == name]
