@@ -4,6 +4,8 @@ carries packets over several hops to the surface sinks, chosen per node group by
 
 ==================  ==========================================================================
 ``flooding``        every node forwards every datagram once (:mod:`.flooding`)
+``vbf``             vector-based forwarding, Xie, Cui and Lao 2006 (:mod:`.vbf`)
+``hh_vbf``          hop-by-hop VBF, Nicolaou et al. 2007 (:mod:`.hh_vbf`)
 ``dbr``             depth-based routing, Yan, Shi and Cui 2008 (:mod:`.dbr`)
 ==================  ==========================================================================
 
@@ -16,6 +18,8 @@ from __future__ import annotations
 from .base import ROUTE_COLUMNS, Datagram, Header, Router, RouterParams, RouterPort
 from .dbr import Dbr
 from .flooding import Flooding
+from .hh_vbf import HhVbf
+from .vbf import Vbf
 
 __all__ = [
     "ROUTERS",
@@ -24,15 +28,17 @@ __all__ = [
     "Dbr",
     "Flooding",
     "Header",
+    "HhVbf",
     "Router",
     "RouterParams",
     "RouterPort",
     "UnknownRouterError",
+    "Vbf",
     "get",
 ]
 
 #: name -> router class
-ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding, Dbr)}
+ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding, Vbf, HhVbf, Dbr)}
 
 
 class UnknownRouterError(KeyError):

@@ -98,6 +98,10 @@ class Header:
         """The datagram's identity: (origin, sequence number)."""
         return (self.origin, self.seq)
 
+    def common(self) -> tuple[int, int, int, int, int]:
+        """The common fields, in order (to build a protocol's header from them)."""
+        return (self.origin, self.seq, self.dst, self.hops, self.sender)
+
 
 @dataclass(frozen=True, slots=True)
 class Datagram:

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import heapq
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from pydantic import Field
 
@@ -101,10 +101,11 @@ class Dbr(Router):
 
     def originate(self, header: Header) -> Header:
         self.q2.add(header.key)
-        return DbrHeader(*_fields(header), depth=self.port.depth())
+        return DbrHeader(*header.common(), depth=self.port.depth())
 
     def relay(self, header: Header) -> Header:
-        return DbrHeader(*_fields(header), depth=self.port.depth())
+        assert isinstance(header, DbrHeader)
+        return replace(header, depth=self.port.depth())
 
     def on_copy(self, datagram: Datagram, sender: int) -> None:
         h = datagram.header
@@ -163,7 +164,3 @@ class Dbr(Router):
             self.q2.add(key)
             self.forward(queued.datagram, queued.prev, queued.gain)
         self._arm()
-
-
-def _fields(h: Header) -> tuple[int, int, int, int, int]:
-    return (h.origin, h.seq, h.dst, h.hops, h.sender)
