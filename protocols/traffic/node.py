@@ -34,7 +34,9 @@ _SINKS = "traffic.sinks"
 class TrafficParams(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    rate_pps: float = Field(0.01, gt=0.0, description="frames a source offers per second of its clock, on average")
+    rate_pps: float = Field(
+        0.01, ge=0.0, description="frames a source offers per second of its clock, on average (0: none, a relay)"
+    )
     process: Literal["poisson", "constant"] = Field("poisson", description="exponential gaps, or a constant rate")
     bits: int = Field(1000, ge=1, description="frame length (bits)")
     destination: Literal["sink", "any_sink", "broadcast"] | int = Field(
@@ -75,9 +77,9 @@ class TrafficNode(Node):
             self.out_of_band.setdefault(_SINKS, []).append(self.id)
 
     def run(self) -> Generator[Any, Any, None]:
-        if self.role is Role.SINK:
-            return
         p = self.params
+        if self.role is Role.SINK or p.rate_pps == 0.0:  # (a relay forwards through its routing layer)
+            return
         period = 1.0 / p.rate_pps
         t = p.start_s + (float(self.rng.uniform(0.0, period)) if p.process == "constant" else 0.0)
         while True:
