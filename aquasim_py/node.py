@@ -319,8 +319,11 @@ class Node:
     # -- modem ----------------------------------------------------------------------------------
 
     def broadcast(self, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
-        """Transmit to everyone in range. The event fires when the last bit has left; its value
-        is the local MAC transmit stamp (first bit). A busy modem queues the packet."""
+        """Transmit to everyone in range, through the group's MAC (:mod:`aquasim_py.net.mac`).
+        The event fires when the MAC is done with the packet: at its last bit (after its ACK,
+        for a MAC that waits for one), with the local MAC transmit stamp (first bit) as its
+        value; or when the MAC gives it up, with ``None`` if it never went out. Under the
+        default MAC (``direct``) a busy modem queues the packet and nothing is given up."""
         return self.__k.watch(self.env.adopt(self.__k.transmit(None, kind, payload, bits)), "broadcast")
 
     def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:

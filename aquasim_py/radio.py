@@ -35,10 +35,11 @@ from .packet import Packet
 __all__ = ["PACKET_FIELDS", "NetworkView", "PacketLog", "RadioPort"]
 
 #: The fields of a ``packets`` row, in the order the channel writes them (the trace's schema).
-#: event: "tx" | "rx" | "drop"; reason: None | "range" | "no_path" | "snr" | "half_duplex" |
-#: "collision"; node: the node the row is about (sender for "tx", receiver otherwise); dst: -1
-#: for a broadcast; tof (s), snr_db, path: of the signal at that receiver; local_time: the MAC
-#: stamp of that node (NaN for a drop).
+#: event: "tx" | "rx" | "drop" | "offer" (a frame handed to a node's MAC); reason: None |
+#: "range" | "no_path" | "snr" | "half_duplex" | "collision", or a MAC's (``aquasim_py.net.mac.
+#: DROP_REASONS``); node: the node the row is about (sender for "tx", "offer" and a MAC's
+#: drop, receiver otherwise); dst: -1 for a broadcast; tof (s), snr_db, path: of the signal at
+#: that receiver; local_time: the MAC stamp of that node (NaN for a drop or an offer).
 PACKET_FIELDS = (
     "time",
     "event",

@@ -23,7 +23,8 @@ Variants run (``variants.csv`` and a run directory per variant): the variants si
 
 Sweep directory (``sweep.csv``): each metric against each swept value, a line per
 combination of the other grid keys (:mod:`aquasim_py.reporting.sweep`), and the table per grid
-point with n and the interval.
+point with n and the interval; with network metrics, throughput against offered load beside
+the ALOHA curves (:mod:`aquasim_py.reporting.network`).
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
 """
@@ -213,7 +214,15 @@ def report_sweep(
     out.mkdir(parents=True, exist_ok=True)
     data = sweep_report.load(sweep_dir)
     chosen = sweep_report.select(data.metrics, metrics)
-    return sweep_report.plot_all(data, out, chosen)
+    return _network_plots(data, out) + sweep_report.plot_all(data, out, chosen)
+
+
+def _network_plots(data: sweep_report.SweepData, out: Path) -> list[Path]:
+    """A sweep's throughput against offered load with the ALOHA curves, where it has them."""
+    from aquasim_py.reporting import network
+
+    p = network.throughput_plot(data, out / "sweep_net_throughput_vs_load.png")
+    return [] if p is None else [p]
 
 
 def _img(path: Path) -> str:
@@ -256,7 +265,7 @@ def _sweep_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tu
     data = sweep_report.load(directory)
     chosen = sweep_report.select(data.metrics, metrics)
     summary = sweep_report.summary(data, chosen)
-    images = sweep_report.plot_all(data, out, chosen, summary)
+    images = _network_plots(data, out) + sweep_report.plot_all(data, out, chosen, summary)
     title = f"aquasim-py sweep: {directory.name}"
     failed = f", {data.failed} failed (left out)" if data.failed else ""
     body = f"<p>{len(data.runs)} successful runs{failed}.</p>"

@@ -44,6 +44,7 @@ __all__ = [
     "select",
     "short_names",
     "summary",
+    "text_keys",
 ]
 
 #: metric families left out unless a pattern names them
@@ -202,6 +203,11 @@ def lines(data: SweepData, x: str, metric: str, table: pd.DataFrame | None = Non
             )
         )
     return out
+
+
+def text_keys(data: SweepData) -> list[str]:
+    """The grid keys some of whose values are not numbers (a MAC's name, a variant)."""
+    return [k for k, v in data.grid.items() if _numbers(v) is None]
 
 
 def x_keys(data: SweepData) -> list[str]:
