@@ -554,6 +554,9 @@ class RouterPortView:
         x, y, z = self.__core.read_position()
         return (float(x), float(y), float(z))
 
+    def residual_energy(self) -> float:
+        return 1.0  # no battery model: full
+
     def offer(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         return self.__core.mac.offer(dst, kind, payload, bits)
 

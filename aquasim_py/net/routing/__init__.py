@@ -7,6 +7,7 @@ carries packets over several hops to the surface sinks, chosen per node group by
 ``vbf``             vector-based forwarding, Xie, Cui and Lao 2006 (:mod:`.vbf`)
 ``hh_vbf``          hop-by-hop VBF, Nicolaou et al. 2007 (:mod:`.hh_vbf`)
 ``dbr``             depth-based routing, Yan, Shi and Cui 2008 (:mod:`.dbr`)
+``eedbr``           energy-efficient DBR, Wahid et al. 2011 (:mod:`.eedbr`)
 ==================  ==========================================================================
 
 The contract every router keeps with its node, its MAC and the sinks is in :mod:`.base`; the
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 from .base import ROUTE_COLUMNS, Datagram, Header, Router, RouterParams, RouterPort
 from .dbr import Dbr
+from .eedbr import Eedbr
 from .flooding import Flooding
 from .hh_vbf import HhVbf
 from .vbf import Vbf
@@ -26,6 +28,7 @@ __all__ = [
     "ROUTE_COLUMNS",
     "Datagram",
     "Dbr",
+    "Eedbr",
     "Flooding",
     "Header",
     "HhVbf",
@@ -38,7 +41,7 @@ __all__ = [
 ]
 
 #: name -> router class
-ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding, Vbf, HhVbf, Dbr)}
+ROUTERS: dict[str, type[Router]] = {cls.name: cls for cls in (Flooding, Vbf, HhVbf, Dbr, Eedbr)}
 
 
 class UnknownRouterError(KeyError):

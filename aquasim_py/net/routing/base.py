@@ -172,6 +172,11 @@ class RouterPort(Protocol):
         :class:`~aquasim_py.node.SensorUnavailable` when the group has none."""
         ...
 
+    def residual_energy(self) -> float:
+        """The battery gauge: the residual fraction of the battery's capacity now (1 without a
+        battery)."""
+        ...
+
     def offer(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         """Hand a frame to the node's MAC (its event: the MAC's, see :mod:`aquasim_py.net.mac`)."""
         ...
@@ -269,7 +274,10 @@ class Router:
         header = self.originate(Header(self.index, seq, dst, 1, self.index))
         self.history.add(header.key)
         self.port.row(("originate", None, self.index, seq, dst, 0, -1, math.nan))
-        return self.transmit(Datagram(header, kind, payload, bits), -1, math.nan)
+        sent = self.transmit(Datagram(header, kind, payload, bits), -1, math.nan)
+        if sent is None:  # the protocol gave it up at once (its drop row says why)
+            sent = self.env.event().succeed(None)
+        return sent
 
     def originate(self, header: Header) -> Header:
         """The header of a new datagram (override: add the protocol's fields)."""
@@ -308,11 +316,16 @@ class Router:
         header = self.relay(replace(h, hops=h.hops + 1, sender=self.index))
         return self.transmit(replace(datagram, header=header), prev, value)
 
-    def transmit(self, datagram: Datagram, prev: int, value: float) -> simpy.Event:
-        """Hand a copy to the MAC, as a broadcast, and write its ``forward`` row."""
+    def transmit(self, datagram: Datagram, prev: int, value: float) -> simpy.Event | None:
+        """Hand a copy to the MAC, as a broadcast, and write its ``forward`` row (override to
+        refuse: None, with a ``drop`` row)."""
         h = datagram.header
         self.port.row(("forward", None, h.origin, h.seq, h.dst, h.hops, prev, value))
-        return self.port.offer(None, datagram.kind, datagram, datagram.bits + self.header_bits)
+        return self.port.offer(None, datagram.kind, datagram, datagram.bits + self.header_bits_of(h))
+
+    def header_bits_of(self, header: Header) -> int:
+        """Bits the network header of ``header`` adds (override for a header of varying length)."""
+        return self.header_bits
 
     def suppressed(self, datagram: Datagram, prev: int, value: float = math.nan) -> None:
         """Write the ``suppress`` row of a held copy given up."""

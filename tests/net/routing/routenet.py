@@ -102,6 +102,7 @@ class FakePort:
         self.max_range_m = 100.0
         self.directory: dict[str, Any] = {}
         self.depth_m = depth
+        self.energy = 1.0
         self.pos = tuple(position)
         self.offered: list[tuple[float, Any]] = []
         self.rows: list[tuple[float, tuple]] = []
@@ -112,6 +113,9 @@ class FakePort:
 
     def depth(self) -> float:
         return self.depth_m
+
+    def residual_energy(self) -> float:
+        return self.energy
 
     def position(self):
         return self.pos
