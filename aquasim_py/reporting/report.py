@@ -24,7 +24,8 @@ Variants run (``variants.csv`` and a run directory per variant): the variants si
 Sweep directory (``sweep.csv``): each metric against each swept value, a line per
 combination of the other grid keys (:mod:`aquasim_py.reporting.sweep`), and the table per grid
 point with n and the interval; with network metrics, throughput against offered load beside
-the ALOHA curves (:mod:`aquasim_py.reporting.network`).
+the ALOHA curves (:mod:`aquasim_py.reporting.network`); with routing metrics, delivery ratio,
+energy per delivered packet and delay against density (:mod:`aquasim_py.reporting.routing`).
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
 """
@@ -218,11 +219,15 @@ def report_sweep(
 
 
 def _network_plots(data: sweep_report.SweepData, out: Path) -> list[Path]:
-    """A sweep's throughput against offered load with the ALOHA curves, where it has them."""
-    from aquasim_py.reporting import network
+    """A sweep's throughput against offered load with the ALOHA curves, and its routing
+    metrics against density, where it has them."""
+    from aquasim_py.reporting import network, routing
 
-    p = network.throughput_plot(data, out / "sweep_net_throughput_vs_load.png")
-    return [] if p is None else [p]
+    made = (
+        network.throughput_plot(data, out / "sweep_net_throughput_vs_load.png"),
+        routing.routing_plot(data, out / "sweep_net_routing_vs_density.png"),
+    )
+    return [p for p in made if p is not None]
 
 
 def _img(path: Path) -> str:
