@@ -26,7 +26,7 @@ from aquasim_py.metrics import summarize_runs
 def table(sweep_dir: Path, slot_ratio: float = 1.0, nodes: int | None = None) -> pd.DataFrame:
     runs = pd.read_csv(sweep_dir / "sweep.csv")
     runs = runs[runs["error"].isna()] if "error" in runs.columns else runs
-    keys = [c for c in runs.columns[: list(runs.columns).index("run")]]
+    keys = list(runs.columns[: list(runs.columns).index("run")])
     s = summarize_runs(runs, keys, ["net.offered_load", "net.throughput"])
     g = s[s["metric"] == "net.offered_load"].set_index(keys)
     th = s[s["metric"] == "net.throughput"].set_index(keys)

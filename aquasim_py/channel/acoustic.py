@@ -138,7 +138,7 @@ class AcousticChannel:
 
     def airtime(self, bits: int) -> float:
         """How long a packet of ``bits`` bits lasts on the air (s): :meth:`.ChannelConfig.airtime`."""
-        return self.config.airtime(bits)  # type: ignore[no-any-return]
+        return self.config.airtime(bits)
 
     def new_uid(self) -> int:
         """A packet uid not used before (a MAC numbers a frame when it is offered; its
@@ -147,11 +147,15 @@ class AcousticChannel:
         self._uid = uid + 1
         return uid
 
-    def mac_row(self, node: int, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int) -> None:
+    def mac_row(
+        self, node: int, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int
+    ) -> None:
         """A ``packets`` row a node's MAC writes now about a frame of its own: ``"offer"`` (the
         protocol handed it the frame) or ``"drop"`` with the reason it gave the frame up."""
         nan = math.nan
-        self._row((self._env.now, event, reason, node, node, -1 if dst is None else dst, uid, kind, bits, nan, nan, None, nan))
+        self._row(
+            (self._env.now, event, reason, node, node, -1 if dst is None else dst, uid, kind, bits, nan, nan, None, nan)
+        )
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks

@@ -106,10 +106,11 @@ class TrafficNode(Node):
     def _offer(self, dst: int | None) -> None:
         p = self.params
         ev = self.broadcast(p.kind, None, p.bits) if dst is None else self.send(dst, p.kind, None, p.bits)
-        # open loop: the source does not wait for the frame; this callback is its receipt (the
-        # kernel counts events nobody waits for as a missing yield)
-        ev.callbacks.append(_offered)
+        # open loop: the source goes on at once, and a process of its own takes the frame's
+        # receipt (an event nobody waits for would count as a missing yield)
+        self.env.process(_receipt(ev))
 
 
-def _offered(_event: simpy.Event) -> None:
-    """What a source does when its MAC is done with a frame: nothing (its fate is traced)."""
+def _receipt(ev: simpy.Event) -> Generator[Any, Any, None]:
+    """Wait until the MAC is done with a frame; nothing more (its fate is in the trace)."""
+    yield ev

@@ -41,7 +41,7 @@ def test_slotted_aloha_sends_at_the_next_slot_start_of_the_local_clock():
 
 def test_slotted_aloha_default_guard_is_the_largest_delay():
     sim = Simulation(0, channel=ChannelConfig(max_range_m=3000.0, bitrate_bps=500.0), loss_model=no_snr)
-    (node,) = sim.add_group(type("N", (mac_node(),), {}), 1, positions=[[0, 0, 10]], mac="slotted_aloha")
+    (_node,) = sim.add_group(type("N", (mac_node(),), {}), 1, positions=[[0, 0, 10]], mac="slotted_aloha")
     m = sim._cores[0].mac
     assert m.slot == pytest.approx(256 / 500.0 + 3000.0 / 1500.0)
 
@@ -57,7 +57,9 @@ def mac_node():
 
 def test_modem_busy_at_is_causal_and_end_exclusive():
     # 0 sends 1 s at t = 0; it reaches 1 (1500 m) over [1, 2)
-    sim = Simulation(0, Constant(1500.0), channel=ChannelConfig(bitrate_bps=1000.0, collision="none"), loss_model=no_snr)
+    sim = Simulation(
+        0, Constant(1500.0), channel=ChannelConfig(bitrate_bps=1000.0, collision="none"), loss_model=no_snr
+    )
     sim.add_group(mac_node(), 2, positions=LINE[:2], mac="csma")
     ch = sim.channel
     seen = {}

@@ -74,8 +74,11 @@ def test_a_named_mac_resolves_with_every_parameter(scen):
     "overrides, key, pattern",
     [
         (["nodes.1.mac=alhoa"], "nodes[1].mac", r"unknown MAC 'alhoa' \(available: direct, aloha, .*tdma\)"),
-        (["nodes.1.mac=aloha", "nodes.1.mac_params={queue_lenght=3}"], "nodes[1].mac_params.queue_lenght",
-         "did you mean 'queue_length'"),
+        (
+            ["nodes.1.mac=aloha", "nodes.1.mac_params={queue_lenght=3}"],
+            "nodes[1].mac_params.queue_lenght",
+            "did you mean 'queue_length'",
+        ),
         (["nodes.1.mac=tdma", "nodes.1.mac_params={guard_s=-1.0}"], "nodes[1].mac_params.guard_s", ">= 0"),
         (["nodes.1.mac=aloha", "nodes.1.mac_params={queue_length=0}"], "nodes[1].mac_params.queue_length", ">= 1"),
         (["nodes.1.mac=csma", "nodes.1.mac_params={backoff_max_s='2'}"], "nodes[1].mac_params.backoff_max_s", "number"),

@@ -5,17 +5,23 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from aquasim_protocols.traffic import TrafficNode
 from aquasim_py.channel import Constant
 from aquasim_py.channel.config import ChannelConfig, no_snr
 from aquasim_py.kernel import Simulation
-from aquasim_protocols.traffic import TrafficNode
 
 
 def _sim(params, n_sources=3, sinks=2, until=2000.0, mac="direct"):
-    sim = Simulation(4, Constant(1500.0), channel=ChannelConfig(max_range_m=3000.0, collision="none"), loss_model=no_snr)
+    sim = Simulation(
+        4, Constant(1500.0), channel=ChannelConfig(max_range_m=3000.0, collision="none"), loss_model=no_snr
+    )
     sim.add_group(TrafficNode, sinks, role="sink", positions=[[100.0 * k, 0.0, 10.0] for k in range(sinks)], mac=mac)
     sim.add_group(
-        TrafficNode, n_sources, positions=[[0.0, 500.0 + 10 * k, 10.0] for k in range(n_sources)], params=params, mac=mac
+        TrafficNode,
+        n_sources,
+        positions=[[0.0, 500.0 + 10 * k, 10.0] for k in range(n_sources)],
+        params=params,
+        mac=mac,
     )
     sim.run(until)
     pk = sim.trace.frames()["packets"]

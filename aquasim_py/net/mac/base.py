@@ -218,7 +218,11 @@ class Mac:
     def reply(self, dst: int, kind: str, payload: Any, bits: int, overhear: bool = False) -> None:
         """Transmit a control frame in answer to the reception being handed over now, once that
         reception is done (:meth:`receive` runs inside it)."""
-        self.env.timeout(0.0).callbacks.append(lambda _: self.control(dst, kind, payload, bits, overhear))
+
+        def send(_: simpy.Event) -> None:
+            self.control(dst, kind, payload, bits, overhear)
+
+        self.env.timeout(0.0).callbacks.append(send)
 
     def first_delivery(self, packet: Packet) -> bool:
         """Whether ``packet`` (unicast data addressed here) is handed up for the first time: a

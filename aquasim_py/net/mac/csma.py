@@ -29,7 +29,10 @@ __all__ = ["Csma", "CsmaParams"]
 
 class CsmaParams(ArqParams):
     max_attempts: int | None = Field(
-        None, ge=1, le=100_000, description="carrier senses per transmission before the frame is given up; none: no limit"
+        None,
+        ge=1,
+        le=100_000,
+        description="carrier senses per transmission before the frame is given up; none: no limit",
     )
 
 

@@ -181,7 +181,9 @@ class SlottedFama(QueuedMac):
         self.defer(end)
         self.env.process(self._at(cts_at, src, CTS, (uid, n), overhear=True))
 
-    def _at(self, t_local: float, dst: int, kind: str, payload: Any, overhear: bool = False) -> Generator[Any, Any, None]:
+    def _at(
+        self, t_local: float, dst: int, kind: str, payload: Any, overhear: bool = False
+    ) -> Generator[Any, Any, None]:
         yield self.wait_until_local(t_local)
         self.control(dst, kind, payload, self.params.control_bits, overhear)
 
