@@ -10,7 +10,8 @@ work by residual energy, in two phases:
 
 1. *Knowledge acquisition*: every node broadcasts a hello with its depth and residual
    energy; its neighbours keep both in a table. Every packet a node sends carries the same two
-   figures, so the tables follow as the network works.
+   figures, so the tables follow as the network works (a drifting network needs its hellos
+   repeated, ``hello_interval_s``, and its stale entries forgotten, ``neighbour_timeout_s``).
 2. *Data forwarding*: the sender names its forwarders in the packet: its neighbours shallower
    than itself, highest residual energy first. A node not named drops the packet. A named one
    holds it for
@@ -31,8 +32,8 @@ holding time with its rank priority is the reading of a public MATLAB UWSN simul
 the journal version. Open choices: ``holding_max_s`` (T_max, default 1 s), ``priority_s``
 (p_min, default 2 R / v0, the separation DBR gives two candidates), ``max_forwarders`` (default
 all shallower neighbours; that simulator names two), ``hello_interval_s`` (default once, at a
-random time within ``hello_spread_s`` of the start), ties in residual energy (the shallower
-first). Residual energy comes from the node's battery gauge; a node without a battery reads
+random time within ``hello_spread_s`` of the start), ``neighbour_timeout_s`` (default never),
+ties in residual energy (the shallower first). Residual energy comes from the node's battery gauge; a node without a battery reads
 full (E_r / E_0 = 1), which leaves only the rank priority.
 """
 
@@ -79,6 +80,9 @@ class EedbrParams(RouterParams):
     max_forwarders: int | None = Field(None, ge=1, description="forwarders a sender names, at most; none: every one")
     hello_spread_s: float = Field(10.0, ge=0.0, description="the first hello goes at uniform(0, this) local s")
     hello_interval_s: float | None = Field(None, gt=0.0, description="hellos repeat this often (local s); none: once")
+    neighbour_timeout_s: float | None = Field(
+        None, gt=0.0, description="a neighbour not heard for this long (local s) is forgotten; none: never"
+    )
     hello_bits: int = Field(56, ge=1, description="length of a hello (bits): id, depth, residual energy")
     range_m: float | None = Field(None, gt=0.0, description="R of the default p_min (m); default [channel] max_range_m")
     sound_speed_mps: float = Field(NOMINAL_SOUND_SPEED_MPS, gt=0.0, description="v0 of the default p_min (m/s)")
@@ -106,7 +110,8 @@ class Eedbr(Router):
             self.p_min = p.priority_s
         else:
             self.p_min = 0.0 if self.is_sink else 2.0 * self.range_m(p.range_m) / p.sound_speed_mps
-        self.neighbours: dict[int, tuple[float, float]] = {}  # id -> (depth m, residual energy fraction)
+        # id -> (depth m, residual energy fraction, local time last heard)
+        self.neighbours: dict[int, tuple[float, float, float]] = {}
         self.held: dict[tuple[int, int], _Held] = {}
         self.later(float(port.rng.uniform(0.0, p.hello_spread_s)), self._hello)
 
@@ -120,18 +125,23 @@ class Eedbr(Router):
     def receive(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> bool:
         d = packet.payload
         if isinstance(d, Hello):
-            self.neighbours[packet.src] = (d.depth, d.energy)
+            self.neighbours[packet.src] = (d.depth, d.energy, rx_local)
             return True
         if isinstance(d, Datagram) and isinstance(d.header, EedbrHeader):
-            self.neighbours[packet.src] = (d.header.depth, d.header.energy)
+            self.neighbours[packet.src] = (d.header.depth, d.header.energy, rx_local)
         return super().receive(packet, rx_local, snr_db, pressure)
 
     # -- data forwarding -------------------------------------------------------------------------
 
     def forwarders(self, depth: float) -> tuple[int, ...]:
         """The neighbours shallower than ``depth``, highest residual energy first (the shallower
-        first among equals), at most ``max_forwarders``."""
-        up = sorted((-e, d, i) for i, (d, e) in self.neighbours.items() if d < depth)
+        first among equals), at most ``max_forwarders``; those not heard for
+        ``neighbour_timeout_s`` are forgotten."""
+        timeout = self.params.neighbour_timeout_s
+        if timeout is not None:
+            now = self.port.local_time()
+            self.neighbours = {i: n for i, n in self.neighbours.items() if now - n[2] <= timeout}
+        up = sorted((-e, d, i) for i, (d, e, _) in self.neighbours.items() if d < depth)
         return tuple(i for _, _, i in up[: self.params.max_forwarders])
 
     def _stamped(self, header: Header) -> Header:

@@ -15,7 +15,8 @@ P_MIN = 2 * 100.0 / 1500.0
 
 
 def _hello(router: Eedbr, src: int, depth: float, energy: float) -> None:
-    router.receive(Packet(0, src, None, "routing.hello", Hello(depth, energy), 56, 0.0), 0.0, 20.0, float("nan"))
+    hello = Packet(0, src, None, "routing.hello", Hello(depth, energy), 56, 0.0)
+    router.receive(hello, router.port.local_time(), 20.0, float("nan"))
 
 
 def _copy(sender: int, named: tuple[int, ...], seq: int = 0) -> Datagram:
@@ -31,6 +32,16 @@ def test_a_sender_names_its_shallower_neighbours_richest_first():
     r2 = Eedbr(FakePort(depth=200.0), EedbrParams(max_forwarders=2))
     r2.neighbours = dict(r.neighbours)
     assert r2.forwarders(200.0) == (3, 5)
+
+
+def test_neighbours_not_heard_for_the_timeout_are_forgotten():
+    port = FakePort(depth=200.0)
+    r = Eedbr(port, EedbrParams(neighbour_timeout_s=30.0))
+    _hello(r, 2, 150.0, 1.0)
+    port.env.run(20.0)
+    _hello(r, 3, 120.0, 0.5)  # 2 heard at 0 s, 3 at 20 s
+    port.env.run(40.0)
+    assert r.forwarders(200.0) == (3,)
 
 
 @pytest.mark.parametrize(("rank", "energy"), [(1, 1.0), (1, 0.25), (2, 0.5), (3, 0.8)])

@@ -117,8 +117,10 @@ def test_bad_routing_input_names_the_key(scen, overrides, key, pattern):
 def test_a_sink_without_routing_or_parameters_without_one(tmp_path, edit, key, pattern):
     text = BASE.replace(*edit)
     if key is None:  # routing_params of a group with no routing
-        text = text.replace('params = { rate_pps = 0.05, bits = 300, destination = "any_sink", stop_s = 100.0 }\nrouting = "flooding"',
-                            'params = { rate_pps = 0.05, bits = 300, destination = "any_sink", stop_s = 100.0 }')
+        text = text.replace(
+            'params = { rate_pps = 0.05, bits = 300, destination = "any_sink", stop_s = 100.0 }\nrouting = "flooding"',
+            'params = { rate_pps = 0.05, bits = 300, destination = "any_sink", stop_s = 100.0 }',
+        )
         key, pattern = "nodes[2].routing_params", "without routing"
     p = tmp_path / "x.toml"
     p.write_text(text)
