@@ -51,11 +51,13 @@ def run(
     until: float = 600.0,
     seed: int = 1,
     position_std: float = 0.0,
+    cls: type[Planned] = Planned,
     **channel: Any,
 ) -> dict[str, pd.DataFrame]:
     """Run ``plan`` on static sensors and sinks (straight rays at 1500 m/s, no SNR loss, no
-    collisions unless ``channel`` says otherwise; 10 kbps) with ``routing``; every table."""
-    cls = type("P", (Planned,), {"plan": plan})
+    collisions unless ``channel`` says otherwise; 10 kbps) with ``routing`` (the nodes: ``cls``);
+    every table."""
+    cls = type("P", (cls,), {"plan": plan})
     cfg = {"max_range_m": 100.0, "collision": "none", "bitrate_bps": 10_000.0, "snr_estimate_std_db": 0.0, **channel}
     sim = Simulation(seed, Constant(1500.0), channel=ChannelConfig(**cfg), loss_model=no_snr)
     fix = {"position": True, "position_std": position_std}
