@@ -1,11 +1,12 @@
 """The routing page of a sweep report: delivery ratio, energy per delivered packet and end-to-end
-delay against node density, one line per routing protocol.
+delay against node density (or any other numeric key swept), one line per routing protocol.
 
 Drawn from ``sweep.csv`` where it has ``net.pdr`` (a routed sweep, docs/metrics.md,
 "Routing"): one panel per metric of :data:`PANELS` the sweep has, against its first numeric
-grid key (the node count of a group, the density), one line per combination of the other keys
-(a variant: a protocol), each point the mean over runs with its 95 % interval
-(:func:`aquasim_py.reporting.sweep.lines`).
+grid key (the node count of a group: the density; a VBF pipe's radius), one line per
+combination of the other keys (a variant: a protocol), each point the mean over runs with its
+95 % interval (:func:`aquasim_py.reporting.sweep.lines`). The file keeps its name,
+``sweep_net_routing_vs_density.png``, whatever the key.
 """
 
 from __future__ import annotations
@@ -53,5 +54,5 @@ def routing_plot(data: SweepData, path: Path) -> Path | None:
             ax.set_ylim(0.0, 1.05)
     axes[0][0].legend(fontsize=8)
     n = int(data.runs.groupby(list(data.grid)).size().min()) if len(data.runs) else 0
-    fig.suptitle(f"Routing against density\nmean and 95 % CI over runs (n >= {n} per point)", fontsize=10)
+    fig.suptitle(f"Routing against {x}\nmean and 95 % CI over runs (n >= {n} per point)", fontsize=10)
     return save_figure(fig, path)

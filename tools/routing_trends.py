@@ -1,0 +1,175 @@
+"""The routing papers' published trends, checked on the sweeps of scenarios/routing_compare.toml
+and scenarios/vbf_radius.toml: one verdict per trend (agrees / disagrees / not checked), with
+the numbers behind it, as a Markdown table (docs/routing.md, "The published trends").
+
+    aquasim-py sweep scenarios/routing_compare.toml --out out/routing_compare-sweep
+    aquasim-py sweep scenarios/vbf_radius.toml --out out/vbf_radius-sweep
+    python tools/routing_trends.py out/routing_compare-sweep --radius out/vbf_radius-sweep
+
+A trend "rises with x" agrees when the mean at the largest x exceeds the mean at the smallest
+by more than both points' 95 % intervals allow (the upper bound at the smallest x is below the
+lower bound at the largest) and no step between neighbouring x falls by more than its
+intervals allow. "Highest" agrees when, at every x, no other protocol's mean exceeds the
+protocol's upper bound. The intervals are Student-t over the seeds
+(:func:`aquasim_py.metrics.summarize_runs`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from aquasim_py.metrics import summarize_runs
+
+COUNT = "nodes.1.count"
+RADIUS = "nodes.2.routing_params.radius_m"
+#: nodes beside the relays in routing_compare.toml (4 sinks, 10 sources)
+OTHERS = 14
+
+
+@dataclass
+class Verdict:
+    claim: str
+    source: str
+    ours: str
+    verdict: str
+
+
+def points(runs: pd.DataFrame, x: str, metric: str) -> pd.DataFrame:
+    """Mean and 95 % interval of ``metric`` per (variant, x), sorted by x."""
+    if metric not in runs.columns:
+        return pd.DataFrame()
+    s = summarize_runs(runs, ["variant", x], [metric])
+    return s.sort_values(["variant", x]).reset_index(drop=True)
+
+
+def rises(p: pd.DataFrame, variant: str, x: str) -> tuple[bool, str]:
+    """Whether the variant's means rise with ``x`` (module docstring), and the means as text."""
+    v = p[p["variant"] == variant].sort_values(x)
+    lo, hi = v["ci95_low"].to_numpy(), v["ci95_high"].to_numpy()
+    up = bool(hi[0] < lo[-1]) and all(hi[i + 1] >= lo[i] for i in range(len(v) - 1))
+    return up, _means(v, x)
+
+
+def highest(p: pd.DataFrame, variant: str, x: str) -> tuple[bool, str]:
+    """Whether no other variant's mean exceeds ``variant``'s upper bound at any ``x``."""
+    ok = True
+    for _, g in p.groupby(x):
+        mine = g[g["variant"] == variant]
+        if mine.empty:
+            return False, "no such variant"
+        others = g[g["variant"] != variant]
+        ok &= bool((others["mean"] <= float(mine["ci95_high"].iloc[0])).all())
+    best = p.loc[p.groupby(x)["mean"].idxmax()]
+    return ok, ", ".join(f"{_x(r[x])}: {r['variant']}" for _, r in best.iterrows())
+
+
+def _x(v: float) -> str:
+    return f"{int(v) + OTHERS} nodes" if float(v).is_integer() else f"W = {v:g} m"
+
+
+def _means(v: pd.DataFrame, x: str) -> str:
+    return ", ".join(f"{r['mean']:.3g} [{r['ci95_low']:.3g}, {r['ci95_high']:.3g}]" for _, r in v.iterrows())
+
+
+def _word(ok: bool) -> str:
+    return "agrees" if ok else "disagrees"
+
+
+def check(compare: Path, radius: Path | None) -> list[Verdict]:
+    runs = pd.read_csv(compare / "sweep.csv")
+    out: list[Verdict] = []
+    pdr = points(runs, COUNT, "net.pdr")
+    ok, txt = rises(pdr, "dbr", COUNT)
+    out.append(Verdict("DBR's delivery ratio rises with node density", "Yan, Shi and Cui 2008, Sec. 4", txt, _word(ok)))
+    top = pdr[(pdr["variant"] == "dbr") & (pdr[COUNT] == pdr[COUNT].max())]
+    dense = float(top["mean"].iloc[0]) if len(top) else float("nan")
+    out.append(
+        Verdict(
+            "DBR delivers at least 95 % of the packets in dense networks",
+            "Yan, Shi and Cui 2008, abstract",
+            f"{dense:.3f} at {_x(pdr[COUNT].max())}",
+            _word(dense >= 0.95),
+        )
+    )
+    red = points(runs, COUNT, "net.copies_per_delivered")
+    ok, txt = rises(red, "dbr", COUNT)
+    out.append(
+        Verdict(
+            "DBR's redundancy (copies per delivered packet) rises with density",
+            "Yan, Shi and Cui 2008, Sec. 4",
+            txt,
+            _word(ok),
+        )
+    )
+    ok, txt = highest(pdr, "flooding", COUNT)
+    out.append(
+        Verdict("flooding has the highest delivery ratio", "the reference", f"best per density: {txt}", _word(ok))
+    )
+    energy = points(runs, COUNT, "energy.per_delivered_j")
+    if energy.empty:
+        out.append(
+            Verdict(
+                "flooding costs the most energy per delivered packet",
+                "the reference",
+                "no energy in this sweep",
+                "not checked",
+            )
+        )
+    else:
+        ok, txt = highest(energy, "flooding", COUNT)
+        out.append(
+            Verdict(
+                "flooding costs the most energy per delivered packet",
+                "the reference",
+                f"highest per density: {txt}",
+                _word(ok),
+            )
+        )
+    copies = points(runs, COUNT, "net.copies_per_delivered")
+    ok, txt = highest(copies, "flooding", COUNT)
+    out.append(
+        Verdict(
+            "flooding sends the most copies per delivered packet",
+            "the reference",
+            f"highest per density: {txt}",
+            _word(ok),
+        )
+    )
+    if radius is not None:
+        rr = pd.read_csv(radius / "sweep.csv")
+        for v in ("vbf", "hh_vbf"):
+            ok, txt = rises(points(rr, RADIUS, "net.pdr"), v, RADIUS)
+            name = "VBF" if v == "vbf" else "HH-VBF"
+            out.append(
+                Verdict(
+                    f"{name}'s delivery ratio rises with the pipe radius",
+                    "Xie, Cui and Lao 2006, Sec. 4",
+                    txt,
+                    _word(ok),
+                )
+            )
+    return out
+
+
+def table(verdicts: list[Verdict]) -> str:
+    lines = ["| trend | source | ours (mean [95 % CI]) | verdict |", "|---|---|---|---|"]
+    lines += [f"| {v.claim} | {v.source} | {v.ours} | {v.verdict} |" for v in verdicts]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("compare", type=Path, help="the sweep directory of routing_compare.toml")
+    ap.add_argument("--radius", type=Path, help="the sweep directory of vbf_radius.toml")
+    args = ap.parse_args(argv)
+    print(table(check(args.compare, args.radius)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
