@@ -304,7 +304,54 @@ def packet_counts(
 
 
 #: the tables the generic metrics of :func:`summarize` read
-GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "routes")
+GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "energy", "routes")
+
+
+def energy_metrics(
+    energy: pd.DataFrame | None,
+    received: float = math.nan,
+    estimates: pd.DataFrame | None = None,
+    nodes: pd.DataFrame | None = None,
+    roles: Iterable[str] = UNKNOWN_ROLES,
+) -> dict[str, float]:
+    """The ``energy.*`` metrics of a run from its ``energy`` table (aquasim_py.energy; each
+    node's last row), for any protocol and MAC:
+
+    - ``total_j``, ``per_node_j`` (mean), ``max_node_j``; ``tx_j``, ``rx_j``, ``idle_j``,
+      ``sleep_j``: the network's energy by modem state;
+    - ``per_delivered_packet_j``: total over ``received`` (the ``rx`` rows of ``packets``: every
+      packet a node got, a broadcast counting once per receiver);
+    - ``per_localized_node_j``: total over the evaluated nodes (``roles``) that logged at least
+      one estimate (when ``estimates`` are given);
+    - ``depleted_nodes``; ``first_depleted_s`` and ``half_depleted_s``: the network lifetime,
+      the true time the first node's battery, and half of the battery-powered nodes' (rounded
+      up), ran empty; NaN when that did not happen within the run.
+
+    Empty when there is no energy table (energy is not counted)."""
+    if energy is None or not len(energy):
+        return {}
+    last = energy.sort_values("time", kind="stable").groupby("node", sort=True).tail(1)
+    total = float(last["energy_j"].sum())
+    out: dict[str, float] = {
+        "total_j": total,
+        "per_node_j": float(last["energy_j"].mean()),
+        "max_node_j": float(last["energy_j"].max()),
+    }
+    for state in ("tx", "rx", "idle", "sleep"):
+        out[f"{state}_j"] = float(last[f"{state}_j"].sum())
+    out["per_delivered_packet_j"] = total / received if received > 0 else math.nan
+    if estimates is not None:
+        have = estimates["node"].unique() if len(estimates) else np.zeros(0, dtype=np.int64)
+        if nodes is not None:
+            have = np.intersect1d(have, evaluated_nodes(nodes, roles))
+        out["per_localized_node_j"] = total / len(have) if len(have) else math.nan
+    batteries = int(last["capacity_j"].notna().sum())
+    dead = np.sort(last["depleted_at"].dropna().to_numpy(float))
+    out["depleted_nodes"] = len(dead)  # an int (a count)
+    out["first_depleted_s"] = float(dead[0]) if len(dead) else math.nan
+    half = math.ceil(batteries / 2)
+    out["half_depleted_s"] = float(dead[half - 1]) if batteries and len(dead) >= half else math.nan
+    return out
 
 
 def tables_read(protocols: Iterable[type]) -> set[str] | None:
@@ -491,7 +538,9 @@ def summarize(
     ``warmup_s``: ``estimates`` and ``clocks`` rows before it are dropped, for the generic
     metrics and the protocols' alike (one time window for every family).
     ``network``: the window and airtime of the network metrics (``net.*``,
-    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given.
+    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given. A routed run that
+    counts energy also gets ``energy.per_delivered_j``: ``energy.total_j`` over
+    ``net.packets_delivered`` (the packets the sinks delivered).
     """
     out: dict[str, float] = {}
     tally = getattr(tables, "tally", None)  # a streamed run's files: counted as written
@@ -531,9 +580,13 @@ def summarize(
             return {}
         return sync_error_stats(clk, percentiles, nodes=nodes, roles=roles)
 
+    def energy() -> dict[str, float]:
+        return energy_metrics(tables.get("energy"), out.get("packets.received", math.nan), est, nodes, roles)
+
     families: list[tuple[str, Callable[[], Mapping[str, float] | None]]] = [
         ("localization", localization),
         ("sync", sync),
+        ("energy", energy),
     ]
     if network is not None:
         families.append(("net", functools.partial(net_metrics, tables, network)))
@@ -561,6 +614,10 @@ def summarize(
                 errors[f"{name}.{k}"] = f"non-finite value {float(val)}"
                 val = math.nan
             out[f"{name}.{k}"] = val
+    # a routed run: the network's energy per packet its sinks delivered
+    total, got = out.get("energy.total_j"), out.get("net.packets_delivered")
+    if total is not None and got is not None:
+        out["energy.per_delivered_j"] = float(total) / got if got else math.nan
     return out
 
 

@@ -346,6 +346,21 @@ class Node:
         """
         return self.__k.watch(self.__k.recv(timeout, kinds, self.env), "recv")
 
+    def modem_sleep(self) -> None:
+        """Put the modem to sleep once its transmit queue has emptied (at once when it is idle):
+        asleep, it neither sends (a packet it is given is dropped, reason "sleep", and its event
+        still fires after the packet's airtime) nor receives, and draws sleep power. Until
+        :meth:`modem_wake`."""
+        self.__k.modem_sleep()
+
+    def modem_wake(self) -> None:
+        """Wake the modem now (a sleep still waiting for the transmit queue is cancelled)."""
+        self.__k.modem_wake()
+
+    def modem_asleep(self) -> bool:
+        """Whether the modem is asleep (or will be once its transmit queue has emptied)."""
+        return self.__k.modem_asleep()
+
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""
         return self.__k.pending()

@@ -18,6 +18,7 @@ import numpy as np
 import simpy
 from pydantic import BaseModel
 
+from .energy import EnergyMeter
 from .estimation.bounds import range_geometry
 from .net.mac.base import Mac, MacParams
 from .net.mac.direct import Direct
@@ -76,6 +77,7 @@ class Group:
     start: int
     count: int
     static: bool
+    battery_j: float | None = None  # each node's battery capacity (J); None: unlimited
     #: the MAC every node of the group runs (:mod:`aquasim_py.net.mac`), and its parameters
     mac: type[Mac] = Direct
     mac_params: MacParams = field(default_factory=MacParams)
@@ -105,6 +107,7 @@ class NodeCore:
         "affine",
         "channel",
         "clock",
+        "energy",
         "env",
         "exact_stamp",
         "group",
@@ -166,6 +169,9 @@ class NodeCore:
         self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
         # the waiting recv events in the order they were made, each with its kinds (None: any)
         self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        # the modem's energy meter (aquasim_py.energy) when the channel config gives its power
+        powers = sim.channel_config.powers
+        self.energy = None if powers is None else EnergyMeter(powers, group.battery_j)
         self.channel.attach(self)
         mac_cls = group.mac
         #: the node's MAC, which takes its frames (transmit) and sees its receptions first
@@ -235,6 +241,15 @@ class NodeCore:
             assert router is not None and dst is not None
             return router.send(dst, str(kind), snapshot_payload(payload), bits)
         return self.mac.offer(dst, str(kind), snapshot_payload(payload), bits)
+
+    def modem_sleep(self) -> None:
+        self.channel.sleep(self.index)
+
+    def modem_wake(self) -> None:
+        self.channel.wake(self.index)
+
+    def modem_asleep(self) -> bool:
+        return bool(self.channel.asleep(self.index))
 
     def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
         """A reception (RadioPort): to the MAC first, then to the router, then, unless one of
@@ -555,7 +570,12 @@ class RouterPortView:
         return (float(x), float(y), float(z))
 
     def residual_energy(self) -> float:
-        return 1.0  # no battery model: full
+        k = self.__core
+        meter = k.energy
+        if meter is None or meter.capacity is None:
+            return 1.0  # no battery: full
+        meter.advance(k.env.now)  # (every interval begun by now has been reported: safe to charge)
+        return max(0.0, 1.0 - sum(meter.joules) / meter.capacity)
 
     def offer(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         return self.__core.mac.offer(dst, kind, payload, bits)

@@ -8,7 +8,17 @@ transmitting during any part of it -> "half_duplex"; another signal overlapping 
 "collision" (with ``capture``, the packet survives if its SNR exceeds the total power of the
 overlapping signals by ``capture_threshold_db``; :func:`~.modem.verdict`). By then every
 signal that can overlap the reception and every transmission of the receiver that can cut it
-are known (they started before that instant), so the verdict needs no second event.
+are known (they started before that instant), so the verdict needs no second event. With
+``reception = "sinr"`` the verdict is the SINR receiver's (:mod:`.sinr`: acquisition, SINR in
+pieces, a packet-error draw; "collision" or "per"), and signals too weak to decode but above
+``interference_floor_db`` are recorded at their receivers too, where they interfere.
+
+Sleep and energy: a node's modem may sleep (:meth:`AcousticChannel.sleep`) and, when the kernel
+counts energy, has a meter (``RadioPort.energy``, :mod:`aquasim_py.energy`) the channel reports
+each transmission and each detected signal to. A modem asleep or with an empty battery sends
+nothing (its packet is dropped at its first bit, reason "sleep" or "energy", and the event the
+node waits on still fires after the packet's airtime) and receives nothing (reason "sleep" or
+"energy" for a reception any part of which falls in its sleep or after its depletion).
 
 The deliveries of one transmission take turns as one SimPy timeout at a time
 (:class:`_Deliveries`), so the queue holds one event per transmission in flight, not one per
@@ -35,6 +45,7 @@ from .config import ChannelConfig, LossModel, default_loss_model
 from .environment import Environment
 from .links import LinkModel
 from .modem import Modem, Signal, verdict
+from .sinr import SinrReceiver
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ssp import SoundSpeedProfile
@@ -103,10 +114,14 @@ class AcousticChannel:
         self._jitter_std = float(config.jitter_std_s)
         self._uid = 0
         self._max_duration = 0.0  # the longest packet so far (s)
-        # overlaps matter only with a collision model
-        self._track = config.collision in ("destructive", "capture")
+        # the SINR receiver, or None: the threshold model
+        self._sinr = SinrReceiver(config) if config.reception == "sinr" else None
+        # overlaps matter only with a collision model or the SINR receiver
+        self._track = config.collision in ("destructive", "capture") or self._sinr is not None
         # signals are recorded at the receivers for a collision model, or for carrier sense
         self._record = self._track
+        self._energy = False  # some node has an energy meter
+        self._gate = False  # some modem may be asleep or dead: check before sending or receiving
         self._pressure_kind = config.pressure_kind
         # (packet, source position) of the last emission heard: keyed by the packet object, not
         # its uid, which a MAC's retransmission repeats from another position
@@ -123,7 +138,35 @@ class AcousticChannel:
         """Give the channel the next node's modem port (its index must be the number attached so far)."""
         if port.index != len(self._modems):
             raise ValueError(f"attach: expected the port of node {len(self._modems)}, got node {port.index}")
-        self._modems.append(Modem(port))
+        modem = Modem(port, sinr=self._sinr is not None)
+        if modem.energy is not None:
+            self._energy = self._gate = True
+        self._modems.append(modem)
+
+    def sleep(self, node: int) -> None:
+        """Put ``node``'s modem to sleep once its transmit queue has emptied (now if it is
+        idle): until :meth:`wake` it sends and receives nothing and draws sleep power."""
+        m = self._modems[node]
+        now = self._env.now
+        t = m.tx_free_at if m.tx_free_at > now else now
+        m.forget_sleeps(now - 2.0 * self._max_duration)
+        m.sleep(t)
+        if m.energy is not None:
+            m.energy.sleep(t)
+        self._gate = True
+
+    def wake(self, node: int) -> None:
+        """Wake ``node``'s modem now (a sleep still waiting for the queue to empty is cancelled)."""
+        m = self._modems[node]
+        now = self._env.now
+        m.wake(now)
+        if m.energy is not None:
+            m.energy.wake(now)
+
+    def asleep(self, node: int) -> bool:
+        """Whether ``node``'s modem is asleep, or will be once its transmit queue empties."""
+        sleeps = self._modems[node].sleeps
+        return bool(sleeps) and sleeps[-1][1] == math.inf
 
     def sense_carrier(self) -> None:
         """Record every signal at its receivers, so that their modems can sense it
@@ -193,7 +236,7 @@ class AcousticChannel:
         modem = self._modems[src]
         env = self._env
         now = env.now
-        duration = self.airtime(bits)
+        duration = self.airtime(bits)  # the preamble / header time (overhead_s) included
         if duration > self._max_duration:
             self._max_duration = duration
         start = modem.tx_free_at if modem.tx_free_at > now else now
@@ -242,10 +285,19 @@ class AcousticChannel:
             uid = self._uid
             self._uid = uid + 1
         tx_local = self._stamp(modem, t0)
-        pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
         dst_code = -1 if dst is None else dst
         nan = math.nan
         row = self._row
+        if self._gate:
+            why = modem.offline(t0, t0)
+            if why is not None:  # asleep or dead: nothing leaves
+                row((t0, "drop", why, src, src, dst_code, uid, kind, bits, nan, nan, None, nan))
+                return tx_local
+            if modem.energy is not None:
+                modem.energy.transmit(t0, t0 + duration)
+        pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
+        if self._sinr is not None:
+            self._sinr.transmitting(modem, t0, self._max_duration)
         modem.transmitting(t0, t0 + duration, t0, self._max_duration)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
@@ -264,7 +316,14 @@ class AcousticChannel:
         forget = t0 - 2.0 * self._max_duration
         sigs: list[Signal] = []
         modems = self._modems
-        if dst is None:
+        if self._energy:  # each receiver's modem receives (draws rx power) while a signal it detects arrives
+            for rid, T, _path, _s in heard:
+                meter = modems[rid].energy
+                if meter is not None:
+                    meter.receive(t0 + T, t0 + T + duration, t0)
+        if self._sinr is not None:
+            sigs = self._record_sinr(pkt, dst, heard, lost, t0, duration, forget, overhear)
+        elif dst is None:
             for rid, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
@@ -292,6 +351,48 @@ class AcousticChannel:
             self._schedule(_Deliveries(sigs, t0, self._deliver))
         return tx_local
 
+    def _record_sinr(
+        self,
+        pkt: Packet,
+        dst: int | None,
+        heard: list[Any],
+        lost: list[Any],
+        t0: float,
+        duration: float,
+        forget: float,
+        overhear: bool = False,
+    ) -> list[Signal]:
+        """Record the signals of a transmission at every receiver under the SINR model, with
+        their power in noise units (the weak ones, below the detection threshold but not below
+        the interference floor, too: they interfere but are never decoded); the deliveries'
+        records, in order of arrival (every receiver's for a broadcast or a frame to be
+        overheard, the addressee's for a unicast)."""
+        rx = self._sinr
+        assert rx is not None
+        lock = rx.lock != "none"
+        md = self._max_duration
+        modems = self._modems
+        dst_code = -1 if dst is None else dst
+        sigs: list[Signal] = []
+        for rid, T, path, snr in heard:
+            arr = t0 + T
+            sig = (arr, arr + duration, snr, rid, pkt, T, path, dst_code)
+            m = modems[rid]
+            if lock:  # decide what arrived before now, before the log forgets any of it
+                rx.advance(m, t0, md)
+            m.record(sig, forget, 10.0 ** (snr / 10.0))
+            if dst is None or rid == dst or overhear:
+                sigs.append(sig)
+        floor = rx.floor
+        for rid, reason, T, path, snr in lost:
+            if reason == "snr" and snr >= floor:
+                arr = t0 + T
+                m = modems[rid]
+                if lock:
+                    rx.advance(m, t0, md)
+                m.record((arr, arr + duration, snr, rid, pkt, T, path, dst_code), forget, 10.0 ** (snr / 10.0))
+        return sigs
+
     # -- receive ----------------------------------------------------------------------------------
 
     def _schedule(self, d: _Deliveries) -> None:
@@ -305,14 +406,19 @@ class AcousticChannel:
         then queue the transmission's next delivery (after the events this one made, as their
         sequence numbers order them)."""
         sig = d.sigs[d.k]
-        arr, _end, snr, rid, pkt, tof, path, dst_code = sig
+        arr, end, snr, rid, pkt, tof, path, dst_code = sig
         rx = self._modems[rid]
+        reason: str | None = None
+        if self._gate:  # asleep or dead during any of it
+            reason = rx.offline(arr, end)
+        if reason is not None:
+            pass
+        elif self._sinr is not None:
+            reason = self._sinr.verdict(sig, rx, self._max_duration)
         # no verdict to take where signals cannot collide and the receiver sent nothing lately
-        if self._track or rx.busy_until > arr:
+        elif self._track or rx.busy_until > arr:
             c = self.config
             reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
-        else:
-            reason = None
         if reason is None:
             rx_local = rx.clock_stamp(arr) if self._jitter_std <= 0.0 else self._stamp(rx, arr)
             p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self._pressure_kind else math.nan

@@ -87,6 +87,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return report.command(argv[1:])
             if argv and argv[0] == "arrivals":
                 return arrivals.command(argv[1:])
+            if argv and argv[0] == "modems":
+                from aquasim_py.cli import modems
+
+                return modems.command(argv[1:])
             if argv and argv[0] == "reproduce":
                 from aquasim_py.cli import reproduce
 

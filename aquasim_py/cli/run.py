@@ -36,6 +36,7 @@ examples:
   aquasim-py sweep scenarios/beacon.toml --workers 2
   aquasim-py sweep scenarios/beacon.toml --scheduler tcp://10.0.0.5:8786
   aquasim-py report out/beacon                       # plots and report.html of a finished run
+  aquasim-py modems                                  # the modem presets ([channel] modem = "NAME")
 
 --set values are TOML (numbers, strings in quotes, [arrays], {inline tables}, true/false);
 anything that is not valid TOML is taken as a plain string. List items are addressed by

@@ -234,6 +234,22 @@ def channel_config(sc: Scenario) -> Any:
         max_bounces=c.max_bounces,
         detection_threshold_db=c.detection_threshold_db,
         direct_only=c.direct_only,
+        reception=c.reception,
+        modulation=c.modulation,
+        modulation_order=c.modulation_order,
+        coding_gain_db=c.coding_gain_db,
+        per_table=None if c.per_table is None else tuple((p[0], p[1]) for p in c.per_table),
+        per_table_bits=c.per_table_bits,
+        lock=c.lock,
+        per_combining=c.per_combining,
+        interference_floor_db=c.interference_floor_db,
+        noise_band=c.noise_band,
+        overhead_s=c.overhead_s,
+        modem=c.modem,
+        tx_power_w=c.tx_power_w,
+        rx_power_w=c.rx_power_w,
+        idle_power_w=c.idle_power_w,
+        sleep_power_w=c.sleep_power_w,
     )
 
 
@@ -323,5 +339,6 @@ def build(sc: Scenario) -> Any:
                 position_std=s.position_noise_std_m,
                 position=s.position_fix,
             ),
+            battery_j=None if g.battery is None else g.battery.capacity_j,
         )
     return sim

@@ -66,6 +66,7 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "gradient_per_s": (-1.0, 1.0, "ocean gradients are below 1 (m/s)/m"),
     "skew_ppm": (-1000.0, 1000.0, "modem clocks drift by tens of ppm"),
     "node_speed_mps": (0.0, 20.0, "vehicles and currents stay below 20 m/s"),
+    "modem_power_w": (0.0, 500.0, "acoustic modems draw at most a few hundred W"),
 }
 
 
@@ -148,7 +149,58 @@ def check(sc: Scenario, file: Path | None) -> None:
         _check_mobility(g, i, file, c_min)
         _check_clock(g, i, file)
     _check_routed_network(sc, file)
+    _check_channel(sc, file)
     _check_network(sc, file)
+
+
+#: the modem's power by state: all four, or none (energy not counted)
+POWER_KEYS = ("tx_power_w", "rx_power_w", "idle_power_w", "sleep_power_w")
+
+
+def _check_channel(sc: Scenario, file: Path | None) -> None:
+    """The physical layer's and energy's keys across ``[channel]`` and the node groups."""
+    from aquasim_py.channel.phy import PerTable
+
+    c = sc.channel
+    given = [k for k in POWER_KEYS if getattr(c, k) is not None]
+    if given and len(given) < len(POWER_KEYS):
+        missing = next(k for k in POWER_KEYS if k not in given)
+        raise ScenarioError(
+            file,
+            f"channel.{missing}",
+            f"missing: give all four of {', '.join(POWER_KEYS)} (or a modem preset), or none",
+        )
+    for k in given:
+        _plausible(file, f"channel.{k}", float(getattr(c, k)), "modem_power_w")
+    for i, g in enumerate(sc.nodes):
+        if g.battery is not None and not given:
+            raise ScenarioError(
+                file,
+                f"nodes[{i}].battery",
+                'a battery needs the modem\'s power: set [channel] modem = "NAME" (aquasim-py modems) or its '
+                + ", ".join(POWER_KEYS),
+            )
+    if c.reception == "sinr" and c.loss_model == "none":
+        raise ScenarioError(file, "channel.reception", "'sinr' needs the SNR loss model (loss_model = 'default')")
+    if c.modulation == "table":
+        if c.per_table is None:
+            raise ScenarioError(
+                file, "channel.per_table", "modulation = 'table' needs per_table = [[sinr_db, per], ...]"
+            )
+        try:
+            PerTable(tuple((p[0], p[1]) for p in c.per_table), c.per_table_bits)
+        except ValueError as e:
+            raise ScenarioError(file, "channel.per_table", str(e)) from None
+    if c.modulation == "mfsk" and c.modulation_order & (c.modulation_order - 1):
+        raise ScenarioError(file, "channel.modulation_order", f"M-ary FSK needs a power of 2, got {c.modulation_order}")
+    integrated = c.noise_band == "integrated" or (c.noise_band is None and c.reception == "sinr")
+    if integrated and not c.bandwidth_khz < 2.0 * c.frequency_khz:
+        raise ScenarioError(
+            file,
+            "channel.bandwidth_khz",
+            f"{c.bandwidth_khz:g} kHz around {c.frequency_khz:g} kHz reaches below 0 Hz: the noise cannot be "
+            "integrated over it",
+        )
 
 
 def _check_count(g: NodeGroupSpec, i: int, file: Path | None) -> None:

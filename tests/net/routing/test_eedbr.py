@@ -95,3 +95,29 @@ def test_eedbr_delivers_over_hellos_on_a_static_network():
     depth = np.append(sensors[:, 2], 0.0)
     relays = fwd[fwd["prev"] >= 0]
     assert (depth[relays["node"]] < depth[relays["prev"]]).all()  # named: shallower than its sender
+
+
+def test_the_battery_gauge_reads_the_modem_energy_drawn():
+    from aquasim_py.channel import Constant
+    from aquasim_py.channel.config import ChannelConfig, no_snr
+    from aquasim_py.kernel import Simulation
+    from aquasim_py.node import Node
+
+    class Idle(Node):
+        name = "idle"
+
+    cfg = ChannelConfig(
+        max_range_m=100.0, bitrate_bps=1000.0, tx_power_w=2.0, rx_power_w=0.5, idle_power_w=0.1, sleep_power_w=0.0
+    )
+    sim = Simulation(1, Constant(1500.0), channel=cfg, loss_model=no_snr)
+    pos = [[0.0, 0.0, 100.0], [50.0, 0.0, 60.0]]
+    sim.add_group(Idle, 2, positions=pos, routing="eedbr", battery_j=100.0, routing_params={"hello_spread_s": 1.0})
+    sim.add_group(Idle, 1, positions=[[0.0, 0.0, 0.0]], role="sink", routing="eedbr", name="sink")
+    sim.run(10.0)
+    # each node: idle 10 s at 0.1 W, one 56-bit hello at 2 W, hellos heard at 0.5 W
+    for core in sim._cores[:2]:
+        gauge = core.router.port.residual_energy()
+        drawn = sum(core.energy.joules)
+        assert 1.0 - drawn / 100.0 == pytest.approx(gauge)
+        assert 10 * 0.1 < drawn < 10 * 0.1 + 0.056 * 2.0 + 2 * 0.056 * 0.5 + 1e-9
+    assert sim._cores[2].router.port.residual_energy() == 1.0  # the sink: no battery
