@@ -20,7 +20,7 @@ def _sweep(tmp_path, metrics):
             "seed": r,
             "key": f"{v}{c}{r}",
             "error": "",
-            **{m: c / 500 * (1.0 if v == "flooding" else 0.8) + 0.01 * r for m in metrics},
+            **dict.fromkeys(metrics, c / 500 * (1.0 if v == "flooding" else 0.8) + 0.01 * r),
         }
         for v in ("flooding", "dbr")
         for c in (86, 286, 486)
