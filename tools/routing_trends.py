@@ -4,14 +4,18 @@ the numbers behind it, as a Markdown table (docs/routing.md, "The published tren
 
     aquasim-py sweep scenarios/routing_compare.toml --out out/routing_compare-sweep
     aquasim-py sweep scenarios/vbf_radius.toml --out out/vbf_radius-sweep
-    python tools/routing_trends.py out/routing_compare-sweep --radius out/vbf_radius-sweep
+    aquasim-py sweep scenarios/routing_compare.toml --out out/routing_lifetime-sweep \
+        --set nodes.1.count=286 --set nodes.1.battery.capacity_j=60 --set nodes.2.battery.capacity_j=60 \
+        --set sweep.runs=3 --set 'sweep.grid={variant=["flooding", "vbf", "hh_vbf", "dbr", "eedbr"]}'
+    python tools/routing_trends.py out/routing_compare-sweep --radius out/vbf_radius-sweep \
+        --lifetime out/routing_lifetime-sweep
 
 A trend "rises with x" agrees when the mean at the largest x exceeds the mean at the smallest
 by more than both points' 95 % intervals allow (the upper bound at the smallest x is below the
 lower bound at the largest) and no step between neighbouring x falls by more than its
 intervals allow. "Highest" agrees when, at every x, no other protocol's mean exceeds the
-protocol's upper bound. The intervals are Student-t over the seeds
-(:func:`aquasim_py.metrics.summarize_runs`).
+protocol's upper bound. "Later" agrees when one protocol's lower bound is above the other's
+upper bound. The intervals are Student-t over the seeds (:func:`aquasim_py.metrics.summarize_runs`).
 """
 
 from __future__ import annotations
@@ -80,12 +84,22 @@ def _word(ok: bool) -> str:
     return "agrees" if ok else "disagrees"
 
 
-def check(compare: Path, radius: Path | None) -> list[Verdict]:
+def later(runs: pd.DataFrame, metric: str, first: str, second: str) -> tuple[bool, str]:
+    """Whether ``first``'s mean ``metric`` is above ``second``'s beyond both intervals."""
+    s = summarize_runs(runs, ["variant"], [metric]).set_index("variant")
+    if first not in s.index or second not in s.index:
+        return False, "not in the sweep"
+    a, b = s.loc[first], s.loc[second]
+    text = ", ".join(f"{v}: {r['mean']:.4g} [{r['ci95_low']:.4g}, {r['ci95_high']:.4g}]" for v, r in s.iterrows())
+    return bool(a["ci95_low"] > b["ci95_high"]), text
+
+
+def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> list[Verdict]:
     runs = pd.read_csv(compare / "sweep.csv")
     out: list[Verdict] = []
     pdr = points(runs, COUNT, "net.pdr")
     ok, txt = rises(pdr, "dbr", COUNT)
-    out.append(Verdict("DBR's delivery ratio rises with node density", "Yan, Shi and Cui 2008, Sec. 4", txt, _word(ok)))
+    out.append(Verdict("DBR's delivery ratio rises with node density", "Yan, Shi and Cui 2008", txt, _word(ok)))
     top = pdr[(pdr["variant"] == "dbr") & (pdr[COUNT] == pdr[COUNT].max())]
     dense = float(top["mean"].iloc[0]) if len(top) else float("nan")
     out.append(
@@ -101,7 +115,7 @@ def check(compare: Path, radius: Path | None) -> list[Verdict]:
     out.append(
         Verdict(
             "DBR's redundancy (copies per delivered packet) rises with density",
-            "Yan, Shi and Cui 2008, Sec. 4",
+            "Yan, Shi and Cui 2008",
             txt,
             _word(ok),
         )
@@ -148,7 +162,7 @@ def check(compare: Path, radius: Path | None) -> list[Verdict]:
             out.append(
                 Verdict(
                     f"{name}'s delivery ratio rises with the pipe radius",
-                    "Xie, Cui and Lao 2006, Sec. 4",
+                    "Xie, Cui and Lao 2006",
                     txt,
                     _word(ok),
                 )
@@ -166,8 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("compare", type=Path, help="the sweep directory of routing_compare.toml")
     ap.add_argument("--radius", type=Path, help="the sweep directory of vbf_radius.toml")
+    ap.add_argument("--lifetime", type=Path, help="a sweep over the variants with small batteries")
     args = ap.parse_args(argv)
-    print(table(check(args.compare, args.radius)))
+    print(table(check(args.compare, args.radius, args.lifetime)))
     return 0
 
 
