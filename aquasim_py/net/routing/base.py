@@ -268,7 +268,10 @@ class Router:
 
     def send(self, dst: int, kind: str, payload: Any, bits: int) -> simpy.Event:
         """Originate a datagram to ``dst`` (a sink or ``ANY_SINK``) and transmit it now; the
-        event is the MAC's for that first transmission."""
+        event is the MAC's for that first transmission. A node whose battery is empty
+        originates nothing (no row; the event fires at once with None)."""
+        if not self.alive():
+            return self.env.event().succeed(None)
         seq = self._seq
         self._seq = seq + 1
         header = self.originate(Header(self.index, seq, dst, 1, self.index))
@@ -307,7 +310,10 @@ class Router:
 
     def forward(self, datagram: Datagram, prev: int, value: float = math.nan) -> simpy.Event | None:
         """Transmit this node's copy of ``datagram`` (a received copy from ``prev``); None, and a
-        ``drop`` row, past the hop limit."""
+        ``drop`` row, past the hop limit; None and no row once the node's battery is empty (a
+        copy held when it died)."""
+        if not self.alive():
+            return None
         h = datagram.header
         limit = self.params.max_hops
         if limit is not None and h.hops >= limit:
@@ -331,6 +337,11 @@ class Router:
         """Write the ``suppress`` row of a held copy given up."""
         h = datagram.header
         self.port.row(("suppress", None, h.origin, h.seq, h.dst, h.hops, prev, value))
+
+    def alive(self) -> bool:
+        """Whether the node still has power: its battery gauge above empty (always, without a
+        battery). A dead node's modem neither sends nor receives; its router does nothing."""
+        return self.port.residual_energy() > 0.0
 
     def later(self, delay_local: float, callback: Callable[[], object]) -> None:
         """Call ``callback()`` after ``delay_local`` seconds of the node's clock (a holding time)."""

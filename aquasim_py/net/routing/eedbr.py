@@ -118,6 +118,8 @@ class Eedbr(Router):
     # -- knowledge acquisition -------------------------------------------------------------------
 
     def _hello(self) -> None:
+        if not self.alive():
+            return
         self.port.offer(None, HELLO, Hello(self.port.depth(), self.port.residual_energy()), self.params.hello_bits)
         if self.params.hello_interval_s is not None:
             self.later(self.params.hello_interval_s, self._hello)

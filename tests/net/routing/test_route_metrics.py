@@ -102,3 +102,28 @@ def test_a_packet_addressed_to_one_sink_is_delivered_to_it_from_the_first_sink_r
     got = t["got"]
     assert got["node"].tolist() == [3] and got["src"].tolist() == [0]
     assert rows(t, "deliver")["node"].tolist() == [2]
+
+
+def test_a_node_whose_battery_is_empty_routes_nothing():
+    from aquasim_py.node import Sensors
+    from routenet import Planned
+
+    cls = type("P", (Planned,), {"plan": {0: [1.0, 2.0], 1: [1.5]}})
+    cfg = ChannelConfig(
+        max_range_m=100.0, collision="none", bitrate_bps=10_000.0,
+        tx_power_w=2.0, rx_power_w=0.5, idle_power_w=0.1, sleep_power_w=0.0,
+    )  # fmt: skip
+    sim = Simulation(1, Constant(1500.0), channel=cfg, loss_model=no_snr)
+    chain = [[0.0, 0.0, 160.0], [0.0, 0.0, 80.0]]
+    sim.add_group(cls, 1, positions=chain[:1], routing="flooding", sensors=Sensors(position=True), name="a")
+    # node 1 idles its 0.05 J away in half a second: dead before anything reaches it
+    sim.add_group(cls, 1, positions=chain[1:], routing="flooding", battery_j=0.05, name="b")
+    sim.add_group(cls, 1, positions=[[0.0, 0.0, 0.0]], role="sink", routing="flooding", name="sink")
+    sim.run(10.0)
+    t = sim.trace.frames()
+    r = t["routes"]
+    assert set(r.loc[r["node"] == 1, "event"]) == set()  # no originate (its own plan), no forward
+    assert r.loc[r["event"] == "originate", "node"].tolist() == [0, 0]
+    assert rows(t, "deliver").empty
+    tx = t["packets"].query("event == 'tx'")
+    assert set(tx["node"]) == {0}
