@@ -105,8 +105,9 @@ def test_a_packet_addressed_to_one_sink_is_delivered_to_it_from_the_first_sink_r
 
 
 def test_a_node_whose_battery_is_empty_routes_nothing():
-    from aquasim_py.node import Sensors
     from routenet import Planned
+
+    from aquasim_py.node import Sensors
 
     cls = type("P", (Planned,), {"plan": {0: [1.0, 2.0], 1: [1.5]}})
     cfg = ChannelConfig(
