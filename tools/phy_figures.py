@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT / "tests" / "channel"))
 from aquasim_py.channel import loss  # noqa: E402
 from aquasim_py.channel.modem_presets import PRESETS  # noqa: E402
 from aquasim_py.channel.phy import ber_bfsk_nc, ber_bpsk, ber_mfsk_nc  # noqa: E402
-from aquasim_py.plotting import plt, save_figure  # noqa: E402
+from aquasim_py.reporting.figures import plt, save_figure  # noqa: E402
 
 
 def noise_figure(path: Path) -> None:

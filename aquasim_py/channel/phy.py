@@ -150,7 +150,7 @@ class ErrorModel:
     @property
     def ebn0_per_sinr(self) -> float:
         """Eb/N0 per unit of SINR (linear): B / R x 10^(G / 10)."""
-        return self._scale  # type: ignore[attr-defined,no-any-return]
+        return self._scale  # type: ignore[attr-defined]
 
     def bit_error(self, sinr_lin: float) -> float:
         """The bit error rate at SINR ``sinr_lin`` (linear, over the receiver's band)."""
