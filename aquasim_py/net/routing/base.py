@@ -53,6 +53,7 @@ __all__ = [
     "Datagram",
     "Header",
     "History",
+    "RangeParams",
     "Router",
     "RouterParams",
     "RouterPort",
@@ -203,6 +204,17 @@ class RouterParams(BaseModel):
     )
     header_bits: int | None = Field(
         None, ge=0, description="bits the network header adds to each packet; default the protocol's header"
+    )
+
+
+class RangeParams(RouterParams):
+    """Parameters of a router whose rule uses the range and the speed of sound."""
+
+    range_m: float | None = Field(
+        None, gt=0.0, description="R, the transmission range (m); default [channel] max_range_m"
+    )
+    sound_speed_mps: float = Field(
+        NOMINAL_SOUND_SPEED_MPS, gt=0.0, description="v0, the speed of sound of the rule's delays (m/s)"
     )
 
 

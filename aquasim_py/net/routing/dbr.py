@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 
 from pydantic import Field
 
-from .base import NOMINAL_SOUND_SPEED_MPS, Datagram, Header, History, Router, RouterParams, RouterPort
+from .base import Datagram, Header, History, RangeParams, Router, RouterParams, RouterPort
 
 __all__ = ["Dbr", "DbrHeader", "DbrParams"]
 
@@ -53,15 +53,13 @@ class DbrHeader(Header):
     depth: float = math.nan
 
 
-class DbrParams(RouterParams):
+class DbrParams(RangeParams):
     depth_threshold_m: float = Field(
         0.0, ge=0.0, le=10_000.0, description="d_th: a node forwards only if it is more than this shallower (m)"
     )
     delta_m: float | None = Field(
         None, gt=0.0, description="delta of the holding time (2 tau / delta)(R - d) (m); default R / 2"
     )
-    range_m: float | None = Field(None, gt=0.0, description="R, the maximal range (m); default [channel] max_range_m")
-    sound_speed_mps: float = Field(NOMINAL_SOUND_SPEED_MPS, gt=0.0, description="v0 of tau = R / v0 (m/s)")
 
 
 @dataclass(slots=True)

@@ -46,7 +46,7 @@ import simpy
 from pydantic import Field
 
 from ...packet import Packet
-from .base import NOMINAL_SOUND_SPEED_MPS, Datagram, Header, Router, RouterParams, RouterPort
+from .base import Datagram, Header, RangeParams, Router, RouterParams, RouterPort
 
 __all__ = ["HELLO", "Eedbr", "EedbrHeader", "EedbrParams", "Hello"]
 
@@ -72,7 +72,7 @@ class EedbrHeader(Header):
     forwarders: tuple[int, ...] = ()
 
 
-class EedbrParams(RouterParams):
+class EedbrParams(RangeParams):
     holding_max_s: float = Field(1.0, gt=0.0, le=3600.0, description="T_max of the holding time (local s)")
     priority_s: float | None = Field(
         None, ge=0.0, description="p_min of the rank priority p_min 2^(k - 2) (local s); default 2 R / v0"
@@ -84,8 +84,6 @@ class EedbrParams(RouterParams):
         None, gt=0.0, description="a neighbour not heard for this long (local s) is forgotten; none: never"
     )
     hello_bits: int = Field(56, ge=1, description="length of a hello (bits): id, depth, residual energy")
-    range_m: float | None = Field(None, gt=0.0, description="R of the default p_min (m); default [channel] max_range_m")
-    sound_speed_mps: float = Field(NOMINAL_SOUND_SPEED_MPS, gt=0.0, description="v0 of the default p_min (m/s)")
 
 
 @dataclass(slots=True)

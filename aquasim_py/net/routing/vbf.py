@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 
 from pydantic import Field
 
-from .base import NOMINAL_SOUND_SPEED_MPS, Datagram, Header, Router, RouterParams, RouterPort
+from .base import Datagram, Header, RangeParams, Router, RouterParams, RouterPort
 
 __all__ = ["Vbf", "VbfHeader", "VbfParams", "desirableness", "pipe_distance"]
 
@@ -60,14 +60,10 @@ class VbfHeader(Header):
     radius: float = math.nan
 
 
-class VbfParams(RouterParams):
+class VbfParams(RangeParams):
     radius_m: float | None = Field(None, gt=0.0, description="W, the routing pipe's radius (m); default R")
     delay_max_s: float = Field(1.0, gt=0.0, le=3600.0, description="T_delay of the holding time (local s)")
     alpha_c: float = Field(1.5, gt=0.0, description="the initial desirableness threshold alpha_c")
-    range_m: float | None = Field(
-        None, gt=0.0, description="R, the transmission range (m); default [channel] max_range_m"
-    )
-    sound_speed_mps: float = Field(NOMINAL_SOUND_SPEED_MPS, gt=0.0, description="v0 of (R - d) / v0 (m/s)")
 
 
 def pipe_distance(node: Point, start: Point, target: Point) -> float:
