@@ -222,11 +222,11 @@ class Simulation:
         params: Mapping[str, Any] | BaseModel | None = None,
         sensors: Sensors | None = None,
         name: str | None = None,
+        battery_j: float | None = None,
         mac: str | type[Mac] | None = None,
         mac_params: Mapping[str, Any] | BaseModel | None = None,
         routing: str | type[Router] | None = None,
         routing_params: Mapping[str, Any] | BaseModel | None = None,
-        battery_j: float | None = None,
     ) -> list[Node]:
         """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
 
@@ -236,12 +236,12 @@ class Simulation:
         ``(node_id, rng) -> Clock`` (rng = stream ("node", id, "clock")).
         params: the protocol's parameters (validated by ``node_cls.Params``).
         sensors: depth / velocity sensor noise (:class:`~aquasim_py.node.Sensors`).
+        battery_j: each node's battery capacity (J; :mod:`aquasim_py.energy`); needs the modem's
+        power in the channel config. None: unlimited.
         mac: the MAC of every node of the group (:mod:`aquasim_py.net.mac`: a name or a class;
         None = ``direct``), with ``mac_params`` (validated by its ``Params``).
         routing: the router of every node of the group (:mod:`aquasim_py.net.routing`: a name or
         a class; None = none), with ``routing_params`` (validated by its ``Params``).
-        battery_j: each node's battery capacity (J; :mod:`aquasim_py.energy`); needs the modem's
-        power in the channel config. None: unlimited.
         """
         if not (isinstance(node_cls, type) and issubclass(node_cls, Node)):
             raise TypeError(f"add_group: {node_cls!r} is not a Node subclass")

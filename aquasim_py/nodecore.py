@@ -518,9 +518,6 @@ class MacPortView:
     def carrier_busy(self) -> bool:
         return bool(self.__core.channel.carrier_busy(self.index))
 
-    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
-        self.__core.hand_up(packet, rx_local, snr_db, pressure)
-
     def new_uid(self) -> int:
         return int(self.__core.channel.new_uid())
 

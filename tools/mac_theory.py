@@ -56,8 +56,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--markdown", action="store_true", help="a Markdown table (for the docs)")
     args = ap.parse_args(argv)
     t = table(args.sweep_dir, args.slot_ratio, args.nodes)
-    if args.markdown:
-        print(t.to_markdown(index=False, floatfmt=".4g"))
+    if args.markdown:  # (by hand: pandas' to_markdown needs tabulate, a docs-only package)
+        cells = [[v if isinstance(v, str) else f"{v:.4g}" for v in row] for row in t.itertuples(index=False)]
+        print("| " + " | ".join(map(str, t.columns)) + " |")
+        print("|" + "---|" * len(t.columns))
+        for row in cells:
+            print("| " + " | ".join(row) + " |")
     else:
         with pd.option_context("display.width", 200, "display.max_columns", 30):
             print(t.to_string(index=False, float_format=lambda v: f"{v:.4g}"))

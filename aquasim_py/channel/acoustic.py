@@ -41,7 +41,7 @@ import simpy
 
 from ..packet import Packet
 from ..radio import NetworkView, PacketLog, RadioPort
-from .config import ChannelConfig, LossModel, default_loss_model
+from .config import ChannelConfig, LossModel, default_loss_model, no_snr
 from .environment import Environment
 from .links import LinkModel
 from .modem import Modem, Signal, verdict
@@ -116,9 +116,11 @@ class AcousticChannel:
         self._max_duration = 0.0  # the longest packet so far (s)
         # the SINR receiver, or None: the threshold model
         self._sinr = SinrReceiver(config) if config.reception == "sinr" else None
+        if self._sinr is not None and loss is no_snr:
+            raise ValueError("AcousticChannel: reception 'sinr' needs an SNR loss model (not no_snr)")
         # overlaps matter only with a collision model or the SINR receiver
         self._track = config.collision in ("destructive", "capture") or self._sinr is not None
-        # signals are recorded at the receivers for a collision model, or for carrier sense
+        # signals are recorded at the receivers for the reception model, or for carrier sense
         self._record = self._track
         self._energy = False  # some node has an energy meter
         self._gate = False  # some modem may be asleep or dead: check before sending or receiving
@@ -236,7 +238,7 @@ class AcousticChannel:
         modem = self._modems[src]
         env = self._env
         now = env.now
-        duration = self.airtime(bits)  # the preamble / header time (overhead_s) included
+        duration = self.airtime(bits)
         if duration > self._max_duration:
             self._max_duration = duration
         start = modem.tx_free_at if modem.tx_free_at > now else now
@@ -408,17 +410,15 @@ class AcousticChannel:
         sig = d.sigs[d.k]
         arr, end, snr, rid, pkt, tof, path, dst_code = sig
         rx = self._modems[rid]
-        reason: str | None = None
-        if self._gate:  # asleep or dead during any of it
-            reason = rx.offline(arr, end)
-        if reason is not None:
-            pass
-        elif self._sinr is not None:
-            reason = self._sinr.verdict(sig, rx, self._max_duration)
-        # no verdict to take where signals cannot collide and the receiver sent nothing lately
-        elif self._track or rx.busy_until > arr:
-            c = self.config
-            reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
+        # asleep or dead during any of it, else the reception model's verdict
+        reason = rx.offline(arr, end) if self._gate else None
+        if reason is None:
+            if self._sinr is not None:
+                reason = self._sinr.verdict(sig, rx, self._max_duration)
+            # no verdict to take where signals cannot collide and the receiver sent nothing lately
+            elif self._track or rx.busy_until > arr:
+                c = self.config
+                reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
         if reason is None:
             rx_local = rx.clock_stamp(arr) if self._jitter_std <= 0.0 else self._stamp(rx, arr)
             p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self._pressure_kind else math.nan

@@ -207,7 +207,7 @@ class ChannelConfig:
         return None if p[0] is None else p  # type: ignore[return-value]
 
     def airtime(self, bits: Any) -> Any:
-        """How long a packet of ``bits`` bits lasts on the air (s), its preamble / header time
+        """How long a packet of ``bits`` bits lasts on the air (s), the preamble / header time
         ``overhead_s`` included; elementwise on an array."""
         return bits / self.bitrate_bps + self.overhead_s
 

@@ -81,9 +81,8 @@ class Modem:
         self.longest = 0.0  # the longest signal recorded (s): how far back busy_at looks
         self.log_cap = 8  # prune the own transmissions beyond this many (see transmitting)
         # the SINR receiver's state (channel.sinr; kept only under it): each signal's power in
-        # units of the noise and its acquisition state, beside rx_log; how
-        # many signals at the front are decided; the rx_log index of the packet the receiver
-        # is locked on (-1: none)
+        # units of the noise and its acquisition state, beside rx_log; how many signals at the
+        # front are decided; the rx_log index of the packet the receiver is locked on (-1: none)
         self.sinr = sinr
         self.rx_pow = array("d")
         self.rx_acq = bytearray()

@@ -164,6 +164,7 @@ def _whoi(name: str, title: str, freq: float, band: float, rate: float, mod: str
     )
 
 
+_DERIVED_SL = f"assumed: derived from tx_power_w, 170.8 + 10 log10({ETA} P_tx) (urick)"
 _S2C_RX = 1.3
 _S2C_TX = 2.8  # the 1 km setting
 _S2C_SLEEP = 0.0025
@@ -173,7 +174,38 @@ _S2C_IDLE_SRC = (
     "available (check the datasheet's listen-mode figure)"
 )
 _S2C_MOD = "assumed: S2C (sweep-spread carrier) is proprietary; modelled as coherent BPSK over the band"
-_DERIVED_SL = f"assumed: derived from tx_power_w, 170.8 + 10 log10({ETA} P_tx) (urick)"
+
+
+def _s2c(name: str, title: str, freq: float, band: float, rate: float, reach: float, **src: str) -> ModemPreset:
+    """An EvoLogics S2C R modem: the family's power figures, with the sources given."""
+    return ModemPreset(
+        name=name,
+        title=title,
+        frequency_khz=freq,
+        bandwidth_khz=band,
+        bitrate_bps=rate,
+        source_level_db=derived_source_level(_S2C_TX),
+        snr_threshold_db=10.0,
+        overhead_s=0.0,
+        modulation="bpsk",
+        modulation_order=2,
+        coding_gain_db=0.0,
+        tx_power_w=_S2C_TX,
+        rx_power_w=_S2C_RX,
+        idle_power_w=_S2C_IDLE,
+        sleep_power_w=_S2C_SLEEP,
+        range_m=reach,
+        sources={
+            "source_level_db": _DERIVED_SL,
+            "snr_threshold_db": _THRESHOLD,
+            "overhead_s": _NO_OVERHEAD,
+            "modulation": _S2C_MOD,
+            "coding_gain_db": _NO_CODING,
+            "idle_power_w": _S2C_IDLE_SRC,
+            **src,
+        },
+    )
+
 
 PRESETS: Mapping[str, ModemPreset] = MappingProxyType(
     {
@@ -204,73 +236,36 @@ PRESETS: Mapping[str, ModemPreset] = MappingProxyType(
                 bitrate_bps="whoi-acomms",
                 modulation="ns3-uan",
             ),
-            ModemPreset(
-                name="evologics_s2cr_18_34",
-                title="EvoLogics S2C R 18/34",
-                frequency_khz=26.0,
-                bandwidth_khz=16.0,
-                bitrate_bps=13900.0,
-                source_level_db=derived_source_level(_S2C_TX),
-                snr_threshold_db=10.0,
-                overhead_s=0.0,
-                modulation="bpsk",
-                modulation_order=2,
-                coding_gain_db=0.0,
-                tx_power_w=_S2C_TX,
-                rx_power_w=_S2C_RX,
-                idle_power_w=_S2C_IDLE,
-                sleep_power_w=_S2C_SLEEP,
-                range_m=3500.0,
-                sources={
-                    "frequency_khz": "evologics-1834: the centre of the 18-34 kHz band",
-                    "bandwidth_khz": "evologics-1834",
-                    "bitrate_bps": "evologics-1834",
-                    "source_level_db": _DERIVED_SL,
-                    "snr_threshold_db": _THRESHOLD,
-                    "overhead_s": _NO_OVERHEAD,
-                    "modulation": _S2C_MOD,
-                    "coding_gain_db": _NO_CODING,
-                    "tx_power_w": "evologics-1834: the 1 km range setting",
-                    "rx_power_w": "evologics-1834",
-                    "idle_power_w": _S2C_IDLE_SRC,
-                    "sleep_power_w": "evologics-1834: stand-by",
-                    "range_m": "evologics-1834",
-                },
+            _s2c(
+                "evologics_s2cr_18_34",
+                "EvoLogics S2C R 18/34",
+                26.0,
+                16.0,
+                13900.0,
+                3500.0,
+                frequency_khz="evologics-1834: the centre of the 18-34 kHz band",
+                bandwidth_khz="evologics-1834",
+                bitrate_bps="evologics-1834",
+                tx_power_w="evologics-1834: the 1 km range setting",
+                rx_power_w="evologics-1834",
+                sleep_power_w="evologics-1834: stand-by",
+                range_m="evologics-1834",
             ),
-            ModemPreset(
-                name="evologics_s2cr_7_17",
-                title="EvoLogics S2C R 7/17",
-                frequency_khz=12.0,
-                bandwidth_khz=10.0,
-                bitrate_bps=6900.0,
-                source_level_db=derived_source_level(_S2C_TX),
-                snr_threshold_db=10.0,
-                overhead_s=0.0,
-                modulation="bpsk",
-                modulation_order=2,
-                coding_gain_db=0.0,
-                tx_power_w=_S2C_TX,
-                rx_power_w=_S2C_RX,
-                idle_power_w=_S2C_IDLE,
-                sleep_power_w=_S2C_SLEEP,
-                range_m=8000.0,
-                sources={
-                    "frequency_khz": "evologics-717: the centre of the 7-17 kHz band",
-                    "bandwidth_khz": "evologics-717",
-                    "bitrate_bps": "evologics-717",
-                    "source_level_db": _DERIVED_SL,
-                    "snr_threshold_db": _THRESHOLD,
-                    "overhead_s": _NO_OVERHEAD,
-                    "modulation": _S2C_MOD,
-                    "coding_gain_db": _NO_CODING,
-                    "tx_power_w": "assumed: the S2C R 18/34's 1 km setting (evologics-1834); the 7/17's own figure "
-                    "was not found in the sources available",
-                    "rx_power_w": "assumed: the S2C R 18/34's (evologics-1834), same S2C electronics; not found "
-                    "for the 7/17",
-                    "idle_power_w": _S2C_IDLE_SRC,
-                    "sleep_power_w": "assumed: the S2C R 18/34's stand-by (evologics-1834); not found for the 7/17",
-                    "range_m": "evologics-717",
-                },
+            _s2c(
+                "evologics_s2cr_7_17",
+                "EvoLogics S2C R 7/17",
+                12.0,
+                10.0,
+                6900.0,
+                8000.0,
+                frequency_khz="evologics-717: the centre of the 7-17 kHz band",
+                bandwidth_khz="evologics-717",
+                bitrate_bps="evologics-717",
+                tx_power_w="assumed: the S2C R 18/34's 1 km setting (evologics-1834); the 7/17's own figure was not "
+                "found in the sources available",
+                rx_power_w="assumed: the S2C R 18/34's (evologics-1834), same S2C electronics; not found for the 7/17",
+                sleep_power_w="assumed: the S2C R 18/34's stand-by (evologics-1834); not found for the 7/17",
+                range_m="evologics-717",
             ),
             ModemPreset(
                 name="benthos_atm9xx_lf",

@@ -70,7 +70,8 @@ def throughput_plot(data: SweepData, path: Path) -> Path | None:
         err_g = np.nan_to_num(np.vstack([g["g"] - g["g_low"], g["g_high"] - g["g"]]), nan=0.0)
         err_s = np.nan_to_num(np.vstack([g["s"] - g["s_low"], g["s_high"] - g["s"]]), nan=0.0)
         label = point_label(data, values) if values else "measured"
-        ax.errorbar(g["g"], g["s"], xerr=err_g, yerr=err_s, marker="o", ms=4, capsize=3, lw=1.2, label=label)
+        # markers only: a straight line between two points would read as a curve below the theory
+        ax.errorbar(g["g"], g["s"], xerr=err_g, yerr=err_s, marker="o", ms=5, capsize=3, ls="none", label=label)
     hi = float(np.nanmax(pts["g_high"].fillna(pts["g"])))
     gg = np.linspace(0.0, max(hi, 0.1) * 1.05, 400)
     ax.plot(gg, aloha_throughput(gg), "k--", lw=1.0, label="pure ALOHA, G e^(-2G)")

@@ -406,6 +406,7 @@ class NodeGroupSpec(Strict):
     sensors: SensorSpec = Field(default_factory=SensorSpec)
     protocol: str
     params: dict[str, Any] = Field(default_factory=dict, description="the protocol's parameters")
+    battery: BatterySpec | None = Field(None, description="each node's battery; none: unlimited")
     mac: str | None = Field(
         None,
         description="the MAC of the group's nodes (aquasim_py.net.mac): direct, aloha, slotted_aloha, csma, "
@@ -418,20 +419,19 @@ class NodeGroupSpec(Strict):
         "dbr, ...; unset: none (a unicast is one hop)",
     )
     routing_params: dict[str, Any] = Field(default_factory=dict, description="the routing protocol's parameters")
-    battery: BatterySpec | None = Field(None, description="each node's battery; none: unlimited")
 
     @model_serializer(mode="wrap")
     def _without_unset_keys(self, handler: Any) -> Any:
-        # a group without a MAC, a router or a battery resolves exactly as before they existed
+        # a group without a battery, a MAC or a router resolves exactly as before they existed
         d = handler(self)
         if isinstance(d, dict):
+            if d.get("battery") is None:
+                d.pop("battery", None)
             for key in ("mac", "routing"):
                 if d.get(key) is None:
                     d.pop(key, None)
                     if not d.get(f"{key}_params"):
                         d.pop(f"{key}_params", None)
-            if d.get("battery") is None:
-                d.pop("battery", None)
         return d
 
 

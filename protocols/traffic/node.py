@@ -9,9 +9,11 @@ open loop, so the offered load does not depend on the MAC); what became of each 
 
 ``destination``: a node id, ``"broadcast"``, or ``"sink"``: a sink (a node of role ``sink`` in
 a traffic group) drawn uniformly for each frame. The sinks announce themselves at set-up in
-the run's out-of-band directory (the deployment's configuration, as a node knows its sinks'
-addresses); a sink only receives. ``"any_sink"``: whichever sink the packet reaches first,
-through the group's routing layer (``routing = "..."``, :mod:`aquasim_py.net.routing`).
+the run's out-of-band directory, ``Node.out_of_band["traffic.sinks"]`` (the deployment's
+configuration, as a node knows its sinks' addresses; a sink running another protocol joins by
+appending its id there); a traffic sink only receives. ``"any_sink"``: whichever sink the
+packet reaches first, through the group's routing layer (``routing = "..."``,
+:mod:`aquasim_py.net.routing`).
 """
 
 from __future__ import annotations
@@ -100,6 +102,11 @@ class TrafficNode(Node):
             return ANY_SINK
         if d == "sink":
             sinks = sorted(self.out_of_band.get(_SINKS, ()))
+            if not sinks:
+                raise RuntimeError(
+                    f"traffic node {self.id}: destination 'sink', but no sink announced itself "
+                    f"(a sink of another protocol appends its id to Node.out_of_band[{_SINKS!r}])"
+                )
             return sinks[int(self.rng.integers(len(sinks)))] if len(sinks) > 1 else sinks[0]
         return d
 

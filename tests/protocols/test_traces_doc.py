@@ -22,7 +22,6 @@ EXTRA_CASES = {"ramezani#tracking": ("ramezani_tracking.toml", ["simulation.dura
 #: documented tables that no run here writes, and why
 RARE_TABLES = {
     "ramezani_failures": "written only when a frame's estimation fails",
-    "energy": "written only when the channel gives the modem's power (no shipped protocol case does)",
 }
 KERNEL_TABLES = ("packets", "positions", "estimates", "clocks", "nodes")
 

@@ -50,6 +50,7 @@ __all__ = [
     "MacPort",
     "QueueParams",
     "QueuedMac",
+    "SlotParams",
 ]
 
 #: kinds of the MAC control frames (the ``kind`` column of their ``packets`` rows)
@@ -118,10 +119,6 @@ class MacPort(Protocol):
 
     def carrier_busy(self) -> bool:
         """Carrier sense now, from the node's own modem: it is transmitting or receiving a signal."""
-        ...
-
-    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
-        """Hand a reception up to the protocol (its waiting ``recv`` or its inbox)."""
         ...
 
     def new_uid(self) -> int:
@@ -376,6 +373,23 @@ class ArqMac(QueuedMac):
             self.reply(packet.src, ACK, packet.uid, self.params.ack_bits)
             return not self.first_delivery(packet)
         return False
+
+
+class SlotParams(MacParams):
+    """Slots of a frame's airtime plus a guard time (slotted ALOHA, TDMA)."""
+
+    slot_bits: int = Field(256, ge=1, description="the frame length a slot is made for (bits)")
+    guard_s: float | None = Field(
+        None, ge=0.0, description="guard time at each slot's end (s); default the largest propagation delay"
+    )
+    slot_s: float | None = Field(
+        None, gt=0.0, description="slot length (local s); default the airtime of slot_bits plus guard_s"
+    )
+
+    def slot_and_guard(self, port: MacPort, delay_max: float) -> tuple[float, float]:
+        """(slot length, guard time) in local s, ``delay_max`` the largest propagation delay (s)."""
+        guard = delay_max if self.guard_s is None else self.guard_s
+        return (self.slot_s if self.slot_s is not None else port.airtime(self.slot_bits) + guard), guard
 
 
 def next_boundary(t_local: float, period: float, phase: float = 0.0) -> float:

@@ -23,21 +23,13 @@ from __future__ import annotations
 from collections.abc import Generator
 from typing import Any
 
-from pydantic import Field
-
-from .base import ArqMac, ArqParams, Frame, MacParams, MacPort, next_boundary
+from .base import ArqMac, ArqParams, Frame, MacParams, MacPort, SlotParams, next_boundary
 
 __all__ = ["SlottedAloha", "SlottedAlohaParams"]
 
 
-class SlottedAlohaParams(ArqParams):
-    slot_bits: int = Field(256, ge=1, description="the frame length a slot is made for (bits)")
-    guard_s: float | None = Field(
-        None, ge=0.0, description="guard time added to each slot (s); default the largest propagation delay"
-    )
-    slot_s: float | None = Field(
-        None, gt=0.0, description="slot length (local s); default the airtime of slot_bits plus guard_s"
-    )
+class SlottedAlohaParams(ArqParams, SlotParams):
+    """Slotted ALOHA: the queue, the optional ARQ and the slots."""
 
 
 class SlottedAloha(ArqMac):
@@ -49,10 +41,8 @@ class SlottedAloha(ArqMac):
 
     def __init__(self, port: MacPort, params: MacParams) -> None:
         super().__init__(port, params)
-        p = self.params
-        guard = self.delay_max if p.guard_s is None else p.guard_s
         #: slot length (local s)
-        self.slot = p.slot_s if p.slot_s is not None else port.airtime(p.slot_bits) + guard
+        self.slot, _guard = self.params.slot_and_guard(port, self.delay_max)
 
     def access(self, frame: Frame) -> Generator[Any, Any, bool]:
         yield self.wait_until_local(next_boundary(self.port.local_time(), self.slot))

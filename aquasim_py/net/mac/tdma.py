@@ -24,7 +24,7 @@ from typing import Any
 
 from pydantic import Field
 
-from .base import Frame, MacParams, MacPort, QueuedMac, QueueParams
+from .base import Frame, MacParams, MacPort, QueuedMac, QueueParams, SlotParams
 
 __all__ = ["Tdma", "TdmaParams"]
 
@@ -33,18 +33,11 @@ __all__ = ["Tdma", "TdmaParams"]
 _EPS = 1e-9
 
 
-class TdmaParams(QueueParams):
+class TdmaParams(QueueParams, SlotParams):
     queue_length: int = Field(
         16, ge=1, le=100_000, description="frames the MAC holds at once (they wait for the own slot)"
     )
     slots: int | None = Field(None, ge=1, le=100_000, description="slots per cycle; default one per node")
-    slot_bits: int = Field(256, ge=1, description="the frame length a slot is made for (bits)")
-    guard_s: float | None = Field(
-        None, ge=0.0, description="guard time at each slot's end (s); default the largest propagation delay"
-    )
-    slot_s: float | None = Field(
-        None, gt=0.0, description="slot length (local s); default the airtime of slot_bits plus guard_s"
-    )
     max_delay_s: float | None = Field(
         None, gt=0.0, description="the largest propagation delay (s); default [channel] max_range_m / 1500 m/s"
     )
@@ -59,10 +52,8 @@ class Tdma(QueuedMac):
 
     def __init__(self, port: MacPort, params: MacParams) -> None:
         super().__init__(port, params)
-        p = self.params
-        self.guard = self.max_delay(p.max_delay_s) if p.guard_s is None else p.guard_s
-        #: slot length and cycle length (local s), and the start of the own slot in the cycle
-        self.slot = p.slot_s if p.slot_s is not None else port.airtime(p.slot_bits) + self.guard
+        #: slot length, guard, cycle length (local s), and the start of the own slot in the cycle
+        self.slot, self.guard = self.params.slot_and_guard(port, self.max_delay(self.params.max_delay_s))
         self.cycle = math.nan  # set at the first frame, when the network is complete
         self.own = math.nan
 
