@@ -170,6 +170,33 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
     return out
 
 
+def _ci(row: pd.Series, digits: int = 3) -> str:
+    if pd.isna(row["mean"]):
+        return "-"
+    if pd.isna(row["ci95_low"]):
+        return f"{row['mean']:.{digits}g} (n = {int(row['n'])})"
+    return f"{row['mean']:.{digits}g} [{row['ci95_low']:.{digits}g}, {row['ci95_high']:.{digits}g}]"
+
+
+def results(runs: pd.DataFrame, by: list[str], metrics: list[str]) -> str:
+    """A Markdown table of each metric's mean and 95 % interval per ``by`` group (a metric a
+    group never had: "-")."""
+    s = summarize_runs(runs, by, [m for m in metrics if m in runs.columns])
+    lines = ["| " + " | ".join([*by, *metrics]) + " |", "|" + "---|" * (len(by) + len(metrics))]
+    for key, g in s.groupby(by, sort=False):
+        g = g.set_index("metric")
+        keys = key if isinstance(key, tuple) else (key,)
+        cells = [_ci(g.loc[m]) if m in g.index else "-" for m in metrics]
+        lines.append("| " + " | ".join([*(f"{k:g}" if isinstance(k, float) else str(k) for k in keys), *cells]) + " |")
+    return "\n".join(lines)
+
+
+#: the metrics of the result tables
+DENSITY_METRICS = ["net.pdr", "net.delay_s", "net.hops_mean", "net.copies_per_delivered", "energy.per_delivered_j"]
+RADIUS_METRICS = ["net.pdr", "net.copies_per_delivered", "energy.per_delivered_j", "net.delay_s"]
+LIFETIME_METRICS = ["net.pdr", "energy.first_depleted_s", "energy.depleted_nodes", "energy.per_delivered_j"]
+
+
 def table(verdicts: list[Verdict]) -> str:
     lines = ["| trend | source | ours (mean [95 % CI]) | verdict |", "|---|---|---|---|"]
     lines += [f"| {v.claim} | {v.source} | {v.ours} | {v.verdict} |" for v in verdicts]
@@ -181,8 +208,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("compare", type=Path, help="the sweep directory of routing_compare.toml")
     ap.add_argument("--radius", type=Path, help="the sweep directory of vbf_radius.toml")
     ap.add_argument("--lifetime", type=Path, help="a sweep over the variants with small batteries")
+    ap.add_argument("--tables", action="store_true", help="also print each sweep's results, mean and 95 %% CI")
     args = ap.parse_args(argv)
     print(table(check(args.compare, args.radius, args.lifetime)))
+    if args.tables:
+        print("\n" + results(pd.read_csv(args.compare / "sweep.csv"), ["variant", COUNT], DENSITY_METRICS))
+        if args.radius is not None:
+            print("\n" + results(pd.read_csv(args.radius / "sweep.csv"), ["variant", RADIUS], RADIUS_METRICS))
+        if args.lifetime is not None:
+            print("\n" + results(pd.read_csv(args.lifetime / "sweep.csv"), ["variant"], LIFETIME_METRICS))
     return 0
 
 
