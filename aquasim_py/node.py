@@ -301,6 +301,15 @@ class Node:
         """The protocol's own metrics from trace tables (override)."""
         return {}
 
+    @classmethod
+    def measurement_noise(cls, params: BaseModel) -> tuple[float, float]:
+        """The ranging noise this protocol's own measurement model adds to what the channel
+        gives it, as (std in m, std relative to the range), for the bound beside its errors
+        (:mod:`aquasim_py.estimate_bounds`: the noise the run applied); (0, 0), the default,
+        where the protocol ranges from the MAC stamps as they are. Override it where the node
+        draws noise onto its measurements itself (a modem's ToA error simulated in the protocol)."""
+        return 0.0, 0.0
+
     # -- clock ----------------------------------------------------------------------------------
 
     def local_time(self) -> float:
@@ -422,9 +431,10 @@ class Node:
         ``refs``: the node ids whose ranges this estimate used, with the ranging noise the node
         assumed for them: variance ``range_std``^2 + (``range_rel_std`` x range)^2 (m^2; both 0:
         noise-free, a zero bound), and ``depth_known``: z came from the depth gauge, the ranges fixed (x, y).
-        The kernel then adds the geometry's bound (``crb_h_m``, ``gdop``: from the references'
-        true positions, which the node never sees) and records the declaration (``refs``
-        as ids separated by spaces, ``range_std``, ``range_rel_std``)."""
+        The kernel records the declaration (``refs`` as ids separated by spaces, ``range_std``,
+        ``range_rel_std``, ``depth_known``); after the run, the geometry's bounds are computed
+        from the references' true positions, which the node never sees (``bounds.csv``,
+        :mod:`aquasim_py.estimate_bounds`)."""
         geometry = None
         if refs is not None:
             geometry = (tuple(int(r) for r in refs), float(range_std), float(range_rel_std), bool(depth_known))

@@ -19,7 +19,6 @@ import simpy
 from pydantic import BaseModel
 
 from .energy import EnergyMeter
-from .estimation.bounds import range_geometry
 from .net.mac.base import Mac, MacParams
 from .net.mac.direct import Direct
 from .net.routing.base import ROUTE_COLUMNS, Router, RouterParams
@@ -403,22 +402,25 @@ class NodeCore:
         err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
         err_h = math.hypot(x - tx, y - ty)
         err_v = abs(z - tz)
-        crb_h = gdop = math.nan
         if geometry is not None:
             refs, std, rel_std, depth_known = geometry
-            crb_h, gdop = self._geometry(np.array([tx, ty, tz]), t, refs, std, rel_std, depth_known)
-            extra = {**extra, "refs": " ".join(map(str, refs)), "range_std": std, "range_rel_std": rel_std}
+            self._check_declaration(refs, std, rel_std)
+            extra = {
+                **extra,
+                "refs": " ".join(map(str, refs)),
+                "range_std": std,
+                "range_rel_std": rel_std,
+                "depth_known": depth_known,
+            }
         self.sim.trace.table("estimates").append(
-            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference)
-            + (err_h, err_v, crb_h, gdop, *extra.values()),
+            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference, err_h, err_v)
+            + tuple(extra.values()),
             _ESTIMATE_COLUMNS + tuple(extra),
         )
 
-    def _geometry(
-        self, here: np.ndarray, t: float, refs: tuple[int, ...], std: float, rel_std: float, depth_known: bool
-    ) -> tuple[float, float]:
-        """(crb_h_m, gdop) of ranges to the nodes ``refs`` from the true position ``here`` at
-        true time ``t``, the references at their true positions then (truth: kernel side)."""
+    def _check_declaration(self, refs: tuple[int, ...], std: float, rel_std: float) -> None:
+        """The references and noise an estimate declared name nodes and a noise that exist (the
+        bound itself is computed after the run: :mod:`aquasim_py.estimate_bounds`)."""
         n = len(self.sim.nodes)
         bad = [r for r in refs if not 0 <= r < n]
         if bad:
@@ -427,17 +429,6 @@ class NodeCore:
             raise ValueError(
                 f"log_estimate(refs=...): range_std ({std}) and range_rel_std ({rel_std}) must be >= 0 and finite"
             )
-        if not refs:
-            return math.nan, math.nan
-        idx = np.array(refs, dtype=np.int64)
-        anchors = self.sim.positions_at(idx, np.full(idx.size, t))
-        if np.any(np.all(anchors == here, axis=1)):  # a reference where the node is: no range geometry
-            return math.nan, math.nan
-        if std == 0.0 and rel_std == 0.0:  # noise-free ranges: a zero bound (where they fix the position)
-            _, gdop = range_geometry(here, anchors, std=1.0, depth_known=depth_known)
-            return 0.0 * float(gdop), float(gdop)
-        crb_h, gdop = range_geometry(here, anchors, std=std, rel_std=rel_std, depth_known=depth_known)
-        return float(crb_h), float(gdop)
 
     def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
         _no_reserved("log_clock", extra, _CLOCK_COLUMNS)

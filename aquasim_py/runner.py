@@ -87,6 +87,9 @@ class RunResult:
     out: Path | None = field(default=None)  # where write() last put the outputs
     #: metric family -> "ExceptionType: message" for families whose computation failed
     metric_errors: dict[str, str] = field(default_factory=dict)
+    #: the bound beside each estimate that declared its references (``bounds.csv``,
+    #: :mod:`aquasim_py.estimate_bounds`); None where none did
+    bounds: pd.DataFrame | None = None
 
     @property
     def seed(self) -> int:
@@ -184,6 +187,8 @@ class RunResult:
                 frames[name] = self.tables[name]
             elif src.resolve() != dst.resolve():
                 shutil.copyfile(src, dst)
+        if self.bounds is not None and (wanted is None or "estimates" in wanted):
+            frames["bounds"] = self.bounds
         write_frames({**frames, **self.derived_tables()}, directory, fmt)
         (directory / "summary.json").write_text(json.dumps(self.summary(), indent=2) + "\n")
 
@@ -360,6 +365,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
     selects into the existing directory ``dest``, unstaged: callers stage), then compute the
     metrics from the files written."""
     from aquasim_py import metrics
+    from aquasim_py.estimate_bounds import applied_range_noise, estimate_bounds
 
     sim = _scenario.build(sc)
     with _streamed_trace(sim, sc, dest) as finish:
@@ -371,6 +377,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
     del sim, finish
     gc.collect()
     errors: dict[str, str] = {}
+    bounds = estimate_bounds(tables, applied_range_noise(sc))
     m = metrics.summarize(
         tables,
         sc.protocols(),
@@ -378,10 +385,17 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
         warmup_s=sc.metrics.warmup_s,
         unknown_roles=sc.metrics.unknown_roles,
         errors=errors,
+        bounds=bounds,
         network=network_window(sc),
     )
     return RunResult(
-        scenario=sc, tables=tables, metrics=dict(m), wall_time_s=wall, variant=sc.variant, metric_errors=errors
+        scenario=sc,
+        tables=tables,
+        metrics=dict(m),
+        wall_time_s=wall,
+        variant=sc.variant,
+        metric_errors=errors,
+        bounds=bounds,
     )
 
 

@@ -32,7 +32,7 @@ import itertools
 import math
 from bisect import bisect_right
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 __all__ = [
     "MODULATIONS",
@@ -136,6 +136,7 @@ class ErrorModel:
     bitrate_bps: float = 1000.0
     coding_gain_db: float = 0.0
     table: PerTable | None = None
+    _scale: float = field(init=False, repr=False, compare=False, default=1.0)  # Eb/N0 per unit SINR
 
     def __post_init__(self) -> None:
         if self.modulation not in MODULATIONS:
@@ -150,13 +151,13 @@ class ErrorModel:
     @property
     def ebn0_per_sinr(self) -> float:
         """Eb/N0 per unit of SINR (linear): B / R x 10^(G / 10)."""
-        return self._scale  # type: ignore[attr-defined]
+        return self._scale
 
     def bit_error(self, sinr_lin: float) -> float:
         """The bit error rate at SINR ``sinr_lin`` (linear, over the receiver's band)."""
         if self.table is not None:
             return self.table.bit_error(sinr_lin)
-        g = sinr_lin * self._scale  # type: ignore[attr-defined]
+        g = sinr_lin * self._scale
         m = self.modulation
         if m == "bfsk":
             return 0.5 * math.exp(-0.5 * g)  # ber_bfsk_nc, inline: once or twice per reception

@@ -21,7 +21,6 @@ from typing import Any
 from aquasim_py import __version__
 from aquasim_py.cli import common
 from aquasim_py.rows import json_safe
-from aquasim_py.runner import console
 
 EXAMPLES = """\
 examples:
@@ -84,9 +83,10 @@ def parser() -> argparse.ArgumentParser:
 
 
 def command(argv: Sequence[str]) -> int:
+    args = parser().parse_args(argv)  # --help exits here
     from aquasim_py import scenario, sweep
+    from aquasim_py.runner import console
 
-    args = parser().parse_args(argv)
     sc = scenario.load(args.scenario, overrides=args.set, seed=args.seed)
     if sc.sweep is None:
         raise scenario.ScenarioError(sc.path, "sweep", "no [sweep] table: add one with runs and grid to run a sweep")
@@ -243,6 +243,7 @@ def _run_with_bar(
     )
 
     from aquasim_py import sweep
+    from aquasim_py.runner import console
 
     with Progress(
         TextColumn("[bold]{task.description}"),

@@ -234,6 +234,7 @@ class TextTable:
     title: str
     header: list[str]  # the label column's header, then one per value column
     rows: list[list[str]]
+    sections: set[int] = field(default_factory=set)  # rows that are headings (their label only)
     caption: str | None = None
     notes: list[str] = field(default_factory=list)  # lines printed under the table
 
@@ -253,10 +254,23 @@ class TextTable:
         widths = self._widths()
         first = widths[0]
         rows = self.rows
+        header = list(self.header)
         if width is not None and column_blocks(first, widths[1:], width) != [list(range(len(widths) - 1))]:
-            # does not fit whole: a narrower label column (names broken after a dot) leaves
-            # room for more value columns per block
-            first = min(first, max(20, width // 3))
+            # does not fit whole: headers broken after a "_" to their cells' width, and a
+            # narrower label column (names broken after a dot or "_"), leave room for more
+            # value columns per block
+            cells = [
+                max((len(line) for r in rows for line in str(r[j]).split("\n")), default=1) for j in range(len(header))
+            ]
+            header = [header[0]] + [wrap_name(h, max(c, 8)) for h, c in zip(header[1:], cells[1:])]
+            widths = [widths[0]] + [max(c, *(len(x) for x in h.split("\n"))) for h, c in zip(header[1:], cells[1:])]
+            whole = [list(range(len(widths) - 1))]
+            fitting = (
+                n
+                for n in range(min(first, max(20, width // 3)), 15, -1)
+                if column_blocks(n, widths[1:], width) == whole
+            )
+            first = next(fitting, min(first, max(20, width // 3)))
             rows = [[wrap_name(r[0], first), *r[1:]] for r in rows]
             first = max(len(line) for r in rows for line in r[0].split("\n"))
         blocks = column_blocks(first, widths[1:], width) if width is not None else [list(range(len(widths) - 1))]
@@ -264,11 +278,14 @@ class TextTable:
         for b, cols in enumerate(blocks):
             more = f" ({b + 1}/{len(blocks)})" if len(blocks) > 1 else ""
             t = Table(title=self.title + more, title_justify="left", caption_justify="left")
-            t.add_column(self.header[0], overflow="fold", min_width=min(first, 12), max_width=first)
+            t.add_column(header[0], overflow="fold", min_width=min(first, 12), max_width=first)
             for j in cols:
-                t.add_column(self.header[j + 1], justify="right", no_wrap=True, min_width=widths[j + 1])
-            for r in rows:
-                t.add_row(r[0], *(r[j + 1] for j in cols))
+                t.add_column(header[j + 1], justify="right", no_wrap=True, min_width=widths[j + 1])
+            for i, r in enumerate(rows):
+                if i in self.sections:
+                    t.add_row(Text(r[0], style="bold"), *("" for _ in cols))
+                else:
+                    t.add_row(r[0], *(r[j + 1] for j in cols))
             if b == len(blocks) - 1 and self.caption:
                 t.caption = self.caption
             parts.append(t)
@@ -284,7 +301,13 @@ class TextTable:
             return f"<{tag}{style}>" + "<br>".join(h.escape(x) for x in str(text).split("\n")) + f"</{tag}>"
 
         head = "".join(cell("th", x, j > 0) for j, x in enumerate(self.header))
-        body = "".join("<tr>" + "".join(cell("td", x, j > 0) for j, x in enumerate(r)) + "</tr>" for r in self.rows)
+        span = len(self.header)
+        body = "".join(
+            f'<tr><th colspan="{span}" style="text-align:left">{h.escape(r[0])}</th></tr>'
+            if i in self.sections
+            else "<tr>" + "".join(cell("td", x, j > 0) for j, x in enumerate(r)) + "</tr>"
+            for i, r in enumerate(self.rows)
+        )
         cap = f"<caption>{h.escape(self.title)}</caption>"
         foot = "".join(f"<p>{h.escape(x)}</p>" for x in ([self.caption] if self.caption else []) + self.notes)
         return f"<table>{cap}<tr>{head}</tr>{body}</table>{foot}"

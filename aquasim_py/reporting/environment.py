@@ -23,7 +23,7 @@ import pandas as pd
 
 from aquasim_py.reporting.figures import plt, save_figure
 
-__all__ = ["choose_link", "plot_link", "report_plot"]
+__all__ = ["choose_link", "link_problem", "plot_link", "report_plot"]
 
 _CLASS_COLOURS = {
     "direct": "#1f77b4",
@@ -47,6 +47,32 @@ def choose_link(packets: pd.DataFrame) -> tuple[int, int] | None:
     counts = rx.groupby(["src", "node"]).size().sort_values(ascending=False, kind="mergesort")
     src, dst = counts.index[0]
     return int(src), int(dst)
+
+
+def link_problem(directory: Path, link: tuple[int, int]) -> str | None:
+    """Why the run in ``directory`` cannot draw ``link`` (sender, receiver) in its
+    environment.png, or None: a node it does not have, the same node twice, or a
+    range-independent environment (no environment plot)."""
+    import json
+
+    from aquasim_py.scenario import load_dict
+    from aquasim_py.scenario.ocean import range_dependent
+
+    src, dst = link
+    if src == dst:
+        return f"a link joins two nodes, not node {src} with itself"
+    summary = json.loads((directory / "summary.json").read_text())
+    scen = summary.get("scenario")
+    if not isinstance(scen, dict):
+        return "summary.json has no resolved scenario"
+    sc = load_dict(scen, summary.get("scenario_file"))
+    n = sum(int(g.count or 0) for g in sc.nodes)
+    missing = [i for i in link if not 0 <= i < n]
+    if missing:
+        return f"no node {missing[0]} (this run has nodes 0..{n - 1})"
+    if not range_dependent(sc):
+        return "a range-independent run: environment.png, where a link's rays are drawn, is made only for a range-dependent environment"
+    return None
 
 
 def _position(pos: pd.DataFrame, node: int, t: float) -> np.ndarray:
@@ -145,8 +171,7 @@ def report_plot(
     range-dependent environment; None for any other run, or without packets or positions."""
     from aquasim_py.scenario import load_dict
     from aquasim_py.scenario.build import make_ssp
-    from aquasim_py.scenario.ocean import make_environment, range_dependent
-    from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
+    from aquasim_py.scenario.ocean import depth_profile, make_environment, range_dependent
 
     scen = summary.get("scenario")
     pk, pos = tables.get("packets"), tables.get("positions")
@@ -155,7 +180,7 @@ def report_plot(
     sc = load_dict(scen, summary.get("scenario_file"))
     if not range_dependent(sc):
         return None
-    env = make_environment(sc, None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else make_ssp(sc))
+    env = make_environment(sc, make_ssp(sc) if depth_profile(sc) else None)
     if env.range_independent:
         return None
     pair = link if link is not None else choose_link(pk)

@@ -23,8 +23,11 @@ from aquasim_py.reporting.display import (
 )
 
 __all__ = [
+    "BELOW_BOUND",
+    "below_bound",
     "comparison_rows",
     "comparison_table",
+    "grouped",
     "metrics_table",
     "paper_table",
     "paper_title",
@@ -39,13 +42,88 @@ def _reported(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+#: the note beside a ratio to a bound whose interval lies wholly below 1
+BELOW_BOUND = "below the bound: check the bound's assumptions"
+#: the mark on such a ratio's cell
+BELOW_MARK = " <"
+#: metrics kept in the files but not printed as rows (what they say is shown another way)
+_HIDDEN = ("localization.rmse_over_crb_ci95_high",)
+
+
+def below_bound(metrics: Mapping[str, Any]) -> bool:
+    """Whether a run's ``localization.rmse_over_crb`` is below 1 beyond its 95 % interval (the
+    interval's upper end, ``..._ci95_high``, under 1): an error smaller than the bound allows,
+    so one of the bound's assumptions does not hold (the noise model, one-shot fixes)."""
+    high = metrics.get("localization.rmse_over_crb_ci95_high")
+    return bool(_reported(high) and float(high or 0.0) < 1.0)
+
+
 def metrics_table(metrics: Mapping[str, Any], title: str) -> TextTable:
-    """One run's metrics: a row per metric, its value in the metric's unit."""
-    rows = []
-    for k, v in metrics.items():
-        name, cells = format_row(k, [v])
-        rows.append([name, cells[0]])
-    return TextTable(title, ["metric", "value"], rows)
+    """One run's metrics: a row per metric, its value in the metric's unit, grouped by family
+    (:func:`grouped`); a metric equal to one above it is not repeated (a note says so)."""
+    rows, same = _distinct([(k, [v]) for k, v in metrics.items() if k not in _HIDDEN])
+    body = [[name, *cells] for name, cells in (_cells(k, vals, [metrics]) for k, vals in rows)]
+    table = TextTable(title, ["metric", "value"], *grouped(body))
+    table.notes += _notes(same, [metrics])
+    return table
+
+
+def _cells(name: str, values: Sequence[Any], runs: Sequence[Mapping[str, Any]]) -> tuple[str, list[str]]:
+    """A row's label and cells, a ratio to a bound marked where it is below it (:func:`below_bound`)."""
+    shown, cells = format_row(name, values)
+    if name == "localization.rmse_over_crb":
+        cells = [c + BELOW_MARK if below_bound(m) else c for c, m in zip(cells, runs)]
+    return shown, cells
+
+
+def _notes(same: Mapping[str, list[str]], runs: Sequence[Mapping[str, Any]]) -> list[str]:
+    out = []
+    if same:
+        pairs = "; ".join(f"{' = '.join(names)} = {kept}" for kept, names in same.items())
+        out.append(f"equal, printed once: {pairs}")
+    if any(below_bound(m) for m in runs):
+        out.append(f"{BELOW_MARK.strip()} rmse_over_crb: {BELOW_BOUND} (its 95 % interval lies below 1)")
+    return out
+
+
+def _distinct(rows: Sequence[tuple[str, list[Any]]]) -> tuple[list[tuple[str, list[Any]]], dict[str, list[str]]]:
+    """``rows`` without those whose values repeat an earlier row's exactly (the same quantity
+    under two names: a protocol's ``loc_rmse_m`` and ``localization.rmse_m``), and kept name ->
+    the names left out for it. Only rows of fractional numbers are compared (counts and 0 / 1
+    coincide too easily)."""
+    seen: dict[tuple[Any, ...], str] = {}
+    kept: list[tuple[str, list[Any]]] = []
+    same: dict[str, list[str]] = {}
+    for name, values in rows:
+        key = tuple(float(v) if _reported(v) else None for v in values)
+        fractional = any(x is not None and x != round(x) for x in key)
+        if fractional and key in seen:
+            same.setdefault(seen[key], []).append(name)
+            continue
+        if fractional:
+            seen[key] = name
+        kept.append((name, values))
+    return kept, same
+
+
+def grouped(rows: Sequence[list[str]]) -> tuple[list[list[str]], set[int]]:
+    """Rows labelled ``family.rest`` as sections: a heading row per family (its index in the
+    returned set) and each row labelled ``rest`` under it, so that the label column holds no
+    prefix that repeats (a narrower table)."""
+    out: list[list[str]] = []
+    heads: set[int] = set()
+    current = None
+    for r in rows:
+        fam, dot, rest = r[0].partition(".")
+        if not dot:
+            fam, rest = "", r[0]
+        if fam != current:
+            current = fam
+            if fam:
+                heads.add(len(out))
+                out.append([fam, *([""] * (len(r) - 1))])
+        out.append([f"  {rest}" if fam else rest, *r[1:]])
+    return out, heads
 
 
 def comparison_rows(results: Mapping[str, Mapping[str, Any]]) -> tuple[list[tuple[str, list[Any]]], dict[str, str]]:
@@ -85,16 +163,18 @@ def comparison_rows(results: Mapping[str, Mapping[str, Any]]) -> tuple[list[tupl
 
 
 def comparison_table(results: Mapping[str, Mapping[str, Any]], title: str) -> TextTable:
-    """Variants side by side (variant -> metrics), a row per metric (:func:`comparison_rows`)."""
+    """Variants side by side (variant -> metrics), a row per metric (:func:`comparison_rows`),
+    grouped by family; a row whose values repeat another's is printed once (a note names both)."""
     rows, own = comparison_rows(results)
-    body = []
-    for name, values in rows:
-        shown, cells = format_row(name, values)
-        body.append([shown, *cells])
+    rows, same = _distinct([(k, v) for k, v in rows if k not in _HIDDEN])
+    runs = list(results.values())
+    body = [[shown, *cells] for shown, cells in (_cells(name, values, runs) for name, values in rows)]
     caption = None
     if own:
         caption = f"{OWN}: each variant's own metrics (" + ", ".join(f"{v}: {f}.*" for v, f in own.items()) + ")"
-    return TextTable(title, ["metric", *results], body, caption)
+    table = TextTable(title, ["metric", *results], *grouped(body), caption=caption)
+    table.notes += _notes(same, runs)
+    return table
 
 
 def paper_table(paper: Any, title: str, width: int | None = None) -> Any:
@@ -191,7 +271,7 @@ def sweep_table(data: Any, summary: Any, metrics: Sequence[str], title: str, max
         caption.append(f"first {len(shown)} of {len(points)} grid points shown; all in summary.csv")
     if data.failed:
         caption.append(f"{data.failed} failed runs left out (error column of sweep.csv)")
-    return TextTable(title, header, rows, "; ".join(caption))
+    return TextTable(title, header, rows, caption="; ".join(caption))
 
 
 def _stat_of(summary: Any, metric: str) -> str:

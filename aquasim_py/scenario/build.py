@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from aquasim_py import registry
+from aquasim_py.errors import ScenarioDeprecationWarning
 from aquasim_py.scenario import ocean
 from aquasim_py.scenario.errors import ScenarioError
-from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
 from aquasim_py.scenario.schema import (
     ConstantSSP,
     CtdSSP,
@@ -67,10 +67,6 @@ DEPRECATED_MOBILITY = {
         "model, now named 'kinematic'; the Bower/Caruso meandering current is 'meandering_jet'"
     ),
 }
-
-
-class ScenarioDeprecationWarning(DeprecationWarning):
-    """A scenario uses a deprecated name; the CLI prints it as one ``warning:`` line."""
 
 
 def warn_deprecated_mobility(model: str, file: Path | None) -> None:
@@ -131,7 +127,7 @@ def make_ssp(sc: Scenario) -> Any:
 
     spec = sc.environment.sound_speed
     bottom = sc.environment.bottom_m
-    if isinstance(spec, (SectionSSP, GridSSP)):
+    if not ocean.depth_profile(sc):
         return ocean.centre_profile(sc)  # what the scenario checks look at
     try:
         if isinstance(spec, ConstantSSP):
@@ -270,8 +266,7 @@ def _obstacles(o: Any) -> Any:
 
 def _environment(sc: Scenario, ssp: Any) -> Any:
     """The scenario's Environment (its depth profile ``ssp`` where the sound speed is one)."""
-    profile = None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else ssp
-    return ocean.make_environment(sc, profile)
+    return ocean.make_environment(sc, ssp if ocean.depth_profile(sc) else None)
 
 
 def build(sc: Scenario) -> Any:

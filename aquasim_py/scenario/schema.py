@@ -14,7 +14,15 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
-from aquasim_py.scenario.ocean_schema import BathymetrySpec, GridSSP, SectionSSP, SedimentSpec
+from aquasim_py.scenario.ocean_schema import (
+    OCEAN_KEYS,
+    BathymetrySpec,
+    GridSSP,
+    Season,
+    SectionSSP,
+    SedimentSpec,
+    check_geographic,
+)
 
 __all__ = [
     "PHY_KEYS",
@@ -157,15 +165,33 @@ class EnvironmentSpec(Strict):
     # range-dependent environments (aquasim_py.scenario.ocean)
     bathymetry: BathymetrySpec | None = Field(None, description="sea-floor depth over (x, y); instead of bottom_m")
     sediment: SedimentSpec | None = Field(None, description="the bottom's sediment (default sand)")
+    # the ocean from standard files, placed on the globe (aquasim_py.scenario.ocean)
+    origin: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[latitude, longitude] (deg) of x = y = 0; x east, y north (m)"
+    )
+    woa: str | Annotated[list[str], Field(min_length=1)] | None = Field(
+        None, description="World Ocean Atlas temperature and salinity netCDF file(s); instead of sound_speed"
+    )
+    gebco: str | None = Field(None, description="GEBCO (or ETOPO) bathymetry netCDF file; instead of bathymetry")
+    month: Annotated[int, Field(ge=1, le=12)] | None = Field(None, description="the WOA month (1-12)")
+    season: Season | None = Field(None, description="the WOA season (winter = Jan-Mar, ... autumn = Oct-Dec)")
 
     @model_serializer(mode="wrap")
     def _without_unset_ocean(self, handler: Any) -> Any:
         # a scenario without them resolves exactly as before they existed
         d = handler(self)
-        for key in ("bathymetry", "sediment"):
-            if isinstance(d, dict) and d.get(key) is None:
-                d.pop(key, None)
+        if isinstance(d, dict):
+            for key in OCEAN_KEYS:
+                if d.get(key) is None:
+                    d.pop(key, None)
+            if "woa" in d:  # the sound speed is the atlas's, not the (default) profile
+                d.pop("sound_speed", None)
         return d
+
+    @model_validator(mode="after")
+    def _geographic(self) -> EnvironmentSpec:
+        check_geographic(self)
+        return self
 
     @model_validator(mode="after")
     def _one_floor(self) -> EnvironmentSpec:

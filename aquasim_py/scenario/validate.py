@@ -26,6 +26,7 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from aquasim_py import registry
+from aquasim_py.errors import ScenarioWarning
 from aquasim_py.scenario.build import make_ssp, mobility_class, placement_positions, warn_deprecated_mobility
 from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_validation, show
 from aquasim_py.scenario.schema import (
@@ -68,10 +69,6 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "node_speed_mps": (0.0, 20.0, "vehicles and currents stay below 20 m/s"),
     "modem_power_w": (0.0, 500.0, "acoustic modems draw at most a few hundred W"),
 }
-
-
-class ScenarioWarning(UserWarning):
-    """An implausible but legal scenario value; the CLI prints it as one ``warning:`` line."""
 
 
 def _plausible(file: Path | None, key: str, value: float, what: str) -> None:

@@ -38,3 +38,15 @@ def test_report_draws_the_environment_of_a_range_dependent_run(tmp_path, capsys)
     write_report(flat)
     assert not (flat / "environment.png").exists()
     capsys.readouterr()
+    # a link the run cannot draw: one line, exit 2, nothing written
+    (out / "report.html").unlink()
+    for run_dir, link, says in (
+        (out, "0,99", "no node 99 (this run has nodes 0..9)"),
+        (out, "3,3", "not node 3 with itself"),
+        (out, "0,-1", "node ids are >= 0"),
+        (flat, "0,6", "a range-independent run"),
+    ):
+        assert main(["report", str(run_dir), "--link", link]) == 2, link
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("error: ") and says in err, err
+        assert not (out / "report.html").exists()

@@ -76,7 +76,7 @@ def test_run_report_via_flag(tmp_path: Path) -> None:
     assert cli.main([*args, "--set", "simulation.duration_s=90"]) == 0
     _check(out, {"map.png", "error_vs_time.png", "sync_vs_time.png", "error_cdf.png", "packets.png"})
     html = (out / "report.html").read_text()
-    assert "localization.rmse (m)" in html and "Resolved scenario" in html
+    assert ">localization</th>" in html and "rmse (m)" in html and "Resolved scenario" in html
 
 
 def test_report_command_on_a_stvf_run_and_a_sweep(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

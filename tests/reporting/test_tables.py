@@ -95,9 +95,13 @@ def test_the_variants_tables_fit_with_every_number_whole(itmtl_out, width):
     _check_whole(body, width, table)
     # units in the labels, one value per variant in that unit: sync errors in us, not 3.05e-05 s
     label, _ = format_row("sync.mean_abs_error_s", [metrics[v]["sync.mean_abs_error_s"] for v in order])
-    assert label == "sync.mean_abs_error (us)" and label in body
-    # each protocol's own family is there for every variant
-    assert "<protocol>.loc_rmse (m)" in body
+    assert label == "sync.mean_abs_error (us)" and "mean_abs_error (us)" in body
+    # each protocol's own family is there for every variant, a metric that repeats a generic
+    # one printed once and the note saying so
+    flat = " ".join(body.split())
+    assert "<protocol>" in body and "loc_rmse_fixed (m)" in body
+    assert "<protocol>.loc_rmse_m = localization.rmse_m" in flat
+    assert flat.count(" rmse (m) ") == flat.count("itmtl: variants (seed")  # once a block
     # the paper table names the network; no word of it is cut
     assert "this run: 10 nodes (4 anchors, 6 ordinary)" in " ".join(body.split())
     paper = pd.read_csv(out / "paper.csv", dtype=str, keep_default_na=False)
@@ -153,8 +157,32 @@ def test_a_sweep_without_grid_keys_has_one_column(tmp_path):
 def test_a_variants_run_gets_a_cross_variant_report(itmtl_out):
     out, _ = itmtl_out
     html = (out / "report.html").read_text()
-    assert "the variants side by side" in html and "&lt;protocol&gt;.loc_rmse (m)" in html
+    assert "the variants side by side" in html and "&lt;protocol&gt;</th>" in html
     assert "10 nodes (4 anchors, 6 ordinary)" in html
     for v in ("itmtl", "wsc", "tshl", "mu_sync", "mobi_sync"):
         assert f'href="{v}/report.html"' in html and (out / v / "report.html").is_file()
     assert (out / "variants_error_cdf.png").is_file() and (out / "variants_sync_cdf.png").is_file()
+
+
+def test_a_ratio_below_the_bound_is_flagged_and_a_repeated_metric_printed_once():
+    low = {
+        "localization.rmse_m": 0.4321,
+        "localization.rmse_over_crb": 0.5,
+        "localization.rmse_over_crb_ci95_high": 0.8,
+        "itmtl.loc_rmse_m": 0.4321,
+        "packets.sent": 10,
+        "packets.received": 10,
+    }
+    high = {**low, "localization.rmse_over_crb": 0.9, "localization.rmse_over_crb_ci95_high": 1.3}
+    t = tables.metrics_table(low, "run")
+    rows = {r[0].strip(): r[1:] for r in t.rows}
+    assert rows["rmse_over_crb"] == ["0.5000" + tables.BELOW_MARK]
+    assert "rmse_over_crb_ci95_high" not in rows and "loc_rmse (m)" not in rows
+    assert "received" in rows  # equal counts are not taken for one quantity
+    notes = " ".join(t.notes)
+    assert tables.BELOW_BOUND in notes and "itmtl.loc_rmse_m = localization.rmse_m" in notes
+    c = tables.comparison_table({"a": low, "b": high}, "both")
+    ratio = next(r for r in c.rows if r[0].strip() == "rmse_over_crb")
+    assert ratio[1:] == ["0.5000" + tables.BELOW_MARK, "0.9000"]
+    assert tables.BELOW_BOUND in " ".join(c.notes)
+    assert tables.BELOW_BOUND not in " ".join(tables.metrics_table(high, "run").notes)
