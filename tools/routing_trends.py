@@ -167,6 +167,22 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
                     _word(ok),
                 )
             )
+    if lifetime is not None:
+        lt = pd.read_csv(lifetime / "sweep.csv")
+        alive = lt["energy.first_depleted_s"].isna().sum() if "energy.first_depleted_s" in lt.columns else len(lt)
+        if alive:  # a run whose batteries all lasted has no first death to compare (censored)
+            verdict, txt = "not checked", f"{alive} of {len(lt)} runs ended with every battery left"
+        else:
+            ok, txt = later(lt, "energy.first_depleted_s", "eedbr", "dbr")
+            verdict = _word(ok)
+        out.append(
+            Verdict(
+                "EEDBR's first node dies later than DBR's (a longer network lifetime)",
+                "Wahid et al. 2011",
+                f"first battery empty (s): {txt}",
+                verdict,
+            )
+        )
     return out
 
 
