@@ -163,6 +163,13 @@ def test_the_routing_sweep_gives_the_same_rows_on_any_number_of_workers_and_on_d
         "nodes.2.params.stop_s=15.0",
         "nodes.2.params.rate_pps=0.1",
         "sweep.runs=1",
+        # a 250 m cube, two sinks, four sources: 20-40 relays connect it (in the shipped 500 m
+        # cube they would not, and every row would read no delivery)
+        "environment.volume={lo=[0.0, 0.0, 0.0], hi=[250.0, 250.0, 250.0]}",
+        "nodes.0.placement.positions=[[62.5, 62.5, 0.0], [187.5, 187.5, 0.0]]",
+        "nodes.2.count=4",
+        "nodes.2.placement.lo=[0.0, 0.0, 200.0]",
+        "nodes.2.placement.hi=[250.0, 250.0, 250.0]",
         'sweep.grid={variant=["flooding", "vbf", "hh_vbf", "dbr", "eedbr"], "nodes.1.count"=[20, 40]}',
     ]
     sc = scenario.load(ROOT / "scenarios" / "routing_compare.toml", overrides=over)
@@ -172,6 +179,10 @@ def test_the_routing_sweep_gives_the_same_rows_on_any_number_of_workers_and_on_d
     assert json.dumps(one) == json.dumps(two)
     assert {r["variant"] for r in one} == {"flooding", "vbf", "hh_vbf", "dbr", "eedbr"}
     assert all(r["net.packets_originated"] > 0 for r in one)
+    # every protocol delivers, over several hops
+    for v in ("flooding", "vbf", "hh_vbf", "dbr", "eedbr"):
+        assert max(r["net.pdr"] for r in one if r["variant"] == v) > 0.0
+        assert max(r["net.hops_mean"] for r in one if r["variant"] == v) > 2.0
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False) as cluster:
         remote = sweep.run_jobs(sc, jobs, scheduler=cluster.scheduler_address)
