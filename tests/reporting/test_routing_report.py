@@ -66,3 +66,20 @@ def test_only_the_panels_the_sweep_has(tmp_path, monkeypatch):
     monkeypatch.setattr(routing.plt, "subplots", lambda *a, **kw: drawn.append(kw) or real(*a, **kw))
     assert routing.routing_plot(data, tmp_path / "r.png") is not None
     assert drawn[0]["figsize"][0] == pytest.approx(4.6)  # one panel
+
+
+def test_a_point_of_few_runs_does_not_flatten_the_lines(tmp_path, monkeypatch):
+    data = _sweep(tmp_path, ["net.pdr", "net.delay_s"])
+    runs = data.runs
+    # one sparse run that delivered one packet after a long wait: its point's interval is huge
+    runs.loc[(runs["variant"] == "dbr") & (runs["nodes.1.count"] == 86) & (runs["run"] == 0), "net.delay_s"] = 500.0
+    drawn = []
+    real = routing.plt.subplots
+    monkeypatch.setattr(routing.plt, "subplots", lambda *a, **kw: drawn.append(real(*a, **kw)) or drawn[-1])
+    routing.routing_plot(data, tmp_path / "r.png")
+    pdr_ax, delay_ax = drawn[0][1][0]
+    assert pdr_ax.get_ylim() == (0.0, 1.05)
+    means = runs.groupby(["variant", "nodes.1.count"])["net.delay_s"].mean()
+    # the axis holds every mean, and the outlying point's bar runs off it (at most 2 x the top mean)
+    assert delay_ax.get_ylim()[0] == 0.0
+    assert means.max() < delay_ax.get_ylim()[1] <= 1.05 * 2 * means.max() + 1e-9
