@@ -15,7 +15,9 @@ by more than both points' 95 % intervals allow (the upper bound at the smallest 
 lower bound at the largest) and no step between neighbouring x falls by more than its
 intervals allow. "Highest" agrees when, at every x, no other protocol's mean exceeds the
 protocol's upper bound. "Later" agrees when one protocol's lower bound is above the other's
-upper bound. The intervals are Student-t over the seeds (:func:`aquasim_py.metrics.summarize_runs`).
+upper bound. A "rises" or "later" whose intervals leave it open is "not resolved" (more
+seeds decide it); "disagrees" there means the opposite beyond the intervals. The intervals
+are Student-t over the seeds (:func:`aquasim_py.metrics.summarize_runs`).
 """
 
 from __future__ import annotations
@@ -80,8 +82,17 @@ def _means(v: pd.DataFrame, x: str) -> str:
     return ", ".join(f"{r['mean']:.3g} [{r['ci95_low']:.3g}, {r['ci95_high']:.3g}]" for _, r in v.iterrows())
 
 
-def _word(ok: bool) -> str:
-    return "agrees" if ok else "disagrees"
+def falls(p: pd.DataFrame, variant: str, x: str) -> bool:
+    """Whether the variant's mean at the largest ``x`` is below the one at the smallest beyond
+    both intervals (the opposite of :func:`rises`)."""
+    v = p[p["variant"] == variant].sort_values(x)
+    return bool(len(v)) and bool(v["ci95_low"].iloc[0] > v["ci95_high"].iloc[-1])
+
+
+def _word(ok: bool, against: bool = True) -> str:
+    """The verdict: "agrees"; "disagrees" where the data show the opposite (``against``), or
+    where the check has no such third case; else "not resolved" (the intervals overlap)."""
+    return "agrees" if ok else "disagrees" if against else "not resolved"
 
 
 def later(runs: pd.DataFrame, metric: str, first: str, second: str) -> tuple[bool, str]:
@@ -99,7 +110,14 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
     out: list[Verdict] = []
     pdr = points(runs, COUNT, "net.pdr")
     ok, txt = rises(pdr, "dbr", COUNT)
-    out.append(Verdict("DBR's delivery ratio rises with node density", "Yan, Shi and Cui 2008", txt, _word(ok)))
+    out.append(
+        Verdict(
+            "DBR's delivery ratio rises with node density",
+            "Yan, Shi and Cui 2008",
+            txt,
+            _word(ok, falls(pdr, "dbr", COUNT)),
+        )
+    )
     top = pdr[(pdr["variant"] == "dbr") & (pdr[COUNT] == pdr[COUNT].max())]
     dense = float(top["mean"].iloc[0]) if len(top) else float("nan")
     out.append(
@@ -117,7 +135,7 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
             "DBR's redundancy (copies per delivered packet) rises with density",
             "Yan, Shi and Cui 2008",
             txt,
-            _word(ok),
+            _word(ok, falls(red, "dbr", COUNT)),
         )
     )
     ok, txt = highest(pdr, "flooding", COUNT)
@@ -157,14 +175,15 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
     if radius is not None:
         rr = pd.read_csv(radius / "sweep.csv")
         for v in ("vbf", "hh_vbf"):
-            ok, txt = rises(points(rr, RADIUS, "net.pdr"), v, RADIUS)
+            pr = points(rr, RADIUS, "net.pdr")
+            ok, txt = rises(pr, v, RADIUS)
             name = "VBF" if v == "vbf" else "HH-VBF"
             out.append(
                 Verdict(
                     f"{name}'s delivery ratio rises with the pipe radius",
                     "Xie, Cui and Lao 2006",
                     txt,
-                    _word(ok),
+                    _word(ok, falls(pr, v, RADIUS)),
                 )
             )
     if lifetime is not None:
@@ -174,7 +193,7 @@ def check(compare: Path, radius: Path | None, lifetime: Path | None = None) -> l
             verdict, txt = "not checked", f"{alive} of {len(lt)} runs ended with every battery left"
         else:
             ok, txt = later(lt, "energy.first_depleted_s", "eedbr", "dbr")
-            verdict = _word(ok)
+            verdict = _word(ok, later(lt, "energy.first_depleted_s", "dbr", "eedbr")[0])
         out.append(
             Verdict(
                 "EEDBR's first node dies later than DBR's (a longer network lifetime)",

@@ -1,5 +1,5 @@
 """The routing papers' published trends on shortened sweeps of the shipped scenarios (slow: about
-ten minutes of two cores; the full sweeps and their verdicts are in docs/routing.md)."""
+ten minutes of two cores; the sweeps behind the documented verdicts: docs/routing.md, "The published trends")."""
 
 from __future__ import annotations
 
