@@ -531,7 +531,9 @@ def done_keys(rows: Iterable[dict[str, Any]]) -> set[str]:
 def finish(out: str | Path, jobs: Sequence[Job]) -> tuple[list[dict[str, Any]], list[str]]:
     """Rewrite ``out/sweep.csv`` from the journal, in plan order (atomically), with
     ``summary.csv`` (:func:`aquasim_py.metrics.summarize_runs` per grid point over the
-    successful runs) and ``sweep.parquet`` when pyarrow is installed. Returns the rows and the
+    successful runs, and the reports' centre and interval,
+    :func:`aquasim_py.reporting.intervals.summarize`, as ``center_stat``, ``center``,
+    ``center_ci95_low`` and ``center_ci95_high``) and ``sweep.parquet`` when pyarrow is installed. Returns the rows and the
     columns. The same journal rows give the same bytes whatever order they finished in."""
     out = Path(out)
     rows = latest_rows(read_journal(out / JOURNAL)[0], jobs)
@@ -546,10 +548,15 @@ def finish(out: str | Path, jobs: Sequence[Job]) -> tuple[list[dict[str, Any]], 
     return rows, cols
 
 
+#: the statistic the reports draw and tabulate, beside the mean in summary.csv
+CENTER_COLUMNS = ("center_stat", "center", "center_ci95_low", "center_ci95_high")
+
+
 def _write_summary(out: Path, jobs: Sequence[Job], cols: Sequence[str]) -> None:
     import pandas as pd
 
     from aquasim_py.metrics import summarize_runs
+    from aquasim_py.reporting import intervals
 
     grid = [k for k, _ in jobs[0].point] if jobs else []
     df = pd.read_csv(out / "sweep.csv", dtype={"key": str, "error": str})
@@ -560,8 +567,13 @@ def _write_summary(out: Path, jobs: Sequence[Job], cols: Sequence[str]) -> None:
     metric_cols = [c for c in cols if c not in fixed and pd.api.types.is_numeric_dtype(ok[c])]
     if metric_cols and len(ok):
         summary = summarize_runs(ok, by=grid, metrics=metric_cols)
+        # the reports' centre (the geometric mean of a metric positive in every run), named
+        center = intervals.summarize(ok, grid, metric_cols).drop(columns="n")
+        center.columns = [*grid, "metric", *CENTER_COLUMNS]
+        summary = summary.merge(center, on=[*grid, "metric"], how="left", validate="one_to_one")
     else:
-        summary = pd.DataFrame(columns=[*grid, "metric", "n", "mean", "std", "ci95_low", "ci95_high"])
+        cols_out = [*grid, "metric", "n", "mean", "std", "ci95_low", "ci95_high", *CENTER_COLUMNS]
+        summary = pd.DataFrame(columns=cols_out)
     summary.to_csv(out / "summary.csv", index=False, lineterminator="\n")
     try:
         import pyarrow  # noqa: F401

@@ -120,6 +120,7 @@ def test_tiny_reproduction_writes_claims_and_page(tmp_path, capsys):
     assert rows.groupby("variant")["seed"].apply(sorted).apply(tuple).nunique() == 1
 
 
+@pytest.mark.slow  # a reproduction killed and resumed; the journal it resumes from is the sweep's (test_sweep)
 def test_resume_after_a_kill_runs_only_the_missing_runs(tmp_path):
     out = tmp_path / "r"
     cmd = [sys.executable, "-m", "aquasim_py.cli", "reproduce", *TINY, *TINY_SETS, "--workers", "1", "--out", str(out)]

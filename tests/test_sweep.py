@@ -96,8 +96,9 @@ def test_rows_depend_on_swept_values(scen):
 
 def test_two_workers_give_the_same_csv_as_one(scen, tmp_path, capsys):
     a, b = tmp_path / "w1", tmp_path / "w2"
-    assert cli.main(["sweep", str(scen), "--workers", "1", "--out", str(a), "--quiet"]) == 0
-    assert cli.main(["sweep", str(scen), "--workers", "2", "--out", str(b), "--quiet"]) == 0
+    short = ["--set", "simulation.duration_s=10"]  # the rows' order and bytes, not the runs' length, are tested
+    assert cli.main(["sweep", str(scen), "--workers", "1", "--out", str(a), "--quiet", *short]) == 0
+    assert cli.main(["sweep", str(scen), "--workers", "2", "--out", str(b), "--quiet", *short]) == 0
     assert (a / "sweep.csv").read_bytes() == (b / "sweep.csv").read_bytes()
     with open(a / "sweep.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -399,10 +400,18 @@ def test_summary_csv_is_summarize_runs_of_sweep_csv(scen, tmp_path):
         "std",
         "ci95_low",
         "ci95_high",
+        "center_stat",
+        "center",
+        "center_ci95_low",
+        "center_ci95_high",
     ]
     rmse = s[(s["metric"] == "beacon.range_rmse_m") & (s["nodes.1.count"] == 4) & (s["channel.jitter_std_s"] == 1e-3)]
     vals = runs[(runs["nodes.1.count"] == 4) & (runs["channel.jitter_std_s"] == 1e-3)]["beacon.range_rmse_m"]
     assert int(rmse["n"].iloc[0]) == 2 and rmse["mean"].iloc[0] == pytest.approx(vals.mean(), rel=1e-12)
+    # beside the mean, the centre the reports draw: an error's geometric mean, named
+    assert rmse["center_stat"].iloc[0] == "geometric mean"
+    assert rmse["center"].iloc[0] == pytest.approx(np.exp(np.log(vals).mean()), rel=1e-12)
+    assert 0 < rmse["center_ci95_low"].iloc[0] <= rmse["center"].iloc[0] <= rmse["center_ci95_high"].iloc[0]
     assert len(s) == len(
         summarize_runs(
             runs,
@@ -439,6 +448,7 @@ def _interrupt_after(monkeypatch, n: int) -> None:
 def test_an_interrupted_sweep_is_refused_without_resume_and_kept(scen, tmp_path, monkeypatch, capsys, killed):
     out = tmp_path / "o"
     argv = ["sweep", str(scen), "--workers", "1", "--out", str(out), "--quiet", "--set", "sweep.runs=1"]
+    argv += ["--set", "simulation.duration_s=10"]  # what is kept and refused, not the runs' length, is tested
     with monkeypatch.context() as m:
         _interrupt_after(m, 3)
         assert cli.main(argv) == 130

@@ -36,9 +36,10 @@ The scenario's [sweep] table gives runs (Monte Carlo seeds per grid point) and g
 the [output] directory with "-sweep" appended, else out/<scenario file stem>-sweep. Each
 finished run's row is appended to DIR/rows.jsonl at once; at the end DIR/sweep.csv holds one
 row per run (key, error, metrics) in plan order whatever the number of workers or
-interruptions, DIR/summary.csv the mean, std and 95 % CI per grid point. Exit status 1 when
-any run failed (its error is in the error column). A DIR that holds an interrupted sweep is
-refused (exit 2) unless --resume (continue it) or --overwrite (discard its saved runs).
+interruptions, DIR/summary.csv the mean, std and 95 % CI per grid point and the centre the
+reports draw. Exit status 1 when any run failed (its error is in the error column). A DIR
+that holds an interrupted sweep is refused (exit 2) unless --resume (continue it) or
+--overwrite (discard its saved runs).
 """
 
 OUTPUTS = ("sweep.csv", "sweep.json", "summary.csv", "sweep.parquet")

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import save_figure, subplots
 
 __all__ = ["choose_link", "link_problem", "plot_link", "report_plot"]
 
@@ -109,12 +109,13 @@ def plot_link(
     c = env.speed(x[None, :], y[None, :], z[:, None])
     c = np.where(z[:, None] <= floor[None, :], c, np.nan)
 
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11.0, 4.6), gridspec_kw={"width_ratios": [3, 1]})
+    fig, (ax, bx) = subplots(1, 2, figsize=(11.0, 5.2), gridspec_kw={"width_ratios": [3, 1]})
     mesh = ax.pcolormesh(r, z, c, shading="auto", cmap="viridis")
     fig.colorbar(mesh, ax=ax, label="sound speed (m/s)", pad=0.01)
     if np.isfinite(floor).any():
         ax.fill_between(r, floor, zmax, color="#c2a878", zorder=2, label="sea floor")
     drawn: set[str] = set()
+    first = 0.0
     if arr.delay.size:
         paths, cnt, _sec = rangedep.trace_rays(
             env,
@@ -125,6 +126,7 @@ def plot_link(
         )
         # the stamped arrival: the one nearest the stamp (the positions are interpolated from
         # samples, so the delays here differ from the run's by a little)
+        first = float(arr.delay[0])  # the levels are drawn against the delay after it, in ms
         near = int(np.argmin(np.abs(arr.delay - stamped_delay))) if stamped_delay is not None else -1
         for i in range(arr.delay.size):
             label = ArrivalClass(int(arr.path_class[i])).label
@@ -135,11 +137,14 @@ def plot_link(
                 color=_CLASS_COLOURS[label],
                 lw=2.4 if stamped else 0.9,
                 zorder=4 if stamped else 3,
-                label=None if label in drawn else label,
             )
+            if label not in drawn:  # the legend's entry of a class: its colour at the thin width
+                ax.plot([], [], color=_CLASS_COLOURS[label], lw=0.9, label=label)
             drawn.add(label)
+            if stamped:
+                ax.plot([], [], color="0.3", lw=2.4, label=f"stamped ({arr.delay[i]:.4f} s)")
             bx.stem(
-                [arr.delay[i]],
+                [1e3 * (arr.delay[i] - first)],
                 [arr.level_db[i]],
                 linefmt=_CLASS_COLOURS[label],
                 markerfmt="o",
@@ -147,8 +152,9 @@ def plot_link(
                 bottom=float(np.min(arr.level_db)) - 5.0,
             )
         if stamped_delay is not None:
-            bx.axvline(stamped_delay, color="k", ls=":", lw=0.8, label="modem stamp")
-            bx.legend(fontsize=7, loc="best")
+            bx.axvline(
+                1e3 * (stamped_delay - first), color="k", ls=":", lw=0.8, label=f"modem stamp ({stamped_delay:.4f} s)"
+            )
     ax.plot([0.0, R], [src[2], dst[2]], "k--", lw=0.7, zorder=3, label="straight line")
     ax.plot([0.0], [src[2]], "r^", ms=8, zorder=5, label="sender")
     ax.plot([R], [dst[2]], "rv", ms=8, zorder=5, label="receiver")
@@ -157,8 +163,11 @@ def plot_link(
     ax.set_xlabel("range along the link (m)")
     ax.set_ylabel("depth (m)")
     ax.set_title(title or "link section and eigenrays", fontsize=10)
-    ax.legend(fontsize=7, loc="upper right", ncol=2, framealpha=0.8)
-    bx.set_xlabel("delay (s)")
+    # one legend for both panels, below them: the section is data to its edges
+    handles, labels = ax.get_legend_handles_labels()
+    more = bx.get_legend_handles_labels()
+    fig.legend(handles + more[0], labels + more[1], loc="outside lower center", ncols=5, fontsize=7)
+    bx.set_xlabel(f"delay after the first arrival (ms)\nfirst at {first:.4f} s" if arr.delay.size else "delay (ms)")
     bx.set_ylabel("level (dB re source at 1 m)")
     bx.set_title(f"{arr.delay.size} arrivals", fontsize=10)
     return save_figure(fig, out)

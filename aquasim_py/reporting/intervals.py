@@ -62,8 +62,12 @@ def summarize(
     is_geo = out["metric"].map(positive).to_numpy(bool)
     cut = out["metric"].map(nonneg).to_numpy(bool) & ~is_geo
     out["stat"] = np.where(is_geo, GEOMETRIC, MEAN)
-    out["center"] = np.where(is_geo, np.exp(m), m)
-    out["low"] = np.where(is_geo, np.exp(lo), np.where(cut, np.maximum(lo, 0.0), lo))
-    out["high"] = np.where(is_geo, np.exp(hi), hi)
+
+    def back(v: np.ndarray) -> np.ndarray:  # exp of the log-scale rows only: a large mean elsewhere would overflow
+        return np.exp(np.where(is_geo, v, 0.0))
+
+    out["center"] = np.where(is_geo, back(m), m)
+    out["low"] = np.where(is_geo, back(lo), np.where(cut, np.maximum(lo, 0.0), lo))
+    out["high"] = np.where(is_geo, back(hi), hi)
     out["n"] = out["n"].astype(int)
     return out[cols]

@@ -6,7 +6,8 @@ Drawn from ``sweep.csv`` where it has ``net.offered_load`` and ``net.throughput`
 and S, with their Student-t 95 % intervals as error bars (:func:`aquasim_py.metrics.
 summarize_runs`: the theory is a statement about means); the points of one combination of the
 grid's text keys (a MAC, a variant) form a line, in increasing G, whatever numeric key set
-the load. The curves are pure ALOHA's S = G e^(-2G) and slotted ALOHA's S = G e^(-G)
+the load, drawn as hollow markers of its own shape (:data:`MARKERS`) so that lines meeting at
+light load all show. The curves are pure ALOHA's S = G e^(-2G) and slotted ALOHA's S = G e^(-G)
 (Poisson traffic, many nodes at one distance from one receiver, no capture).
 """
 
@@ -17,13 +18,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import save_figure, subplots
 from aquasim_py.reporting.sweep import SweepData, point_label, text_keys
 
-__all__ = ["LOAD", "THROUGHPUT", "aloha_throughput", "load_points", "throughput_plot"]
+__all__ = ["LOAD", "MARKERS", "THROUGHPUT", "aloha_throughput", "load_points", "throughput_plot"]
 
 LOAD = "net.offered_load"
 THROUGHPUT = "net.throughput"
+#: one hollow marker shape per line, so that points of several lines at one place all show
+MARKERS = ("o", "s", "^", "v", "D", "P", "X", "<", ">", "h")
 
 
 def aloha_throughput(g: np.ndarray, slotted: bool = False) -> np.ndarray:
@@ -62,16 +65,29 @@ def throughput_plot(data: SweepData, path: Path) -> Path | None:
     if pts.empty:
         return None
     categories = text_keys(data)
-    fig, ax = plt.subplots(figsize=(7.0, 4.8))
+    fig, ax = subplots(figsize=(7.0, 4.8))
     groups = pts.groupby(categories, sort=False) if categories else [((), pts)]
-    for combo, g in groups:
+    for i, (combo, g) in enumerate(groups):
         g = g.sort_values("g")
         values = dict(zip(categories, combo if isinstance(combo, tuple) else (combo,)))
         err_g = np.nan_to_num(np.vstack([g["g"] - g["g_low"], g["g_high"] - g["g"]]), nan=0.0)
         err_s = np.nan_to_num(np.vstack([g["s"] - g["s_low"], g["s_high"] - g["s"]]), nan=0.0)
         label = point_label(data, values) if values else "measured"
         # markers only: a straight line between two points would read as a curve below the theory
-        ax.errorbar(g["g"], g["s"], xerr=err_g, yerr=err_s, marker="o", ms=5, capsize=3, ls="none", label=label)
+        ax.errorbar(
+            g["g"],
+            g["s"],
+            xerr=err_g,
+            yerr=err_s,
+            marker=MARKERS[i % len(MARKERS)],
+            ms=6,
+            mfc="none",
+            mew=1.3,
+            capsize=3,
+            ls="none",
+            color=f"C{i % 10}",
+            label=label,
+        )
     hi = float(np.nanmax(pts["g_high"].fillna(pts["g"])))
     gg = np.linspace(0.0, max(hi, 0.1) * 1.05, 400)
     ax.plot(gg, aloha_throughput(gg), "k--", lw=1.0, label="pure ALOHA, G e^(-2G)")

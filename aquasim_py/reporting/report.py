@@ -21,11 +21,14 @@ Run directory (``summary.json`` and the trace tables):
 Variants run (``variants.csv`` and a run directory per variant): the variants side by side
 (:mod:`aquasim_py.reporting.variants`), each variant's own report in its directory.
 
-Sweep directory (``sweep.csv``): each metric against each swept value, a line per
-combination of the other grid keys (:mod:`aquasim_py.reporting.sweep`), and the table per grid
-point with n and the interval; with network metrics, throughput against offered load beside
-the ALOHA curves (:mod:`aquasim_py.reporting.network`); with routing metrics, delivery ratio,
-energy per delivered packet and delay against density (:mod:`aquasim_py.reporting.routing`).
+Sweep directory (``sweep.csv``): each metric against each swept value, the other grid keys
+as lines and panels (:mod:`aquasim_py.reporting.sweep`), and the table per grid point with n
+and the interval; with network metrics, throughput against offered load beside the ALOHA
+curves (:mod:`aquasim_py.reporting.network`); with routing metrics, delivery ratio, energy per
+delivered packet and delay against density (:mod:`aquasim_py.reporting.routing`).
+
+Every plot goes through :func:`aquasim_py.reporting.figures.save_figure`: coinciding series
+drawn in turns and noted, no legend over data, no tick labels over each other.
 
 A plot whose table is missing or empty is skipped (a beacon run has no ``clocks``).
 """
@@ -45,7 +48,7 @@ import pandas as pd
 from aquasim_py import trace
 from aquasim_py.reporting import sweep as sweep_report
 from aquasim_py.reporting import tables
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import plt, save_figure, subplots
 
 __all__ = ["ReportError", "report_run", "report_sweep", "write_report"]
 
@@ -67,7 +70,7 @@ def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     nodes = t.get("nodes")
     if pos is None or len(pos) == 0:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 6.0))
+    fig, ax = subplots(figsize=(7.0, 6.0))
     first = pos.sort_values("time").groupby("node").first()
     pk = t.get("packets")
     if pk is not None and len(pk):
@@ -109,9 +112,12 @@ def _plot_map(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
 
 
 def _per_node_lines(df: pd.DataFrame, y: pd.Series, ax: Any) -> None:
-    for node, g in df.assign(_y=y).groupby("node"):
-        ax.plot(g["time"], g["_y"], lw=0.9, label=f"node {node}")
-    if df["node"].nunique() <= 12:
+    """A line per node; a legend for up to 20 nodes (each its own colour)."""
+    groups = df.assign(_y=y).groupby("node")
+    colours = plt.get_cmap("tab10" if len(groups) <= 10 else "tab20")  # listed: an integer picks a colour
+    for i, (node, g) in enumerate(groups):
+        ax.plot(g["time"], g["_y"], lw=0.9, color=colours(i % colours.N), label=f"node {node}")
+    if len(groups) <= 20:
         ax.legend(fontsize=7, ncol=2)
 
 
@@ -119,7 +125,7 @@ def _plot_error_vs_time(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None
     est = t.get("estimates")
     if est is None or len(est) == 0 or "error" not in est:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     _per_node_lines(est, est["error"], ax)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("localization error (m)")
@@ -132,7 +138,7 @@ def _plot_sync(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     clk = t.get("clocks")
     if clk is None or len(clk) == 0 or "error" not in clk:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     err_us = 1e6 * clk["error"].abs()
     _per_node_lines(clk, err_us, ax)
     if (err_us > 0).all():
@@ -151,16 +157,16 @@ def _plot_cdf(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     e = e[np.isfinite(e)]
     if e.size == 0:
         return None
-    fig, ax = plt.subplots(figsize=(6.0, 4.0))
-    ax.step(e, np.arange(1, e.size + 1) / e.size, where="post")
-    for q in (0.5, 0.9):
+    fig, ax = subplots(figsize=(6.0, 4.0))
+    ax.step(e, np.arange(1, e.size + 1) / e.size, where="post", label="every estimate")
+    for q, style in ((0.5, ":"), (0.9, "--")):
         v = float(np.quantile(e, q))
-        ax.axvline(v, color="0.6", ls=":", lw=0.8)
-        ax.text(v, q, f" {int(q * 100)} %: {v:.3g} m", fontsize=8, va="bottom")
+        ax.axvline(v, color="0.45", ls=style, lw=0.9, label=f"{'median' if q == 0.5 else '90 %'}: {v:.3g} m")
     ax.set_xlabel("localization error (m)")
     ax.set_ylabel("fraction of estimates")
     ax.set_ylim(0, 1.02)
     ax.set_title(f"Error CDF ({e.size} estimates)")
+    ax.legend(fontsize=8)
     return save_figure(fig, out / "error_cdf.png")
 
 
@@ -176,7 +182,7 @@ def _plot_packets(t: Mapping[str, pd.DataFrame], out: Path) -> Path | None:
     nbins = int(np.clip(span / 10.0, 10, 60))
     edges = np.linspace(float(rows["time"].min()), float(rows["time"].max()) + 1e-9, nbins + 1)
     mids = 0.5 * (edges[:-1] + edges[1:])
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, ax = subplots(figsize=(7.0, 4.0))
     bottom = np.zeros(len(mids))
     times = rows["time"].to_numpy(dtype=float)
     for label in sorted(set(outcome), key=lambda o: (o != "received", o)):
@@ -282,7 +288,8 @@ def _sweep_body(directory: Path, out: Path, metrics: Sequence[str] | None) -> tu
     body += "<h2>Plots</h2>" + "".join(_img(p) for p in images)
     if (directory / "summary.csv").is_file():
         body += (
-            "<details><summary>summary.csv: arithmetic mean, std and Student-t 95 % CI per grid point</summary>"
+            "<details><summary>summary.csv: per grid point the arithmetic mean, std and Student-t 95 % CI, "
+            "and the centre the plots draw (center_stat, center, center_ci95_low, center_ci95_high)</summary>"
             + pd.read_csv(directory / "summary.csv").to_html(index=False)
             + "</details>"
         )

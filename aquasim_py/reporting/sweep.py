@@ -2,10 +2,13 @@
 
 Drawn from ``sweep.csv`` alone (plan order, so the first appearance of each grid value is its
 order in the scenario). For a metric and an x key (each numeric grid key; with none, the
-first grid key), the runs are grouped by x and by every other grid key: one line per
-combination of the other keys (and variant), in scenario order, so a grid ``model x sigma_t``
-draws ESSP and ASSP apart against sigma_t instead of pooling them. Each point is the
-sign-respecting centre and 95 % interval of :mod:`aquasim_py.reporting.intervals` over its runs.
+first grid key), the runs are grouped by x and by every other grid key (:func:`lines`: one
+line per combination of the other keys, and variant, in scenario order), so a grid ``model x
+sigma_t`` draws ESSP and ASSP apart against sigma_t instead of pooling them. The plot shows
+them as small multiples (:func:`layout`, :func:`draw`): in each panel a line per value of one
+other key (the one with the fewest values, at most :data:`MAX_LINES`), a panel per
+combination of the rest. Each point is the sign-respecting centre and 95 % interval of
+:mod:`aquasim_py.reporting.intervals` over its runs, the ``center`` columns of ``summary.csv``.
 
 Axes: an x key whose values are positive and closer to evenly spaced in log than in linear
 terms (``[1e-5, 1e-4, 1e-3]``, ``[10, 20, 40]``) gets a log axis, a metric whose centres are
@@ -27,14 +30,21 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from matplotlib.lines import Line2D
+from matplotlib.ticker import NullLocator
 
 from aquasim_py.reporting import display, intervals
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import dodge, save_figure, subplots
 
 __all__ = [
+    "MAX_COLUMNS",
+    "MAX_LINES",
+    "Layout",
     "Line",
     "SweepData",
+    "draw",
     "is_log_spaced",
+    "layout",
     "lines",
     "load",
     "pick",
@@ -216,45 +226,169 @@ def x_keys(data: SweepData) -> list[str]:
     return numeric or list(data.grid)[:1]
 
 
-def plot(data: SweepData, x: str, metric: str, path: Path, table: pd.DataFrame | None = None) -> Path | None:
-    """One PNG: ``metric`` against ``x``, a line per combination of the other grid keys."""
+#: at most this many lines in one panel; a key with more values gets panels of its own
+MAX_LINES = 3
+#: panels in one row before they wrap to the next (one key of panels)
+MAX_COLUMNS = 4
+
+
+@dataclass
+class Layout:
+    """How a plot against one grid key shows the others: in every panel one line per value of
+    ``hue`` (None: one line), one column of panels per value of ``cols`` and one row per
+    combination of ``rows`` (small multiples; one key of panels alone wraps after
+    :data:`MAX_COLUMNS`)."""
+
+    hue: str | None
+    cols: str | None
+    rows: list[str]
+
+    @property
+    def facets(self) -> list[str]:
+        """The keys that choose a panel, in grid order of ``cols`` then ``rows``."""
+        return ([self.cols] if self.cols else []) + self.rows
+
+
+def layout(data: SweepData, x: str) -> Layout:
+    """The :class:`Layout` of a plot against ``x``: the other key with the fewest values (the
+    first in grid order among equals) as lines, if it has at most :data:`MAX_LINES`; every
+    other key as panels, the first as columns, the rest as rows."""
+    others = [k for k in data.grid if k != x]
+    few = [k for k in others if len(data.grid[k]) <= MAX_LINES]
+    hue = min(few, key=lambda k: len(data.grid[k])) if few else None
+    panels = [k for k in others if k != hue]
+    return Layout(hue, panels[0] if panels else None, panels[1:])
+
+
+def _panel_grid(values: Mapping[str, list[str]], lay: Layout) -> tuple[int, int, list[tuple[str, ...]]]:
+    """(rows, columns, the facet values of each panel in reading order), from the ``values`` of
+    each facet key."""
+    if lay.cols is None:
+        return 1, 1, [()]
+    cols = values[lay.cols]
+    if not lay.rows:
+        ncols = min(len(cols), MAX_COLUMNS)
+        return -(-len(cols) // ncols), ncols, [(c,) for c in cols]
+    row_combos = list(itertools.product(*(values[k] for k in lay.rows)))
+    return len(row_combos), len(cols), [(c, *r) for r in row_combos for c in cols]
+
+
+def draw(
+    data: SweepData, x: str, metric: str, table: pd.DataFrame | None = None
+) -> tuple[Any, dict[tuple[str, ...], Any]] | None:
+    """The figure of ``metric`` against ``x`` (:func:`layout`: a line per value of one other
+    grid key, a panel per combination of the rest; a value with no run that has the metric gets
+    no panel, a combination without runs says so), not yet saved: (figure, panel axes by
+    their facet values in :attr:`Layout.facets` order), or None when no run has the metric.
+    Every panel shares the axes' scales; the lines of a panel are drawn a few points apart
+    sideways (:func:`aquasim_py.reporting.figures.dodge`) so that their error bars stay apart. A caller may draw more into the panels before
+    :func:`aquasim_py.reporting.figures.save_figure`."""
     ls = lines(data, x, metric, table)
     if not ls:
         return None
+    lay = layout(data, x)
     names = short_names(list(data.grid))
     centers = np.concatenate([ln.center for ln in ls])
     u = display.unit_of(metric, centers)
     nums = _numbers(data.grid[x])
     xu = display.unit_of(names[x], nums or [])
-    fig, ax = plt.subplots(figsize=(7.0, 4.5))
-    many = len(ls) > 1
-    for i, ln in enumerate(ls):
-        if nums is not None:
-            xv = np.array([float(v) for v in ln.x]) / xu.scale
-        else:  # categories, each line nudged sideways so that its bars stay apart
-            xv = np.array([data.grid[x].index(v) for v in ln.x], dtype=float)
-            xv = xv + (i - (len(ls) - 1) / 2) * (0.25 / max(1, len(ls) - 1)) if many else xv
-        c, lo, hi = ln.center / u.scale, ln.low / u.scale, ln.high / u.scale
-        err = np.nan_to_num(np.vstack([c - lo, hi - c]), nan=0.0)
-        ax.errorbar(xv, c, yerr=err, marker="o", ms=4, capsize=3, lw=1.2, label=ln.label(data))
-    if nums is not None and is_log_spaced(nums):
-        ax.set_xscale("log")
+    log_x = nums is not None and is_log_spaced(nums)
+    # a facet value no run with the metric has gets no panel (a variant without the metric)
+    present = {k: [v for v in data.grid[k] if any(dict(ln.fixed)[k] == v for ln in ls)] for k in lay.facets}
+    nrows, ncols, combos = _panel_grid(present, lay)
+    one = nrows * ncols == 1
+    size = (7.0, 4.5) if one else (0.6 + 3.1 * ncols, 0.9 + 2.5 * nrows)
+    fig, axes = subplots(nrows, ncols, figsize=size, sharex=True, sharey=True, squeeze=False)
+    hues = data.grid[lay.hue] if lay.hue else []
+    hue_text = value_texts(lay.hue, hues) if lay.hue else {}
+
+    def hue_of(ln: Line) -> int:  # the line's place among the hue key's values (its colour)
+        return hues.index(dict(ln.fixed)[lay.hue]) if lay.hue else 0
+
+    panels: dict[tuple[str, ...], Any] = {}
+    for ax, combo in zip(axes.flat, combos):
+        panels[combo] = ax
+        fixed = dict(zip(lay.facets, combo))
+        drawn = sorted((ln for ln in ls if all(dict(ln.fixed)[k] == v for k, v in fixed.items())), key=hue_of)
+        for j, ln in enumerate(drawn):
+            i = hue_of(ln)
+            if nums is not None:
+                xv = np.array([float(v) for v in ln.x]) / xu.scale
+            else:
+                xv = np.array([data.grid[x].index(v) for v in ln.x], dtype=float)
+            c, lo, hi = ln.center / u.scale, ln.low / u.scale, ln.high / u.scale
+            err = np.nan_to_num(np.vstack([c - lo, hi - c]), nan=0.0)
+            label = hue_text[hues[i]] if lay.hue else "_"
+            # categories are not joined: a line between them would suggest an order
+            style = "-" if nums is not None else "none"
+            ax.errorbar(
+                xv,
+                c,
+                yerr=err,
+                marker="o",
+                ms=4,
+                capsize=3,
+                lw=1.2,
+                ls=style,
+                color=f"C{i}",
+                label=label,
+                transform=dodge(ax, j, len(drawn)),
+            )
+            # matplotlib takes no data limits from a shifted transform: the points' own
+            pts = np.column_stack([np.tile(xv, 3), np.concatenate([c, lo, hi])])
+            ax.update_datalim(pts[np.isfinite(pts).all(axis=1)])
+        if not drawn:  # a combination of present values that no run has
+            ax.text(0.5, 0.5, "no runs", transform=ax.transAxes, ha="center", va="center", color="0.4")
+        if fixed:
+            ax.set_title(point_label(data, fixed), fontsize=9)
+        ax.grid(True, which="both", alpha=0.25)
+    for ax in axes.flat[len(combos) :]:
+        ax.set_visible(False)
+    ax0 = axes.flat[0]
+    ax0.margins(x=0.08)  # room for the dodged points at the ends
+    if log_x:
+        ax0.set_xscale("log")
+        ax0.xaxis.set_minor_locator(NullLocator())
     if nums is None:
-        ax.set_xticks(range(len(data.grid[x])), data.grid[x])
+        ax0.set_xticks(range(len(data.grid[x])), data.grid[x])
+    elif len(nums) <= 10:  # ticks at the swept values
+        ax0.set_xticks(np.asarray(nums) / xu.scale, [f"{v / xu.scale:.4g}" for v in nums])
     pos = centers[np.isfinite(centers)]
     if pos.size and pos.min() > 0 and pos.max() > 10 * pos.min():
-        ax.set_yscale("log")
-    ax.set_xlabel(display.label(xu))
-    ax.set_ylabel(display.label(u))
+        ax0.set_yscale("log")
+    for col in range(ncols):  # x labels under the lowest panel of each column
+        shown = [ax for ax in axes[:, col] if ax.get_visible()]
+        if shown:
+            shown[-1].xaxis.set_tick_params(labelbottom=True)
+            shown[-1].set_xlabel(display.label(xu))
+    for ax in axes[:, 0]:
+        ax.set_ylabel(display.label(u))
     nmax = int(max(ln.n.max() for ln in ls))
     nmin = int(min(ln.n.min() for ln in ls))
     runs = f"n = {nmin}" if nmin == nmax else f"n = {nmin}-{nmax}"
-    what = f"{ls[0].stat} and 95 % CI over runs ({runs} per point)" if nmax > 1 else "one run per point (no interval)"
-    ax.set_title(f"{metric}\n{what}", fontsize=10)
-    if many or ls[0].fixed:
-        ax.legend(fontsize=8)
-    ax.grid(True, which="both", alpha=0.25)
-    return save_figure(fig, path)
+    stat = ls[0].stat
+    what = (
+        f"{stat} over runs and its 95 % CI ({runs} per point; summary.csv: center)"
+        if nmax > 1
+        else "one run per point (no interval)"
+    )
+    fig.suptitle(f"{metric}\n{what}", fontsize=10)
+    if lay.hue is not None:
+        title = display.unit_of(names[lay.hue]).stem if lay.hue != "variant" else "variant"
+        if one:
+            ax0.legend(fontsize=8, title=title, title_fontsize=8)
+        else:
+            proxies = [
+                Line2D([], [], color=f"C{i}", marker="o", ms=4, lw=1.2, label=hue_text[h]) for i, h in enumerate(hues)
+            ]
+            fig.legend(handles=proxies, loc="outside right center", fontsize=8, title=title, title_fontsize=8)
+    return fig, panels
+
+
+def plot(data: SweepData, x: str, metric: str, path: Path, table: pd.DataFrame | None = None) -> Path | None:
+    """One PNG of ``metric`` against ``x`` (:func:`draw`); None when no run has the metric."""
+    drawn = draw(data, x, metric, table)
+    return None if drawn is None else save_figure(drawn[0], path)
 
 
 def plot_all(data: SweepData, out: Path, metrics: Sequence[str], table: pd.DataFrame | None = None) -> list[Path]:

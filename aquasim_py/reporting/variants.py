@@ -23,7 +23,7 @@ import pandas as pd
 
 from aquasim_py import trace, tracks
 from aquasim_py.reporting import tables
-from aquasim_py.reporting.figures import plt, save_figure
+from aquasim_py.reporting.figures import save_figure, subplots
 from aquasim_py.reporting.sweep import pick
 
 __all__ = ["body", "variant_dirs"]
@@ -35,21 +35,23 @@ def variant_dirs(directory: Path) -> dict[str, Path]:
     return {v: directory / v for v in order if (directory / v / "summary.json").is_file()}
 
 
-def _cdf(samples: Mapping[str, np.ndarray], xlabel: str, title: str, path: Path) -> Path | None:
+def _cdf(samples: Mapping[str, np.ndarray], quantity: str, unit: str, title: str, path: Path) -> Path | None:
+    """The empirical CDF of each variant's samples (in ``unit``), its median in the legend."""
     samples = {k: v[np.isfinite(v)] for k, v in samples.items()}
     samples = {k: v for k, v in samples.items() if v.size}
     if not samples:
         return None
-    fig, ax = plt.subplots(figsize=(7.0, 4.5))
+    fig, ax = subplots(figsize=(7.5, 5.5))  # room for a legend of seven below
     positive = all(v.min() > 0 for v in samples.values())
     for name, v in samples.items():
         v = np.sort(v)
-        ax.step(v, np.arange(1, v.size + 1) / v.size, where="post", label=f"{name} (median {np.median(v):.3g})")
+        label = f"{name} (median {np.median(v):.3g} {unit}, n = {v.size})"
+        ax.step(v, np.arange(1, v.size + 1) / v.size, where="post", label=label)
     hi = max(v.max() for v in samples.values())
     lo = min(v.min() for v in samples.values())
     if positive and hi > 50 * lo:
         ax.set_xscale("log")
-    ax.set_xlabel(xlabel)
+    ax.set_xlabel(f"{quantity} ({unit})")
     ax.set_ylabel("fraction")
     ax.set_ylim(0, 1.02)
     ax.set_title(title)
@@ -123,8 +125,8 @@ def body(directory: Path, out: Path, metrics: Sequence[str] | None, img: Callabl
     images = [
         p
         for p in (
-            _cdf(est, "localization error (m)", "Localization error, every estimate", out / "variants_error_cdf.png"),
-            _cdf(clk, "|clock error| (us)", "Clock error, every clocks row", out / "variants_sync_cdf.png"),
+            _cdf(est, "localization error", "m", "Localization error, every estimate", out / "variants_error_cdf.png"),
+            _cdf(clk, "|clock error|", "us", "Clock error, every clocks row", out / "variants_sync_cdf.png"),
         )
         if p is not None
     ]

@@ -239,6 +239,7 @@ def test_bellhop_asa_wedge() -> None:
         assert _bellhop_check(env, [0.0, 0.0, 100.0], [R, 0.0, zr], 4)[0] >= 8
 
 
+@pytest.mark.slow  # ocean-basin scale (20 km, 2001-4001 beams); the ASA wedge above is the default's check
 @needs_bellhop
 def test_bellhop_munk_over_slope() -> None:
     """A Munk profile over a slope rising from 5000 m to 2000 m over 30 km."""
@@ -250,6 +251,7 @@ def test_bellhop_munk_over_slope() -> None:
     assert _bellhop_check(env, [0.0, 0.0, 1000.0], [20000.0, 0.0, 800.0], 2)[0] >= 3
 
 
+@pytest.mark.slow  # ocean-basin scale (15 km over a seamount)
 @needs_bellhop
 def test_bellhop_seamount() -> None:
     """A Munk profile over a Gaussian seamount (3000 m base, 2000 m high, 3 km wide, sampled

@@ -64,3 +64,13 @@ def test_the_log_interval_covers_the_geometric_mean_95_percent_of_the_time():
     s = intervals.summarize(df, ["rep"], ["m"])
     covered = ((s["low"] <= math.exp(mu)) & (math.exp(mu) <= s["high"])).mean()
     assert abs(covered - 0.95) < 4 * math.sqrt(0.95 * 0.05 / reps)
+
+
+def test_a_large_mean_beside_a_positive_metric_warns_nothing():
+    """exp() is taken of the log-scale rows only: an energy of 5000 J that is 0 in one run
+    (arithmetic mean) raises no overflow warning."""
+    df = pd.DataFrame({"p": ["a", "a"], "energy_j": [0.0, 5000.0], "rmse_m": [0.5, 0.7]})
+    with np.errstate(all="raise"):
+        out = intervals.summarize(df, ["p"], ["energy_j", "rmse_m"])
+    assert list(out["stat"]) == [intervals.MEAN, intervals.GEOMETRIC]
+    assert out["center"].tolist() == pytest.approx([2500.0, math.sqrt(0.35)])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import re
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pandas as pd
 import pytest
 
 from aquasim_py import cli
+from aquasim_py.reporting import figures
 from aquasim_py.reporting import sweep as report_sweep
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -98,3 +100,107 @@ def test_lines_follow_every_other_key(tmp_path):
     ]
     assert list(lines[0].center) == pytest.approx([4, 8, 16])
     assert report_sweep.plot(data, "nodes.1.count", "m", tmp_path / "m.png") is not None
+
+
+def test_other_keys_become_lines_and_panels(tmp_path):
+    """The key with the fewest values (at most three) gives the lines of a panel, the others
+    the panels; a key with more values than that is never drawn as lines."""
+    grid = {"variant": ["a", "b", "c", "d"], "x_m": ["1", "2", "4"], "noise_s": ["0.0", "0.001"], "count": ["3", "5"]}
+    rows = [
+        dict(zip(grid, combo), run=0, seed=1, key="k", error="", m=1.0) for combo in itertools.product(*grid.values())
+    ]
+    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    data = report_sweep.load(tmp_path)
+    lay = report_sweep.layout(data, "x_m")
+    assert (lay.hue, lay.cols, lay.rows) == ("noise_s", "variant", ["count"])
+    fig, panels = report_sweep.draw(data, "x_m", "m")
+    assert len(panels) == 8 and set(panels) == {(v, n) for v in grid["variant"] for n in grid["count"]}
+    ax = panels[("c", "5")]
+    assert ax.get_title() == "c, count=5" and len(ax.containers) == 2  # one line per noise value
+    # every line is the same here: the second of each panel says so once the figure is finished
+    figures.finish(fig)
+    assert ax.get_title() == "c, count=5\n1 ms coincides with 0 ms"
+    figures.plt.close(fig)
+    # four variants and nothing else: no lines of four, one panel per variant
+    lay = report_sweep.layout(
+        report_sweep.SweepData(data.runs, {"variant": grid["variant"], "x_m": grid["x_m"]}, ["m"]), "x_m"
+    )
+    assert (lay.hue, lay.cols, lay.rows) == (None, "variant", [])
+
+
+THREE_KEYS = """\
+[simulation]
+duration_s = 20.0
+seed = 5
+
+[environment]
+volume = { lo = [0.0, 0.0, 0.0], hi = [800.0, 800.0, 60.0] }
+
+[[nodes]]
+role = "anchor"
+protocol = "beacon"
+placement = { kind = "explicit", positions = [[0.0, 0.0, 5.0], [800.0, 800.0, 5.0]] }
+params = { period_s = 4.0 }
+
+[[nodes]]
+role = "ordinary"
+count = 2
+protocol = "beacon"
+placement = { kind = "uniform" }
+
+[sweep]
+runs = 2
+grid = { "channel.jitter_std_s" = [0.0, 1e-3], "nodes.1.count" = [2, 3], "nodes.0.params.period_s" = [4.0, 8.0] }
+"""
+
+
+def test_a_sweep_of_three_keys_draws_what_summary_csv_holds(tmp_path, checked_figures):
+    """A sweep over three grid keys: its report's plots are small multiples (every figure
+    checked by conftest: every series visible, no legend over data, no tick labels over each
+    other), and each point drawn is summary.csv's centre and interval."""
+    scen = tmp_path / "three.toml"
+    scen.write_text(THREE_KEYS)
+    out = tmp_path / "sweep"
+    assert cli.main(["sweep", str(scen), "--workers", "1", "--quiet", "--out", str(out)]) == 0
+    assert cli.main(["report", str(out), "--metrics", "beacon.range_rmse_m,packets.received"]) == 0
+    data = report_sweep.load(out)
+    assert len(data.grid) == 3 and len(report_sweep.x_keys(data)) == 3
+    pngs = sorted(p for p in checked_figures if p.endswith(".png"))
+    assert len(pngs) == 3 * 2  # each metric against each key
+    summary = pd.read_csv(out / "summary.csv", dtype=dict.fromkeys(data.grid, str))
+    for metric in ("packets.received", "beacon.range_rmse_m"):
+        for ln in report_sweep.lines(data, "nodes.1.count", metric):
+            at = summary[summary["metric"] == metric]
+            for k, v in ln.fixed:
+                at = at[at[k].astype(float) == float(v)]
+            for x, center, lo, hi, stat in zip(ln.x, ln.center, ln.low, ln.high, itertools.repeat(ln.stat)):
+                row = at[at["nodes.1.count"].astype(float) == float(x)].iloc[0]
+                assert row["center_stat"] == stat
+                assert (center, lo, hi) == pytest.approx(
+                    (row["center"], row["center_ci95_low"], row["center_ci95_high"]), rel=1e-12
+                )
+
+
+def test_a_variant_without_the_metric_gets_no_panel(tmp_path):
+    """itmtl.coverage exists for ITMTL's variants only: the others draw no empty panel; a
+    combination of present values without runs says so."""
+    grid = {"variant": ["itmtl", "wsc", "tshl"], "x_m": ["1", "2"], "count": ["3", "5"], "noise": ["a", "b", "c", "d"]}
+    rows = []
+    for combo in itertools.product(*grid.values()):
+        row = dict(zip(grid, combo), run=0, seed=1, key="k", error="")
+        if combo[0] != "tshl" and (combo[0], combo[3]) != ("wsc", "d"):
+            row["itmtl.coverage"] = 0.8
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(tmp_path / "sweep.csv", index=False)
+    data = report_sweep.load(tmp_path)
+    lay = report_sweep.layout(data, "x_m")
+    assert (lay.hue, lay.cols, lay.rows) == ("count", "variant", ["noise"])
+    fig, panels = report_sweep.draw(data, "x_m", "itmtl.coverage")
+    assert set(panels) == {(v, n) for v in ("itmtl", "wsc") for n in grid["noise"]}
+    assert [t.get_text() for t in panels[("wsc", "d")].texts] == ["no runs"] and not panels[("wsc", "d")].containers
+    assert [t.get_text() for t in panels[("itmtl", "d")].texts] == [] and len(panels[("itmtl", "d")].containers) == 2
+    figures.plt.close(fig)
+    data.runs.loc[(data.runs["noise"] == "d"), "itmtl.coverage"] = np.nan
+    fig, panels = report_sweep.draw(data, "x_m", "itmtl.coverage")
+    assert ("wsc", "d") not in panels
+    figures.plt.close(fig)

@@ -71,7 +71,7 @@ def itmtl_out(tmp_path_factory):
     try:
         for width in (120, 80):
             mp.setenv("COLUMNS", str(width))
-            argv = [str(ROOT / "scenarios" / "itmtl.toml"), "--out", str(d / "o"), "--set", "simulation.duration_s=120"]
+            argv = [str(ROOT / "scenarios" / "itmtl.toml"), "--out", str(d / "o"), "--set", "simulation.duration_s=60"]
             argv += ["--report"] if width == 80 else []
             buf = io.StringIO()
             with contextlib.redirect_stdout(buf):
