@@ -34,6 +34,8 @@ from .energy import ENERGY_COLUMNS
 from .mobility import Mobility
 from .net.mac import Direct, Mac
 from .net.mac import get as get_mac
+from .net.routing import Router
+from .net.routing import get as get_router
 from .node import Node, Role, Sensors
 from .nodecore import Group, NodeCore
 from .trace import Trace, TraceConfig
@@ -223,6 +225,8 @@ class Simulation:
         battery_j: float | None = None,
         mac: str | type[Mac] | None = None,
         mac_params: Mapping[str, Any] | BaseModel | None = None,
+        routing: str | type[Router] | None = None,
+        routing_params: Mapping[str, Any] | BaseModel | None = None,
     ) -> list[Node]:
         """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
 
@@ -236,6 +240,8 @@ class Simulation:
         power in the channel config. None: unlimited.
         mac: the MAC of every node of the group (:mod:`aquasim_py.net.mac`: a name or a class;
         None = ``direct``), with ``mac_params`` (validated by its ``Params``).
+        routing: the router of every node of the group (:mod:`aquasim_py.net.routing`: a name or
+        a class; None = none), with ``routing_params`` (validated by its ``Params``).
         """
         if not (isinstance(node_cls, type) and issubclass(node_cls, Node)):
             raise TypeError(f"add_group: {node_cls!r} is not a Node subclass")
@@ -280,6 +286,12 @@ class Simulation:
         group = Group(
             gname, node_cls, role, mobility, start, count, _is_static(mobility), battery_j, mac=mac_cls, mac_params=mp
         )
+        if routing is not None:
+            group.router = get_router(routing) if isinstance(routing, str) else routing
+            if isinstance(routing_params, group.router.Params):
+                group.router_params = routing_params
+            else:
+                group.router_params = group.router.Params.model_validate(dict(routing_params or {}))
         if params is None:
             p = node_cls.Params()
         elif isinstance(params, node_cls.Params):

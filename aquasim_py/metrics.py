@@ -334,7 +334,7 @@ def packet_counts(
 #: the tables the generic metrics of :func:`summarize` read (the bounds beside declared
 #: estimates also read ``positions``: a protocol that declares its references lists it in its
 #: ``trace_tables``, :mod:`aquasim_py.estimate_bounds`)
-GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "energy")
+GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "energy", "routes")
 
 
 def energy_metrics(
@@ -573,7 +573,9 @@ def summarize(
     ``warmup_s``: ``estimates`` and ``clocks`` rows before it are dropped, for the generic
     metrics and the protocols' alike (one time window for every family).
     ``network``: the window and airtime of the network metrics (``net.*``,
-    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given.
+    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given. A routed run that
+    counts energy also gets ``energy.per_delivered_j``: ``energy.total_j`` over
+    ``net.packets_delivered`` (the packets the sinks delivered).
     """
     out: dict[str, float] = {}
     tally = getattr(tables, "tally", None)  # a streamed run's files: counted as written
@@ -648,6 +650,10 @@ def summarize(
                 errors[f"{name}.{k}"] = f"non-finite value {float(val)}"
                 val = math.nan
             out[f"{name}.{k}"] = val
+    # a routed run: the network's energy per packet its sinks delivered
+    total, got = out.get("energy.total_j"), out.get("net.packets_delivered")
+    if total is not None and got is not None:
+        out["energy.per_delivered_j"] = float(total) / got if got else math.nan
     return out
 
 

@@ -24,10 +24,14 @@ from simpy.events import NORMAL, EventPriority
 
 from .packet import Reception
 
-__all__ = ["BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors"]
+__all__ = ["ANY_SINK", "BROADCAST", "Node", "NodeEnv", "Role", "SensorUnavailable", "Sensors"]
 
 #: ``dst`` of a broadcast packet
 BROADCAST = None
+
+#: ``dst`` of a packet for whichever sink it reaches first (through a routing layer,
+#: :mod:`aquasim_py.net.routing`; a group without one cannot send to it)
+ANY_SINK = -2
 
 #: priority of :meth:`NodeEnv.at_instant_end`'s events: SimPy orders its queue by (time,
 #: priority, insertion), so one after NORMAL comes after every other event of its instant
@@ -333,7 +337,11 @@ class Node:
 
     def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
         """Transmit to node ``dst`` (others in range hear it, and it collides at them, but only
-        ``dst`` delivers it). Event as for :meth:`broadcast`."""
+        ``dst`` delivers it). Event as for :meth:`broadcast`.
+
+        In a group with a routing layer (``routing = "..."``), a packet to a sink or to
+        :data:`ANY_SINK` is routed over several hops instead (:mod:`aquasim_py.net.routing`):
+        its event is the first transmission's, and it reaches the sink with ``src`` = this node."""
         if dst is None:
             raise ValueError("send() needs a destination id; use broadcast() for everyone")
         return self.__k.watch(self.env.adopt(self.__k.transmit(int(dst), kind, payload, bits)), "send")

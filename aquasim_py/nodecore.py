@@ -21,11 +21,12 @@ from pydantic import BaseModel
 from .energy import EnergyMeter
 from .net.mac.base import Mac, MacParams
 from .net.mac.direct import Direct
-from .node import NodeEnv, Role, Sensors, SensorUnavailable
+from .net.routing.base import ROUTE_COLUMNS, Router, RouterParams
+from .node import ANY_SINK, NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import SCHEMAS
 
-__all__ = ["Group", "MacPortView", "NodeCore"]
+__all__ = ["Group", "MacPortView", "NodeCore", "RouterPortView"]
 
 
 class _WaitCheck:
@@ -79,6 +80,10 @@ class Group:
     #: the MAC every node of the group runs (:mod:`aquasim_py.net.mac`), and its parameters
     mac: type[Mac] = Direct
     mac_params: MacParams = field(default_factory=MacParams)
+    #: the router every node of the group runs (:mod:`aquasim_py.net.routing`; None: none), and
+    #: its parameters
+    router: type[Router] | None = None
+    router_params: RouterParams = field(default_factory=RouterParams)
     # the group's positions at the last true time a node asked for its own (NodeCore.position):
     # nodes of a group often ask at one instant (a period's depth readings and estimates)
     pos_t: float = field(default=math.nan, repr=False)
@@ -114,6 +119,7 @@ class NodeCore:
         "protocol",
         "rng_protocol",
         "role",
+        "router",
         "sensor_rngs",
         "sensors",
         "sim",
@@ -173,6 +179,10 @@ class NodeCore:
         self.mac_rx = None if mac_cls.receive is Mac.receive else self.mac.receive
         if mac_cls.senses_carrier:
             self.channel.sense_carrier()
+        #: the node's router (None: the group routes nothing), between its protocol and its MAC
+        self.router: Router | None = None
+        if group.router is not None:
+            self.router = group.router(RouterPortView(self), group.router_params)
 
     # -- truth ------------------------------------------------------------------------------------
 
@@ -216,12 +226,19 @@ class NodeCore:
         return self.sim.rng("node", self.index, purpose)
 
     def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
-        if dst is not None and not 0 <= dst < len(self.sim.nodes):
+        router = self.router
+        routed = router is not None and dst is not None and router.routes(dst)
+        if dst is not None and not routed and not 0 <= dst < len(self.sim.nodes):
+            if dst == ANY_SINK:
+                raise ValueError(f"node {self.index}: ANY_SINK needs a routing layer (the group's routing)")
             raise ValueError(f"node {self.index}: no node with id {dst}")
         bits = int(bits)
         if bits <= 0:  # before the MAC takes it: a MAC transmits later, from its own process
             raise ValueError(f"a packet needs bits > 0, got {bits}")
         # the packet carries a snapshot: the sender's later changes to its object reach no one
+        if routed:
+            assert router is not None and dst is not None
+            return router.send(dst, str(kind), snapshot_payload(payload), bits)
         return self.mac.offer(dst, str(kind), snapshot_payload(payload), bits)
 
     def modem_sleep(self) -> None:
@@ -234,9 +251,13 @@ class NodeCore:
         return bool(self.channel.asleep(self.index))
 
     def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
-        """A reception (RadioPort): to the MAC first, then, unless the MAC keeps it, up to the node."""
+        """A reception (RadioPort): to the MAC first, then to the router, then, unless one of
+        them keeps it, up to the node."""
         mac_rx = self.mac_rx
         if mac_rx is not None and mac_rx(packet, rx_local, snr_db, pressure):
+            return
+        router = self.router
+        if router is not None and router.receive(packet, rx_local, snr_db, pressure):
             return
         self.hand_up(packet, rx_local, snr_db, pressure)
 
@@ -493,3 +514,66 @@ class MacPortView:
 
     def row(self, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int) -> None:
         self.__core.channel.mac_row(self.index, event, reason, dst, uid, kind, bits)
+
+
+class RouterPortView:
+    """A node's :class:`~aquasim_py.net.routing.base.RouterPort`: what its router may use of
+    it, local observables, its own sensors and its MAC (the core, with its ground truth, sits
+    behind one name-mangled attribute, as in :class:`~aquasim_py.node.Node`)."""
+
+    __slots__ = ("__core", "__rng", "env", "index", "is_sink")
+
+    def __init__(self, core: NodeCore) -> None:
+        self.__core = core
+        self.__rng: np.random.Generator | None = None
+        self.index: int = core.index
+        self.is_sink: bool = core.role is Role.SINK
+        #: the node's view of the simulation (local-clock timers; no true time)
+        self.env = NodeEnv(core.env, core.true_delay)
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The router's own stream ("node", id, "routing"), made on first use."""
+        if self.__rng is None:
+            self.__rng = self.__core.sim.sealed_rng("node", self.index, "routing")
+        return self.__rng
+
+    @property
+    def max_range_m(self) -> float:
+        return float(self.__core.sim.channel_config.max_range_m)
+
+    @property
+    def directory(self) -> dict[str, Any]:
+        return self.__core.sim.out_of_band
+
+    def local_time(self) -> float:
+        k = self.__core
+        return k.local(k.env.now)
+
+    def depth(self) -> float:
+        return self.__core.read_depth()
+
+    def position(self) -> tuple[float, float, float]:
+        x, y, z = self.__core.read_position()
+        return (float(x), float(y), float(z))
+
+    def residual_energy(self) -> float:
+        k = self.__core
+        meter = k.energy
+        if meter is None or meter.capacity is None:
+            return 1.0  # no battery: full
+        meter.advance(k.env.now)  # (every interval begun by now has been reported: safe to charge)
+        return max(0.0, 1.0 - sum(meter.joules) / meter.capacity)
+
+    def offer(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+        return self.__core.mac.offer(dst, kind, payload, bits)
+
+    def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        self.__core.hand_up(packet, rx_local, snr_db, pressure)
+
+    def row(self, values: tuple[Any, ...]) -> None:
+        k = self.__core
+        k.sim.trace.table("routes").append((k.env.now, self.index, *values), _ROUTE_ROW)
+
+
+_ROUTE_ROW = ("time", "node", *ROUTE_COLUMNS)

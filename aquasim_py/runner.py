@@ -401,11 +401,14 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
 
 def network_window(sc: Scenario) -> NetWindow | None:
     """The window of a run's network metrics (``net.*``): computed where a node group names
-    its MAC or runs a protocol that asks for them (``net_metrics = True``, the traffic
-    protocol); None elsewhere (a run as before MACs existed gets no new metrics)."""
+    its MAC or its routing, or runs a protocol that asks for them (``net_metrics = True``, the
+    traffic protocol); None elsewhere (a run as before MACs existed gets no new metrics)."""
     from aquasim_py.net.metrics import NetWindow
 
-    if not (any(g.mac is not None for g in sc.nodes) or any(getattr(c, "net_metrics", False) for c in sc.protocols())):
+    if not (
+        any(g.mac is not None or g.routing is not None for g in sc.nodes)
+        or any(getattr(c, "net_metrics", False) for c in sc.protocols())
+    ):
         return None
     return NetWindow(sc.metrics.warmup_s, sc.simulation.duration_s, _scenario.channel_config(sc).airtime)
 

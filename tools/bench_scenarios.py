@@ -41,6 +41,9 @@ RUNS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mswpf_2d": ("scenarios/mswpf_2d.toml", ()),
     "svlpf": ("scenarios/svlpf.toml", ()),
     "beacon": ("scenarios/beacon.toml", ()),
+    # 500 nodes routing for an hour: flooding (every node forwards every packet) and DBR
+    "routing_flooding_500": ("scenarios/routing_compare.toml", ("--variant", "flooding", "--set", "nodes.1.count=486")),
+    "routing_dbr_500": ("scenarios/routing_compare.toml", ("--variant", "dbr", "--set", "nodes.1.count=486")),
 }
 
 #: runs named only with --only (not in the default set: a baseline from before their options

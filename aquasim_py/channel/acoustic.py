@@ -367,7 +367,8 @@ class AcousticChannel:
         """Record the signals of a transmission at every receiver under the SINR model, with
         their power in noise units (the weak ones, below the detection threshold but not below
         the interference floor, too: they interfere but are never decoded); the deliveries'
-        records, in order of arrival."""
+        records, in order of arrival (every receiver's for a broadcast or a frame to be
+        overheard, the addressee's for a unicast)."""
         rx = self._sinr
         assert rx is not None
         lock = rx.lock != "none"

@@ -17,6 +17,11 @@ collisions. One definition each (docs/metrics.md, "Network"):
   includes the MAC's queueing, backoff and retransmissions (not ``direct``'s modem queue).
 - ``collisions_per_packet`` = ``collision`` drops of the frames at their addressees / their
   transmissions.
+
+With a routing layer (a ``routes`` table), the end-to-end metrics of the routed packets are
+added (:mod:`aquasim_py.net.routing.metrics`): ``pdr``, ``hops_mean``, ``copies_per_delivered``
+and the rest, and ``delay_s`` is then their end-to-end delay; the frames' own delay above is
+``frame_delay_s``.
 """
 
 from __future__ import annotations
@@ -47,6 +52,11 @@ class NetWindow:
 
 def net_metrics(tables: Mapping[str, Any], window: NetWindow) -> dict[str, float]:
     """The ``net.*`` metrics (without the prefix) of a run's tables (module docstring)."""
+    return _with_routes(_frame_metrics(tables, window), tables, window)
+
+
+def _frame_metrics(tables: Mapping[str, Any], window: NetWindow) -> dict[str, float]:
+    """The metrics of the frames (module docstring)."""
     from aquasim_py.trace import table_columns
 
     packets = table_columns(tables, "packets", PACKET_COLUMNS)
@@ -92,4 +102,15 @@ def net_metrics(tables: Mapping[str, Any], window: NetWindow) -> dict[str, float
         delay_s=float(delay.mean()) if delay.size else nan,
         collisions_per_packet=collisions / len(tx) if len(tx) else nan,
     )
+    return out
+
+
+def _with_routes(out: dict[str, float], tables: Mapping[str, Any], window: NetWindow) -> dict[str, float]:
+    """``out`` with the end-to-end metrics of a routed run (module docstring); as it is without."""
+    from .routing.metrics import route_metrics
+
+    routed = route_metrics(tables, window.start_s, window.end_s)
+    if routed:
+        out["frame_delay_s"] = out.pop("delay_s")
+        out.update(routed)
     return out

@@ -24,7 +24,8 @@ Variants run (``variants.csv`` and a run directory per variant): the variants si
 Sweep directory (``sweep.csv``): each metric against each swept value, the other grid keys
 as lines and panels (:mod:`aquasim_py.reporting.sweep`), and the table per grid point with n
 and the interval; with network metrics, throughput against offered load beside the ALOHA
-curves (:mod:`aquasim_py.reporting.network`).
+curves (:mod:`aquasim_py.reporting.network`); with routing metrics, delivery ratio, energy per
+delivered packet and delay against density (:mod:`aquasim_py.reporting.routing`).
 
 Every plot goes through :func:`aquasim_py.reporting.figures.save_figure`: coinciding series
 drawn in turns and noted, no legend over data, no tick labels over each other.
@@ -224,11 +225,15 @@ def report_sweep(
 
 
 def _network_plots(data: sweep_report.SweepData, out: Path) -> list[Path]:
-    """A sweep's throughput against offered load with the ALOHA curves, where it has them."""
-    from aquasim_py.reporting import network
+    """A sweep's throughput against offered load with the ALOHA curves, and its routing
+    metrics against density, where it has them."""
+    from aquasim_py.reporting import network, routing
 
-    p = network.throughput_plot(data, out / "sweep_net_throughput_vs_load.png")
-    return [] if p is None else [p]
+    made = (
+        network.throughput_plot(data, out / "sweep_net_throughput_vs_load.png"),
+        routing.routing_plot(data, out / "sweep_net_routing_vs_density.png"),
+    )
+    return [p for p in made if p is not None]
 
 
 def _img(path: Path) -> str:

@@ -325,6 +325,8 @@ def build(sc: Scenario) -> Any:
             name=g.name,
             mac=g.mac,
             mac_params=g.mac_params,
+            routing=g.routing,
+            routing_params=g.routing_params,
             sensors=Sensors(
                 depth_std=s.depth_noise_std_m,
                 velocity_std=s.velocity_noise_std_mps,

@@ -439,18 +439,25 @@ class NodeGroupSpec(Strict):
         "sfama, tdma; unset: direct, and no net.* metrics unless a protocol asks for them",
     )
     mac_params: dict[str, Any] = Field(default_factory=dict, description="the MAC's parameters")
+    routing: str | None = Field(
+        None,
+        description="the routing protocol of the group's nodes (aquasim_py.net.routing): flooding, vbf, hh_vbf, "
+        "dbr, ...; unset: none (a unicast is one hop)",
+    )
+    routing_params: dict[str, Any] = Field(default_factory=dict, description="the routing protocol's parameters")
 
     @model_serializer(mode="wrap")
     def _without_unset_keys(self, handler: Any) -> Any:
-        # a group without a battery or a MAC resolves exactly as before they existed
+        # a group without a battery, a MAC or a router resolves exactly as before they existed
         d = handler(self)
         if isinstance(d, dict):
             if d.get("battery") is None:
                 d.pop("battery", None)
-            if d.get("mac") is None:
-                d.pop("mac", None)
-                if not d.get("mac_params"):
-                    d.pop("mac_params", None)
+            for key in ("mac", "routing"):
+                if d.get(key) is None:
+                    d.pop(key, None)
+                    if not d.get(f"{key}_params"):
+                        d.pop(f"{key}_params", None)
         return d
 
 

@@ -142,8 +142,10 @@ def check(sc: Scenario, file: Path | None) -> None:
                 )
         _check_protocol(g, i, file)
         _check_mac(g, i, file)
+        _check_routing(g, i, file)
         _check_mobility(g, i, file, c_min)
         _check_clock(g, i, file)
+    _check_routed_network(sc, file)
     _check_channel(sc, file)
     _check_network(sc, file)
 
@@ -267,6 +269,53 @@ def _check_mac(g: NodeGroupSpec, i: int, file: Path | None) -> None:
     params = _checked_params(g.mac_params, cls.Params, i, "mac_params", f"MAC {name!r}", file)
     if g.mac is not None:  # (unset: direct, which takes none; the group resolves as before)
         g.mac_params = params
+
+
+def _check_routing(g: NodeGroupSpec, i: int, file: Path | None) -> None:
+    """The group's routing protocol by name, its parameters, and the sensors it needs."""
+    if g.routing is None:
+        if g.routing_params:
+            raise ScenarioError(file, f"nodes[{i}].routing_params", "given without routing (name the protocol)")
+        return
+    from aquasim_py.net import routing
+
+    try:
+        cls = routing.get(g.routing)
+    except routing.UnknownRouterError as e:
+        raise ScenarioError(file, f"nodes[{i}].routing", str(e)) from None
+    g.routing_params = _checked_params(
+        g.routing_params, cls.Params, i, "routing_params", f"routing {g.routing!r}", file
+    )
+    has_fix = g.sensors.position_fix if g.sensors.position_fix is not None else g.role in ("buoy", "anchor")
+    if cls.needs_position and not has_fix:
+        raise ScenarioError(
+            file,
+            f"nodes[{i}].sensors.position_fix",
+            f"routing {g.routing!r} needs the nodes' position fixes (set position_fix = true; "
+            "position_noise_std_m sets their error)",
+        )
+
+
+def _check_routed_network(sc: Scenario, file: Path | None) -> None:
+    """Routing is one protocol for the whole network, and it has a sink that routes."""
+    routed = [(i, g) for i, g in enumerate(sc.nodes) if g.routing is not None]
+    if not routed:
+        return
+    first, g0 = routed[0]
+    for i, g in routed[1:]:
+        if g.routing != g0.routing:
+            raise ScenarioError(
+                file,
+                f"nodes[{i}].routing",
+                f"{g.routing!r}, but nodes[{first}] routes with {g0.routing!r} (one protocol)",
+            )
+    for i, g in enumerate(sc.nodes):
+        if g.role == "sink" and g.routing is None:
+            raise ScenarioError(
+                file, f"nodes[{i}].routing", f"missing: the sinks must run the network's routing ({g0.routing!r})"
+            )
+    if not any(g.role == "sink" for _, g in routed):
+        raise ScenarioError(file, f"nodes[{first}].routing", "routes to sinks, but no group of role sink")
 
 
 def _checked_params(

@@ -11,7 +11,9 @@ open loop, so the offered load does not depend on the MAC); what became of each 
 a traffic group) drawn uniformly for each frame. The sinks announce themselves at set-up in
 the run's out-of-band directory, ``Node.out_of_band["traffic.sinks"]`` (the deployment's
 configuration, as a node knows its sinks' addresses; a sink running another protocol joins by
-appending its id there); a traffic sink only receives.
+appending its id there); a traffic sink only receives. ``"any_sink"``: whichever sink the
+packet reaches first, through the group's routing layer (``routing = "..."``,
+:mod:`aquasim_py.net.routing`).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from typing import Any, ClassVar, Literal
 import simpy
 from pydantic import BaseModel, ConfigDict, Field
 
-from aquasim_py.node import Node, Role
+from aquasim_py.node import ANY_SINK, Node, Role
 from aquasim_py.registry import register
 
 __all__ = ["TrafficNode", "TrafficParams"]
@@ -34,11 +36,15 @@ _SINKS = "traffic.sinks"
 class TrafficParams(BaseModel):
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    rate_pps: float = Field(0.01, gt=0.0, description="frames a source offers per second of its clock, on average")
+    rate_pps: float = Field(
+        0.01, ge=0.0, description="frames a source offers per second of its clock, on average (0: none, a relay)"
+    )
     process: Literal["poisson", "constant"] = Field("poisson", description="exponential gaps, or a constant rate")
     bits: int = Field(1000, ge=1, description="frame length (bits)")
-    destination: Literal["sink", "broadcast"] | int = Field(
-        "sink", description='"sink" (one drawn per frame), "broadcast", or a node id'
+    destination: Literal["sink", "any_sink", "broadcast"] | int = Field(
+        "sink",
+        description='"sink" (one drawn per frame), "any_sink" (the first sink reached; needs a routing '
+        'layer), "broadcast", or a node id',
     )
     kind: str = Field("data", description="packet kind of the frames")
     start_s: float = Field(0.0, ge=0.0, description="local time of the first possible offer (s)")
@@ -48,8 +54,8 @@ class TrafficParams(BaseModel):
     def check_scenario(params: TrafficParams, net: Any) -> list[tuple[str, str]]:
         """A destination that exists: a node id of the network, or a sink for ``"sink"``."""
         d = params.destination
-        if d == "sink" and not net.ids("sink"):
-            return [("destination", '"sink" but the scenario has no node of role sink')]
+        if d in ("sink", "any_sink") and not net.ids("sink"):
+            return [("destination", f"{d!r} but the scenario has no node of role sink")]
         if isinstance(d, int) and not 0 <= d < net.n_nodes:
             return [("destination", f"node id {d} is not a node (ids 0..{net.n_nodes - 1})")]
         return []
@@ -73,9 +79,9 @@ class TrafficNode(Node):
             self.out_of_band.setdefault(_SINKS, []).append(self.id)
 
     def run(self) -> Generator[Any, Any, None]:
-        if self.role is Role.SINK:
-            return
         p = self.params
+        if self.role is Role.SINK or p.rate_pps == 0.0:  # (a relay forwards through its routing layer)
+            return
         period = 1.0 / p.rate_pps
         t = p.start_s + (float(self.rng.uniform(0.0, period)) if p.process == "constant" else 0.0)
         while True:
@@ -92,6 +98,8 @@ class TrafficNode(Node):
         d = self.params.destination
         if d == "broadcast":
             return None
+        if d == "any_sink":
+            return ANY_SINK
         if d == "sink":
             sinks = sorted(self.out_of_band.get(_SINKS, ()))
             if not sinks:
