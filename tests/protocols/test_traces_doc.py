@@ -19,7 +19,11 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "traces.md"
 #: the marked section whose columns another environment writes (absent from these runs)
 RANGE_DEPENDENT = "range-dependent environment only"
 #: cases beyond the contract's, for columns its tiny runs do not reach
-EXTRA_CASES = {"ramezani#tracking": ("ramezani_tracking.toml", ["simulation.duration_s=60.0"])}
+EXTRA_CASES = {
+    "ramezani#tracking": ("ramezani_tracking.toml", ["simulation.duration_s=60.0"]),
+    # the routes table of a routed network (DBR over CSMA: every route event but none of a dead node's)
+    "routing#dbr": ("routing_compare.toml#dbr", ["simulation.duration_s=300.0"]),
+}
 #: documented tables that no run here writes, and why
 RARE_TABLES = {
     "ramezani_failures": "written only when a frame's estimation fails",
