@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, cast
@@ -62,7 +63,11 @@ def run_one(job: dict[str, Any]) -> dict[str, Any]:
     from aquasim_py.node import Node
     from aquasim_py.registry import get
 
-    sc = scenario.load(SCENARIO, overrides=job["overrides"])
+    # the file's base run: its variants set the protocols' own parameters (SLMP's training_s),
+    # which the protocols these overrides put on both groups do not take
+    raw = tomllib.loads(SCENARIO.read_text())
+    raw.pop("variants", None)
+    sc = scenario.load_dict(raw, SCENARIO, overrides=job["overrides"])
     c0 = time.process_time()
     sim = scenario.build(sc)
     sim.run(sc.simulation.duration_s)
