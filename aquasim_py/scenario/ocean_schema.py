@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import annotated_types as at
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
@@ -23,8 +24,9 @@ __all__ = [
     "check_geographic",
 ]
 
-PosFloat = Annotated[float, Field(gt=0.0)]
-NonNegFloat = Annotated[float, Field(ge=0.0)]
+# annotated-types markers, not Field(...): see PosFloat in schema.py
+PosFloat = Annotated[float, at.Gt(0.0)]
+NonNegFloat = Annotated[float, at.Ge(0.0)]
 
 
 class Strict(BaseModel):

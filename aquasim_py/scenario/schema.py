@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import annotated_types as at
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
 from aquasim_py.scenario.ocean_schema import (
@@ -63,10 +64,13 @@ PHY_KEYS = (
     "sleep_power_w",
 )
 
-PosFloat = Annotated[float, Field(gt=0.0)]
-NonNegFloat = Annotated[float, Field(ge=0.0)]
-PosInt = Annotated[int, Field(ge=1)]
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+# constraints as annotated-types markers, not Field(...): pydantic before 2.11 wrote a field's
+# default into a shared Annotated[..., Field()] alias, so a later required field of the same
+# alias silently took that default (BatterySpec.capacity_j = 10.0 from drift_interval_s)
+PosFloat = Annotated[float, at.Gt(0.0)]
+NonNegFloat = Annotated[float, at.Ge(0.0)]
+PosInt = Annotated[int, at.Ge(1)]
+Vec3 = Annotated[list[float], at.Len(3, 3)]
 
 
 class Strict(BaseModel):

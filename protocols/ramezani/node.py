@@ -36,6 +36,7 @@ import math
 from collections.abc import Generator, Mapping
 from typing import Annotated, Any, Literal
 
+import annotated_types as at
 import numpy as np
 import pandas as pd
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -49,7 +50,7 @@ from .math import TETRAHEDRON, fix_crb, paper_transition, pcrb_along, tof_functi
 
 __all__ = ["RamezaniNode"]
 
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec3 = Annotated[list[float], at.Len(3, 3)]  # not Field(...): see PosFloat in aquasim_py/scenario/schema.py
 _ANCHOR_ROLES = (Role.ANCHOR, Role.BUOY)
 _PING = "rz_ping"
 
