@@ -4,8 +4,10 @@ test extra) on the same (range, depth) section as aquasim_py's range-dependent s
 The section of one link (aquasim_py.channel.rangedep.sections) becomes a BELLHOP case: the
 profile of its first column as a c-linear SSP (the comparisons use depth-only fields, where
 BELLHOP's and our interpolations are the same function), the floor polyline as a linear
-bathymetry (.bty, 'L'), the sediment as an acoustic half-space, a vacuum surface; run type 'A'
-(arrivals) with ``beams`` launch angles. Not used by the package.
+bathymetry (.bty, 'L'), or for a curved floor its dense samples as a curvilinear one ('C':
+BELLHOP interpolates the normals between them), the sediment as an acoustic half-space, a vacuum
+surface; run type 'A' (arrivals) with ``beams`` launch angles, at one receiver or several
+(depths x ranges, one run). Not used by the package.
 """
 
 from __future__ import annotations
@@ -48,12 +50,14 @@ def run(
     frequency_hz: float = 1000.0,
     step_m: float = 0.0,
     R: float | None = None,
+    curved: bool = False,
 ) -> BellhopArrivals:
     """Arrivals at (R (default r[-1]), zr) from a source at (0, zs): section columns at ranges r (m)
     with floor depths floor_z (m), speeds c (m/s) on depths z (m), either one profile (K,) or
     one per column (J, K) (BELLHOP then interpolates bilinearly, option 'Q'); ``bottom`` =
     (speed m/s, density, attenuation dB per wavelength); ``step_m`` BELLHOP's ray step (0: its
-    default, a tenth of the depth)."""
+    default, a tenth of the depth); ``curved``: (r, floor_z) are dense samples of a smooth floor
+    (BELLHOP's curvilinear bathymetry) instead of the section's polyline."""
     import pelagic as pg
 
     zmax = float(np.max(floor_z))
@@ -108,7 +112,7 @@ def run(
         # bathymetry: linear between points, ranges in km (extended a little past both ends)
         rb = np.concatenate([[min(r[0], 0.0) - 0.01 * R - 1.0], r, [max(r[-1], R) * 1.02 + 10.0]]) / 1000.0
         zb = np.concatenate([[floor_z[0]], floor_z, [floor_z[-1]]])
-        bty = ["'L'", str(rb.size)] + [f"{float(a)!r} {float(b)!r}" for a, b in zip(rb, zb)]
+        bty = ["'C'" if curved else "'L'", str(rb.size)] + [f"{float(a)!r} {float(b)!r}" for a, b in zip(rb, zb)]
         base.with_suffix(".bty").write_text("\n".join(bty) + "\n")
         res = pg.bellhop.load(str(base.with_suffix(".env"))).run()
     a = res.arrivals
