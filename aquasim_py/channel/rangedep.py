@@ -29,16 +29,18 @@ curved floor about its local normal (paying the floor's Rayleigh loss). No step 
 integration error: what remains is rounding.
 
 Eigenrays. Per link, a fan of launch angles (with samples next to the angles whose rays turn at
-a depth node of the source's profile, where a family may fold), bisection towards the edges of each bounce family
-(the rays with one sequence of surface / bottom bounces), and regula falsi on the depth miss at
-the receiver's range inside each family, to 1e-8 m; the travel time is then corrected to first
-order for the remaining miss (dt/dz = sin(theta_R) / c_R), far below 1e-9 s.
+a depth node of the source's profile, where a family may fold), refined where the bounce sequence
+("family") changes (edges located to 1e-5 rad), where the walk predicts a change (a family
+narrower than the fan), and where the depth miss may fold (its exact slope from the walk's
+tangent-linear map: :mod:`._rangedep_search_jit`); Newton's iteration on the depth miss at the
+receiver's range inside each family, to 1e-8 m; the travel time is then corrected to first order
+for the remaining miss (dt/dz = sin(theta_R) / c_R), far below 1e-9 s.
 
 Limits (documented, not hidden): rays that travel backwards past the source's range, cross the
-receiver's range twice, or bounce more than ``max_bounces`` times are dropped; two eigenrays of
-one family closer than the fan's spacing (a fold near a caustic) count as one or none;
-out-of-plane refraction is ignored (N x 2-D); below 1 mm of horizontal separation a link is
-solved as if the receiver were 1 mm away along +x (a time error below 1e-12 s).
+receiver's range twice, or bounce more than ``max_bounces`` times are dropped; an eigenray within
+1e-5 rad of its family's edge, or two of a fold closer than 1e-4 rad that the samples do not show,
+may be missed; out-of-plane refraction is ignored (N x 2-D); below 1 mm of horizontal separation a
+link is solved as if the receiver were 1 mm away along +x (a time error below 1e-12 s).
 """
 
 from __future__ import annotations
@@ -467,9 +469,9 @@ def follow(
     code: NDArray[np.int64],
 ) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
     """Known eigenrays (launch angles theta0 (n, Q), depth-miss slopes d z_R / d theta0, bounce
-    sequences; code < 0 = none) followed to the links src -> dst: a few secant steps from the old
-    angle each, instead of a search. Returns (rows (n, Q, NF) as :func:`solve` gives them, NaN
-    where not followed, the ray-tube width the secant's last slope; followed (n, Q); the
+    sequences; code < 0 = none) followed to the links src -> dst: Newton's iteration from the old
+    angle each, instead of a search (``slope`` unused: the walk's exact one is used). Returns
+    (rows (n, Q, NF) as :func:`solve` gives them, NaN where not followed; followed (n, Q); the
     sections)."""
     from . import _rangedep_search_jit as jit
 
@@ -559,11 +561,11 @@ def follow_ends(
 ) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
     """:func:`follow`, and where that loses an eigenray of a link whose source moved from
     ``src_from``, the link again in two legs: the receiver's move from the source where it was
-    (the old launch angles, a short secant on the depth miss), then the source's move followed
+    (the old launch angles, a short Newton iteration on the depth miss), then the source's move followed
     backwards from the receiver (the reversed link, launched at the first leg's arrival angles;
     reciprocity: the same eigenrays). From a moved source the old launch angle of a ray near a
     boundary or a turning point often falls into another bounce sequence, where one leg gives
-    up; the old arrival angle reaches a moved receiver by a short secant. Every leg keeps an
+    up; the old arrival angle reaches a moved receiver by a short iteration. Every leg keeps an
     eigenray only where its launch angle (from the end that stays) moved by less than half the
     gap to its nearest sibling (:func:`kept_apart`). Returns what :func:`follow` does, for the
     links src -> dst."""
