@@ -230,19 +230,19 @@ def main() -> None:
     heading /= np.linalg.norm(heading, axis=1, keepdims=True)
     from aquasim_py.channel.arrival_links import FOLLOW_M
 
+    # mode -> (Taylor bound s, following radius m, follow_back)
     configs = {
-        "channel": dict(tol_s=0.0, follow_m=FOLLOW_M),
-        "channel_10m": dict(tol_s=0.0, follow_m=10.0),
-        "taylor": dict(tol_s=1e-7),
-        "taylor_back": dict(tol_s=1e-7, follow_back=True),
+        "channel": (0.0, FOLLOW_M, False),
+        "channel_10m": (0.0, 10.0, False),
+        "taylor": (1e-7, 1.0, False),
+        "taylor_back": (1e-7, 1.0, True),
     }
     modes = [m.strip() for m in args.modes.split(",") if m.strip()]
     filled: dict[float, ArrivalCache] = {}
     for mode in modes:
-        cfg = configs[mode]
-        tol = float(cfg["tol_s"])
+        tol, follow_m, back = configs[mode]
         if tol not in filled:
-            cache = ArrivalCache(env, n * n, max_bounces=mb, **{k: v for k, v in cfg.items() if k != "follow_back"})
+            cache = ArrivalCache(env, n * n, max_bounces=mb, tol_s=tol)
             # the cold fill: every link searched (and with the Taylor tier, its expansion made)
             t0 = time.perf_counter()
             cache.get(ids, pos[si], pos[di])
@@ -257,7 +257,7 @@ def main() -> None:
         res["step_s"], res["drift_steps"] = args.step, args.steps
         for speed in args.speeds:
             copied = copy.deepcopy(filled[tol])
-            copied.follow_back = bool(cfg.get("follow_back", False))
+            copied.follow_m, copied.follow_back = follow_m, back
             tag = f"{mode}_drift_{speed:g}_"
             print(mode, end=" ")
             drift(env, copied, pos, heading * speed, si, di, ids, args, res, tag)

@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
             b = results[name][old]
             row += f" {med(b, 1):.2f} | {med(b, 2):.0f} | {med(c, 1) / med(b, 1):.3f} |"
         if twins:
-            flat = TWINS.get(name)
+            flat = TWINS.get(name, "")
             row += f" {med(c, 1) / med(results[flat][cur], 1):.2f} |" if flat in names else " |"
         print(row)
     print(f"\nmedians of {args.rounds} round(s), sides alternated; CPU = user + system of the run's process")
