@@ -486,15 +486,12 @@ def _close_enough(res, zr, ztol):
 
 
 @_jit
-def follow_links(
-    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol
-):
+def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, theta0, code, ztol):
     """Follow known eigenrays to moved end points: for each link l and each of its arrivals q
     (launch angle theta0[l, q], bounce sequence code[l, q] >= 0), Newton's iteration on the depth
     miss from the old launch angle in the new section with the walk's exact derivative, keeping
     the bounce sequence, to ``ztol`` or until the delay corrected to first order for the remaining
-    miss is within _FOLLOW_S of the eigenray's (:func:`_close_enough`; ``slope`` unused: kept for
-    the callers' signature). Where the old angle's ray is no longer in the family (a moved
+    miss is within _FOLLOW_S of the eigenray's (:func:`_close_enough`). Where the old angle's ray is no longer in the family (a moved
     source's ray near a boundary), the family is sought just past the edge that walk predicts on
     either side (at 1.001, 1.1 and 1.5 times the predicted offset). Returns the arrival rows (L,
     Q, NF) (as :func:`search` writes them) and whether each was followed (L, Q): not where its

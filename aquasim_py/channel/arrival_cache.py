@@ -474,7 +474,6 @@ class ArrivalCache:
             X[:, 3:],
             self.max_bounces,
             th_in,
-            np.tile(tab["dz_dlaunch"][slots], (P, 1)),
             code_in,
         )
 

@@ -201,15 +201,13 @@ def follow(
     rows_of = np.repeat(np.arange(n), cnt)
     col = np.arange(prev.delay.size) - prev.offsets[:-1][rows_of]
     theta = np.full((n, max(q, 1)), np.nan)
-    slope = np.full((n, max(q, 1)), np.nan)
     code = np.full((n, max(q, 1)), -1, np.int64)
     theta[rows_of, col] = prev.launch_angle
-    slope[rows_of, col] = prev.dz_dlaunch
     code[rows_of, col] = prev.bounce_code
     used = code >= 0
     # without src_from no source counts as moved: one leg
     s0 = s if src_from is None else np.asarray(src_from, dtype=float).reshape(n, 3)
-    rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, slope, code)
+    rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, code)
     # a link is followed where every eigenray is: not one changed its bounce sequence, and none
     # moved by half the gap to a sibling of its sequence or more (a fold)
     whole = np.all(ok | ~used, axis=1)

@@ -465,14 +465,12 @@ def follow(
     dst: ArrayLike,
     max_bounces: int,
     theta0: FloatArray,
-    slope: FloatArray,
     code: NDArray[np.int64],
 ) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
-    """Known eigenrays (launch angles theta0 (n, Q), depth-miss slopes d z_R / d theta0, bounce
-    sequences; code < 0 = none) followed to the links src -> dst: Newton's iteration from the old
-    angle each, instead of a search (``slope`` unused: the walk's exact one is used). Returns
-    (rows (n, Q, NF) as :func:`solve` gives them, NaN where not followed; followed (n, Q); the
-    sections)."""
+    """Known eigenrays (launch angles theta0 (n, Q), bounce sequences; code < 0 = none) followed
+    to the links src -> dst: Newton's iteration from the old angle each, instead of a search.
+    Returns (rows (n, Q, NF) as :func:`solve` gives them, NaN where not followed; followed (n,
+    Q); the sections)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
@@ -492,7 +490,6 @@ def follow(
         int(max_bounces),
         np.array(env.bottom.params, dtype=float),
         np.ascontiguousarray(theta0, dtype=float),
-        np.ascontiguousarray(slope, dtype=float),
         np.ascontiguousarray(code, dtype=np.int64),
         _ZTOL_M,
     )
@@ -556,7 +553,6 @@ def follow_ends(
     dst: ArrayLike,
     max_bounces: int,
     theta0: FloatArray,
-    slope: FloatArray,
     code: NDArray[np.int64],
 ) -> tuple[FloatArray, NDArray[np.bool_], Sections]:
     """:func:`follow`, and where that loses an eigenray of a link whose source moved from
@@ -574,19 +570,19 @@ def follow_ends(
     s0 = np.asarray(src_from, dtype=float).reshape(-1, 3)
     s1 = np.asarray(src, dtype=float).reshape(-1, 3)
     d1 = np.asarray(dst, dtype=float).reshape(-1, 3)
-    rows, ok, sec = follow(env, s1, d1, max_bounces, theta0, slope, code)
+    rows, ok, sec = follow(env, s1, d1, max_bounces, theta0, code)
     ok &= kept_apart(theta0, rows[..., jit.F_THETA0], code)
     used = np.asarray(code) >= 0
     # the two legs where following from the moved source lost an eigenray
     redo = np.flatnonzero(np.any(s1 != s0, axis=1) & np.any(used & ~ok, axis=1))
     if not redo.size:
         return rows, ok, sec
-    ra, oka, _ = follow(env, s0[redo], d1[redo], max_bounces, theta0[redo], slope[redo], code[redo])
+    ra, oka, _ = follow(env, s0[redo], d1[redo], max_bounces, theta0[redo], code[redo])
     oka &= kept_apart(theta0[redo], ra[..., jit.F_THETA0], code[redo])
     back = reversed_rows(ra)
     back_code = np.where(oka, np.nan_to_num(back[..., jit.F_CODE], nan=-1.0), -1.0).astype(np.int64)
     back_th = back[..., jit.F_THETA0]
-    rb, okb, _ = follow(env, d1[redo], s1[redo], max_bounces, back_th, back[..., jit.F_DZDTH], back_code)
+    rb, okb, _ = follow(env, d1[redo], s1[redo], max_bounces, back_th, back_code)
     okb &= kept_apart(back_th, rb[..., jit.F_THETA0], back_code)
     rows[redo] = reversed_rows(rb)
     ok[redo] = oka & okb
@@ -599,12 +595,11 @@ def track(
     dst: ArrayLike,
     max_bounces: int,
     theta0: FloatArray,
-    slope: FloatArray,
     code: NDArray[np.int64],
 ) -> FloatArray:
     """Delays (n, Q) of known eigenrays followed to the links src -> dst (:func:`follow`); NaN
     where one could not be followed."""
     from . import _rangedep_search_jit as jit
 
-    rows, _ok, _sec = follow(env, src, dst, max_bounces, theta0, slope, code)
+    rows, _ok, _sec = follow(env, src, dst, max_bounces, theta0, code)
     return rows[:, :, jit.F_TIME]
