@@ -30,7 +30,10 @@ from .channel.acoustic import AcousticChannel
 from .channel.config import ChannelConfig, LossModel
 from .channel.environment import Environment
 from .channel.ssp import Constant, SoundSpeedProfile
+from .energy import ENERGY_COLUMNS
 from .mobility import Mobility
+from .net.mac import Direct, Mac
+from .net.mac import get as get_mac
 from .node import Node, Role, Sensors
 from .nodecore import Group, NodeCore
 from .trace import Trace, TraceConfig
@@ -217,6 +220,9 @@ class Simulation:
         params: Mapping[str, Any] | BaseModel | None = None,
         sensors: Sensors | None = None,
         name: str | None = None,
+        battery_j: float | None = None,
+        mac: str | type[Mac] | None = None,
+        mac_params: Mapping[str, Any] | BaseModel | None = None,
     ) -> list[Node]:
         """Add ``count`` nodes of ``node_cls`` sharing one mobility model; returns them.
 
@@ -226,6 +232,10 @@ class Simulation:
         ``(node_id, rng) -> Clock`` (rng = stream ("node", id, "clock")).
         params: the protocol's parameters (validated by ``node_cls.Params``).
         sensors: depth / velocity sensor noise (:class:`~aquasim_py.node.Sensors`).
+        battery_j: each node's battery capacity (J; :mod:`aquasim_py.energy`); needs the modem's
+        power in the channel config. None: unlimited.
+        mac: the MAC of every node of the group (:mod:`aquasim_py.net.mac`: a name or a class;
+        None = ``direct``), with ``mac_params`` (validated by its ``Params``).
         """
         if not (isinstance(node_cls, type) and issubclass(node_cls, Node)):
             raise TypeError(f"add_group: {node_cls!r} is not a Node subclass")
@@ -233,6 +243,11 @@ class Simulation:
         if count < 1:
             raise ValueError(f"add_group: count must be >= 1, got {count}")
         role = Role(role)
+        if battery_j is not None and self.channel_config.powers is None:
+            raise ValueError(
+                "add_group: a battery needs the modem's power (ChannelConfig tx_power_w, rx_power_w, idle_power_w, "
+                "sleep_power_w, or a modem preset)"
+            )
         gname = name if name is not None else f"group{len(self.groups)}"
         if any(g.name == gname for g in self.groups):
             raise ValueError(f"add_group: a group named {gname!r} exists already")
@@ -257,7 +272,14 @@ class Simulation:
                 f"add_group {gname!r}: mobility gives positions of shape {p0.shape}, expected ({count}, 3)"
             )
         start = len(self.nodes)
-        group = Group(gname, node_cls, role, mobility, start, count, _is_static(mobility))
+        mac_cls = get_mac(mac) if isinstance(mac, str) else (mac if mac is not None else Direct)
+        if isinstance(mac_params, mac_cls.Params):
+            mp = mac_params
+        else:
+            mp = mac_cls.Params.model_validate(dict(mac_params or {}))
+        group = Group(
+            gname, node_cls, role, mobility, start, count, _is_static(mobility), battery_j, mac=mac_cls, mac_params=mp
+        )
         if params is None:
             p = node_cls.Params()
         elif isinstance(params, node_cls.Params):
@@ -466,7 +488,17 @@ class Simulation:
             self.env.run(until=until)
         if progress is not None:
             progress(until, until)
+        self._write_energy(until)
         self._warn_unawaited()
+
+    def _write_energy(self, t: float) -> None:
+        """One ``energy`` row per node whose energy is counted, charged up to ``t`` (true s)."""
+        if self.channel_config.powers is None:
+            return
+        table = self.trace.table("energy")
+        for core in self._cores:
+            if core.energy is not None:
+                table.append((t, core.index, *core.energy.row(t)), ENERGY_COLUMNS)
 
     def note_unawaited(self, protocol: str, what: str) -> None:
         """Count an event made by a node of ``protocol`` (its ``what`` call) that fired unawaited."""

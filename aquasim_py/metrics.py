@@ -40,6 +40,8 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
+from .net.metrics import NetWindow, net_metrics
+
 __all__ = [
     "UNKNOWN_ROLES",
     "coverage",
@@ -53,6 +55,7 @@ __all__ = [
     "rmse",
     "rmse_h",
     "rmse_over_crb",
+    "rmse_over_crb_interval",
     "rmse_per_node",
     "select_rows",
     "summarize",
@@ -158,25 +161,52 @@ def rmse_h(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select:
     return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)))
 
 
-def rmse_over_crb(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
-    """sqrt(mean e_h^2) / sqrt(mean crb_h_m^2) over the selected rows with a finite ``crb_h_m``
-    (the rows that declared their references, :meth:`~aquasim_py.node.Node.log_estimate`):
-    the horizontal RMSE over the RMS of the bounds of the geometries the estimates used. 1 is
-    the bound of a one-shot unbiased fix from those ranges with the noise the node declared;
-    a filter that fuses earlier rounds may go below it. NaN without such rows, or when their
-    bounds are all 0 (noise-free declarations)."""
-    df = select_rows(estimates, nodes, **select)
-    if len(df) == 0 or "crb_h_m" not in df.columns:
-        return float("nan")
-    crb = pd.to_numeric(df["crb_h_m"], errors="coerce").to_numpy(float)
+def rmse_over_crb(
+    bounds: pd.DataFrame, nodes: pd.DataFrame | None = None, *, column: str = "crb_h_m", **select: Any
+) -> float:
+    """sqrt(mean e_h^2) / sqrt(mean b^2) over the selected rows of a run's ``bounds`` table
+    (:func:`aquasim_py.estimate_bounds.estimate_bounds`) with a finite bound b in ``column``:
+    the horizontal RMSE over the RMS of the bounds of the geometries the estimates used.
+    ``column``: ``crb_h_m`` (the noise the simulation applied) or ``crb_h_declared_m`` (the
+    noise each node declared). 1 is the bound of a one-shot unbiased fix from those ranges; a
+    filter that fuses earlier rounds may go below it. NaN without such rows, or when their
+    bounds are all 0 (noise-free ranges)."""
+    return rmse_over_crb_interval(bounds, nodes, column=column, **select)[0]
+
+
+def rmse_over_crb_interval(
+    bounds: pd.DataFrame,
+    nodes: pd.DataFrame | None = None,
+    *,
+    column: str = "crb_h_m",
+    confidence: float = 0.95,
+    **select: Any,
+) -> tuple[float, float, float]:
+    """(:func:`rmse_over_crb`, low, high): the ratio and its ``confidence`` interval, from the
+    chi-square interval of a mean square with as many degrees of freedom as there are nodes
+    among the rows (rows of one node are correlated: a filter's successive errors are, so
+    counting rows would make the interval too narrow; counting nodes errs on the wide side).
+    The bound itself is taken as exact (it is computed, not sampled)."""
+    from scipy import stats
+
+    nan = (float("nan"),) * 3
+    df = select_rows(bounds, nodes, **select) if bounds is not None else None
+    if df is None or len(df) == 0 or column not in df.columns:
+        return nan
+    crb = pd.to_numeric(df[column], errors="coerce").to_numpy(float)
     ok = np.isfinite(crb)
     if not ok.any():
-        return float("nan")
+        return nan
     bound = float(np.sqrt(np.mean(crb[ok] ** 2)))
-    if bound == 0.0:  # noise-free declarations: no ratio
-        return float("nan")
-    d, _ = _err_vectors(df[ok])
-    return float(np.sqrt(np.mean(d[:, 0] ** 2 + d[:, 1] ** 2)) / bound)
+    if bound == 0.0:  # noise-free ranges: no ratio
+        return nan
+    e = df["error_h"].to_numpy(float)[ok]
+    ratio = float(np.sqrt(np.mean(e**2)) / bound)
+    k = int(pd.unique(df["node"].to_numpy()[ok]).size)
+    alpha = 1.0 - confidence
+    low = ratio * math.sqrt(k / stats.chi2.ppf(1.0 - alpha / 2.0, k))
+    high = ratio * math.sqrt(k / stats.chi2.ppf(alpha / 2.0, k))
+    return ratio, low, high
 
 
 def mean_error(estimates: pd.DataFrame, nodes: pd.DataFrame | None = None, **select: Any) -> float:
@@ -301,8 +331,57 @@ def packet_counts(
     return out
 
 
-#: the tables the generic metrics of :func:`summarize` read
-GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes")
+#: the tables the generic metrics of :func:`summarize` read (the bounds beside declared
+#: estimates also read ``positions``: a protocol that declares its references lists it in its
+#: ``trace_tables``, :mod:`aquasim_py.estimate_bounds`)
+GENERIC_TABLES: tuple[str, ...] = ("packets", "estimates", "clocks", "nodes", "energy")
+
+
+def energy_metrics(
+    energy: pd.DataFrame | None,
+    received: float = math.nan,
+    estimates: pd.DataFrame | None = None,
+    nodes: pd.DataFrame | None = None,
+    roles: Iterable[str] = UNKNOWN_ROLES,
+) -> dict[str, float]:
+    """The ``energy.*`` metrics of a run from its ``energy`` table (aquasim_py.energy; each
+    node's last row), for any protocol and MAC:
+
+    - ``total_j``, ``per_node_j`` (mean), ``max_node_j``; ``tx_j``, ``rx_j``, ``idle_j``,
+      ``sleep_j``: the network's energy by modem state;
+    - ``per_delivered_packet_j``: total over ``received`` (the ``rx`` rows of ``packets``: every
+      packet a node got, a broadcast counting once per receiver);
+    - ``per_localized_node_j``: total over the evaluated nodes (``roles``) that logged at least
+      one estimate (when ``estimates`` are given);
+    - ``depleted_nodes``; ``first_depleted_s`` and ``half_depleted_s``: the network lifetime,
+      the true time the first node's battery, and half of the battery-powered nodes' (rounded
+      up), ran empty; NaN when that did not happen within the run.
+
+    Empty when there is no energy table (energy is not counted)."""
+    if energy is None or not len(energy):
+        return {}
+    last = energy.sort_values("time", kind="stable").groupby("node", sort=True).tail(1)
+    total = float(last["energy_j"].sum())
+    out: dict[str, float] = {
+        "total_j": total,
+        "per_node_j": float(last["energy_j"].mean()),
+        "max_node_j": float(last["energy_j"].max()),
+    }
+    for state in ("tx", "rx", "idle", "sleep"):
+        out[f"{state}_j"] = float(last[f"{state}_j"].sum())
+    out["per_delivered_packet_j"] = total / received if received > 0 else math.nan
+    if estimates is not None:
+        have = estimates["node"].unique() if len(estimates) else np.zeros(0, dtype=np.int64)
+        if nodes is not None:
+            have = np.intersect1d(have, evaluated_nodes(nodes, roles))
+        out["per_localized_node_j"] = total / len(have) if len(have) else math.nan
+    batteries = int(last["capacity_j"].notna().sum())
+    dead = np.sort(last["depleted_at"].dropna().to_numpy(float))
+    out["depleted_nodes"] = len(dead)  # an int (a count)
+    out["first_depleted_s"] = float(dead[0]) if len(dead) else math.nan
+    half = math.ceil(batteries / 2)
+    out["half_depleted_s"] = float(dead[half - 1]) if batteries and len(dead) >= half else math.nan
+    return out
 
 
 def tables_read(protocols: Iterable[type]) -> set[str] | None:
@@ -475,8 +554,14 @@ def summarize(
     warmup_s: float = 0.0,
     unknown_roles: Iterable[str] = UNKNOWN_ROLES,
     errors: dict[str, str] | None = None,
+    bounds: pd.DataFrame | None = None,
+    network: NetWindow | None = None,
 ) -> dict[str, float]:
     """Every metric of a run, as a flat {name: number} dict (the CLI table, summary.json, sweep.csv).
+
+    ``bounds``: the run's bounds table (:func:`aquasim_py.estimate_bounds.estimate_bounds`;
+    default ``tables["bounds"]`` where there is one, as in a run's output directory), for
+    ``localization.crb_h_m``, ``range_std_m`` and ``rmse_over_crb`` (``_ci95_high``, ``_declared``).
 
     ``errors``: when given, a metric family that raises (a protocol's ``metrics()``, e.g. a
     singular Fisher information in a bound; or the generic localization / sync metrics) is
@@ -487,6 +572,8 @@ def summarize(
     its name as prefix. ``None``: the protocols named in the ``nodes`` table, through the registry.
     ``warmup_s``: ``estimates`` and ``clocks`` rows before it are dropped, for the generic
     metrics and the protocols' alike (one time window for every family).
+    ``network``: the window and airtime of the network metrics (``net.*``,
+    :func:`aquasim_py.net.metrics.net_metrics`), computed only when given.
     """
     out: dict[str, float] = {}
     tally = getattr(tables, "tally", None)  # a streamed run's files: counted as written
@@ -497,7 +584,10 @@ def summarize(
         packets = chunks("packets", ["event", "reason"], 16384)
     for k, v in packet_counts(packets if packets is not None else tables.get("packets")).items():
         out[f"packets.{k}"] = v
+    if bounds is None:
+        bounds = tables.get("bounds")
     if warmup_s > 0:
+        bounds = _after(bounds, warmup_s)
         tables = _AfterWarmup(tables, warmup_s)
     est = tables.get("estimates")
     nodes = tables.get("nodes")
@@ -515,9 +605,7 @@ def summarize(
             if nodes is not None:
                 loc["coverage"] = coverage(est, evaluated_nodes(nodes, roles))
             loc["rmse_h_m"] = rmse_h(est, nodes, roles=roles)
-            ratio = rmse_over_crb(est, nodes, roles=roles)
-            if not math.isnan(ratio):  # only where some estimate declared its references
-                loc["rmse_over_crb"] = ratio
+            loc.update(_bound_metrics(bounds, nodes, roles))
         return loc
 
     def sync() -> dict[str, float]:
@@ -526,10 +614,16 @@ def summarize(
             return {}
         return sync_error_stats(clk, percentiles, nodes=nodes, roles=roles)
 
+    def energy() -> dict[str, float]:
+        return energy_metrics(tables.get("energy"), out.get("packets.received", math.nan), est, nodes, roles)
+
     families: list[tuple[str, Callable[[], Mapping[str, float] | None]]] = [
         ("localization", localization),
         ("sync", sync),
+        ("energy", energy),
     ]
+    if network is not None:
+        families.append(("net", functools.partial(net_metrics, tables, network)))
     if protocols is None:
         protocols = _protocols_from_nodes(nodes)
     seen: set[str] = set()
@@ -554,6 +648,28 @@ def summarize(
                 errors[f"{name}.{k}"] = f"non-finite value {float(val)}"
                 val = math.nan
             out[f"{name}.{k}"] = val
+    return out
+
+
+def _bound_metrics(bounds: pd.DataFrame | None, nodes: pd.DataFrame | None, roles: tuple[str, ...]) -> dict[str, float]:
+    """The bound metrics of the evaluated rows of a bounds table; only where some estimate
+    declared its references (and the ratios only where a bound is not 0)."""
+    if bounds is None or len(bounds) == 0:
+        return {}
+    b = select_rows(bounds, nodes, roles=roles)
+    out: dict[str, float] = {}
+    for name, col in (("range_std_m", "range_std_m"), ("crb_h_m", "crb_h_m")):
+        v = b[col].to_numpy(float) if len(b) else np.empty(0)
+        v = v[np.isfinite(v)]
+        if v.size:
+            out[name] = float(np.sqrt(np.mean(v**2)))
+    ratio, _, high = rmse_over_crb_interval(bounds, nodes, roles=roles)
+    if not math.isnan(ratio):
+        out["rmse_over_crb"] = ratio
+        out["rmse_over_crb_ci95_high"] = high
+    declared = rmse_over_crb(bounds, nodes, column="crb_h_declared_m", roles=roles)
+    if not math.isnan(declared):
+        out["rmse_over_crb_declared"] = declared
     return out
 
 

@@ -297,6 +297,15 @@ class Node:
         """The protocol's own metrics from trace tables (override)."""
         return {}
 
+    @classmethod
+    def measurement_noise(cls, params: BaseModel) -> tuple[float, float]:
+        """The ranging noise this protocol's own measurement model adds to what the channel
+        gives it, as (std in m, std relative to the range), for the bound beside its errors
+        (:mod:`aquasim_py.estimate_bounds`: the noise the run applied); (0, 0), the default,
+        where the protocol ranges from the MAC stamps as they are. Override it where the node
+        draws noise onto its measurements itself (a modem's ToA error simulated in the protocol)."""
+        return 0.0, 0.0
+
     # -- clock ----------------------------------------------------------------------------------
 
     def local_time(self) -> float:
@@ -315,8 +324,11 @@ class Node:
     # -- modem ----------------------------------------------------------------------------------
 
     def broadcast(self, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
-        """Transmit to everyone in range. The event fires when the last bit has left; its value
-        is the local MAC transmit stamp (first bit). A busy modem queues the packet."""
+        """Transmit to everyone in range, through the group's MAC (:mod:`aquasim_py.net.mac`).
+        The event fires when the MAC is done with the packet: at its last bit (after its ACK,
+        for a MAC that waits for one), with the local MAC transmit stamp (first bit) as its
+        value; or when the MAC gives it up, with ``None`` if it never went out. Under the
+        default MAC (``direct``) a busy modem queues the packet and nothing is given up."""
         return self.__k.watch(self.env.adopt(self.__k.transmit(None, kind, payload, bits)), "broadcast")
 
     def send(self, dst: int, kind: str, payload: Any = None, bits: int = 256) -> simpy.Event:
@@ -334,6 +346,21 @@ class Node:
         (a get that loses such a race stays queued and eats the next packet).
         """
         return self.__k.watch(self.__k.recv(timeout, kinds, self.env), "recv")
+
+    def modem_sleep(self) -> None:
+        """Put the modem to sleep once its transmit queue has emptied (at once when it is idle):
+        asleep, it neither sends (a packet it is given is dropped, reason "sleep", and its event
+        still fires after the packet's airtime) nor receives, and draws sleep power. Until
+        :meth:`modem_wake`."""
+        self.__k.modem_sleep()
+
+    def modem_wake(self) -> None:
+        """Wake the modem now (a sleep still waiting for the transmit queue is cancelled)."""
+        self.__k.modem_wake()
+
+    def modem_asleep(self) -> bool:
+        """Whether the modem is asleep (or will be once its transmit queue has emptied)."""
+        return self.__k.modem_asleep()
 
     def pending(self) -> int:
         """Receptions buffered and not yet taken by :meth:`recv`."""
@@ -396,9 +423,10 @@ class Node:
         ``refs``: the node ids whose ranges this estimate used, with the ranging noise the node
         assumed for them: variance ``range_std``^2 + (``range_rel_std`` x range)^2 (m^2; both 0:
         noise-free, a zero bound), and ``depth_known``: z came from the depth gauge, the ranges fixed (x, y).
-        The kernel then adds the geometry's bound (``crb_h_m``, ``gdop``: from the references'
-        true positions, which the node never sees) and records the declaration (``refs``
-        as ids separated by spaces, ``range_std``, ``range_rel_std``)."""
+        The kernel records the declaration (``refs`` as ids separated by spaces, ``range_std``,
+        ``range_rel_std``, ``depth_known``); after the run, the geometry's bounds are computed
+        from the references' true positions, which the node never sees (``bounds.csv``,
+        :mod:`aquasim_py.estimate_bounds`)."""
         geometry = None
         if refs is not None:
             geometry = (tuple(int(r) for r in refs), float(range_std), float(range_rel_std), bool(depth_known))

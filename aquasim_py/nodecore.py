@@ -18,12 +18,14 @@ import numpy as np
 import simpy
 from pydantic import BaseModel
 
-from .estimation.bounds import range_geometry
+from .energy import EnergyMeter
+from .net.mac.base import Mac, MacParams
+from .net.mac.direct import Direct
 from .node import NodeEnv, Role, Sensors, SensorUnavailable
 from .packet import Packet, Reception, copy_payload, snapshot_payload
 from .trace import SCHEMAS
 
-__all__ = ["Group", "NodeCore"]
+__all__ = ["Group", "MacPortView", "NodeCore"]
 
 
 class _WaitCheck:
@@ -73,6 +75,10 @@ class Group:
     start: int
     count: int
     static: bool
+    battery_j: float | None = None  # each node's battery capacity (J); None: unlimited
+    #: the MAC every node of the group runs (:mod:`aquasim_py.net.mac`), and its parameters
+    mac: type[Mac] = Direct
+    mac_params: MacParams = field(default_factory=MacParams)
     # the group's positions at the last true time a node asked for its own (NodeCore.position):
     # nodes of a group often ask at one instant (a period's depth readings and estimates)
     pos_t: float = field(default=math.nan, repr=False)
@@ -95,12 +101,15 @@ class NodeCore:
         "affine",
         "channel",
         "clock",
+        "energy",
         "env",
         "exact_stamp",
         "group",
         "has_position",
         "has_velocity",
         "index",
+        "mac",
+        "mac_rx",
         "params",
         "protocol",
         "rng_protocol",
@@ -153,7 +162,17 @@ class NodeCore:
         self._inbox: deque[tuple[Packet, float, float, float]] = deque(maxlen=cap)
         # the waiting recv events in the order they were made, each with its kinds (None: any)
         self._waiters: list[tuple[simpy.Event, frozenset[str] | None]] = []
+        # the modem's energy meter (aquasim_py.energy) when the channel config gives its power
+        powers = sim.channel_config.powers
+        self.energy = None if powers is None else EnergyMeter(powers, group.battery_j)
         self.channel.attach(self)
+        mac_cls = group.mac
+        #: the node's MAC, which takes its frames (transmit) and sees its receptions first
+        self.mac: Mac = mac_cls(MacPortView(self), group.mac_params)
+        # only a MAC that keeps some receptions (control frames) sits on the receive path
+        self.mac_rx = None if mac_cls.receive is Mac.receive else self.mac.receive
+        if mac_cls.senses_carrier:
+            self.channel.sense_carrier()
 
     # -- truth ------------------------------------------------------------------------------------
 
@@ -199,10 +218,30 @@ class NodeCore:
     def transmit(self, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
         if dst is not None and not 0 <= dst < len(self.sim.nodes):
             raise ValueError(f"node {self.index}: no node with id {dst}")
+        bits = int(bits)
+        if bits <= 0:  # before the MAC takes it: a MAC transmits later, from its own process
+            raise ValueError(f"a packet needs bits > 0, got {bits}")
         # the packet carries a snapshot: the sender's later changes to its object reach no one
-        return self.channel.transmit(self.index, dst, str(kind), snapshot_payload(payload), int(bits))
+        return self.mac.offer(dst, str(kind), snapshot_payload(payload), bits)
+
+    def modem_sleep(self) -> None:
+        self.channel.sleep(self.index)
+
+    def modem_wake(self) -> None:
+        self.channel.wake(self.index)
+
+    def modem_asleep(self) -> bool:
+        return bool(self.channel.asleep(self.index))
 
     def deliver(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        """A reception (RadioPort): to the MAC first, then, unless the MAC keeps it, up to the node."""
+        mac_rx = self.mac_rx
+        if mac_rx is not None and mac_rx(packet, rx_local, snr_db, pressure):
+            return
+        self.hand_up(packet, rx_local, snr_db, pressure)
+
+    def hand_up(self, packet: Packet, rx_local: float, snr_db: float, pressure: float) -> None:
+        """A reception the MAC passed on: to the node's waiting ``recv`` or its inbox."""
         # What the node gets: the modem's SNR estimate (the channel traced the true SNR), drawn
         # here in delivery order, and its own copy of the payload in a Reception (_taken),
         # made when the node takes it: at once for a waiting recv, from the inbox (which keeps
@@ -342,22 +381,25 @@ class NodeCore:
         err = math.sqrt((x - tx) ** 2 + (y - ty) ** 2 + (z - tz) ** 2)
         err_h = math.hypot(x - tx, y - ty)
         err_v = abs(z - tz)
-        crb_h = gdop = math.nan
         if geometry is not None:
             refs, std, rel_std, depth_known = geometry
-            crb_h, gdop = self._geometry(np.array([tx, ty, tz]), t, refs, std, rel_std, depth_known)
-            extra = {**extra, "refs": " ".join(map(str, refs)), "range_std": std, "range_rel_std": rel_std}
+            self._check_declaration(refs, std, rel_std)
+            extra = {
+                **extra,
+                "refs": " ".join(map(str, refs)),
+                "range_std": std,
+                "range_rel_std": rel_std,
+                "depth_known": depth_known,
+            }
         self.sim.trace.table("estimates").append(
-            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference)
-            + (err_h, err_v, crb_h, gdop, *extra.values()),
+            (t, self.index, self.protocol, x, y, z, tx, ty, tz, err, confidence, is_reference, err_h, err_v)
+            + tuple(extra.values()),
             _ESTIMATE_COLUMNS + tuple(extra),
         )
 
-    def _geometry(
-        self, here: np.ndarray, t: float, refs: tuple[int, ...], std: float, rel_std: float, depth_known: bool
-    ) -> tuple[float, float]:
-        """(crb_h_m, gdop) of ranges to the nodes ``refs`` from the true position ``here`` at
-        true time ``t``, the references at their true positions then (truth: kernel side)."""
+    def _check_declaration(self, refs: tuple[int, ...], std: float, rel_std: float) -> None:
+        """The references and noise an estimate declared name nodes and a noise that exist (the
+        bound itself is computed after the run: :mod:`aquasim_py.estimate_bounds`)."""
         n = len(self.sim.nodes)
         bad = [r for r in refs if not 0 <= r < n]
         if bad:
@@ -366,17 +408,6 @@ class NodeCore:
             raise ValueError(
                 f"log_estimate(refs=...): range_std ({std}) and range_rel_std ({rel_std}) must be >= 0 and finite"
             )
-        if not refs:
-            return math.nan, math.nan
-        idx = np.array(refs, dtype=np.int64)
-        anchors = self.sim.positions_at(idx, np.full(idx.size, t))
-        if np.any(np.all(anchors == here, axis=1)):  # a reference where the node is: no range geometry
-            return math.nan, math.nan
-        if std == 0.0 and rel_std == 0.0:  # noise-free ranges: a zero bound (where they fix the position)
-            _, gdop = range_geometry(here, anchors, std=1.0, depth_known=depth_known)
-            return 0.0 * float(gdop), float(gdop)
-        crb_h, gdop = range_geometry(here, anchors, std=std, rel_std=rel_std, depth_known=depth_known)
-        return float(crb_h), float(gdop)
 
     def log_clock(self, skew: float, offset: float, extra: Mapping[str, Any]) -> None:
         _no_reserved("log_clock", extra, _CLOCK_COLUMNS)
@@ -411,3 +442,54 @@ def _taken(pkt: Packet, rx_local: float, snr_db: float, pressure: float) -> Rece
     if payload is not pkt.payload:
         pkt = Packet(pkt.uid, pkt.src, pkt.dst, pkt.kind, payload, pkt.bits, pkt.tx_local)
     return Reception(pkt, rx_local, snr_db, pressure)
+
+
+class MacPortView:
+    """A node's :class:`~aquasim_py.net.mac.base.MacPort`: what its MAC may use of it, local
+    observables and its own modem only (the core, with its ground truth, sits behind one
+    name-mangled attribute, as in :class:`~aquasim_py.node.Node`)."""
+
+    __slots__ = ("__core", "__rng", "env", "index")
+
+    def __init__(self, core: NodeCore) -> None:
+        self.__core = core
+        self.__rng: np.random.Generator | None = None
+        self.index: int = core.index
+        #: the node's view of the simulation (local-clock timers; no true time)
+        self.env = NodeEnv(core.env, core.true_delay)
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The MAC's own stream ("node", id, "mac"), made on first use."""
+        if self.__rng is None:
+            self.__rng = self.__core.sim.sealed_rng("node", self.index, "mac")
+        return self.__rng
+
+    @property
+    def max_range_m(self) -> float:
+        return float(self.__core.sim.channel_config.max_range_m)
+
+    @property
+    def network_size(self) -> int:
+        return len(self.__core.sim.nodes)
+
+    def local_time(self) -> float:
+        k = self.__core
+        return k.local(k.env.now)
+
+    def airtime(self, bits: int) -> float:
+        return float(self.__core.channel.airtime(bits))
+
+    def transmit(
+        self, dst: int | None, kind: str, payload: Any, bits: int, uid: int | None, overhear: bool = False
+    ) -> simpy.Event:
+        return self.env.adopt(self.__core.channel.transmit(self.index, dst, kind, payload, bits, uid, overhear))
+
+    def carrier_busy(self) -> bool:
+        return bool(self.__core.channel.carrier_busy(self.index))
+
+    def new_uid(self) -> int:
+        return int(self.__core.channel.new_uid())
+
+    def row(self, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int) -> None:
+        self.__core.channel.mac_row(self.index, event, reason, dst, uid, kind, bits)

@@ -35,7 +35,7 @@ from contextlib import contextmanager, suppress
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from aquasim_py.scenario import ScenarioError
+from aquasim_py.errors import ScenarioError
 
 __all__ = [
     "MANIFEST",

@@ -11,6 +11,10 @@ interfaces below, which the kernel implements and hands to it:
   its modem stamps with, its own MAC-jitter random stream, and its inbox.
 - :class:`PacketLog` (given at construction): where the channel writes the ``packets`` trace.
 
+A port may also carry ``energy``, the node's :class:`aquasim_py.energy.EnergyMeter` (or None),
+which the channel feeds with the node's transmissions, detected signals and sleeps (found with
+``getattr``: a port without one counts no energy).
+
 A network may also offer, and the channel then uses (found with ``getattr``, so a stub need
 not): ``max_speed() -> float`` (an upper bound on every node's speed in m/s; finite enables the
 k-d tree neighbour index, :mod:`aquasim_py.channel.neighbours`), ``states_at(idx, t)`` and
@@ -35,10 +39,12 @@ from .packet import Packet
 __all__ = ["PACKET_FIELDS", "NetworkView", "PacketLog", "RadioPort"]
 
 #: The fields of a ``packets`` row, in the order the channel writes them (the trace's schema).
-#: event: "tx" | "rx" | "drop"; reason: None | "range" | "no_path" | "snr" | "half_duplex" |
-#: "collision"; node: the node the row is about (sender for "tx", receiver otherwise); dst: -1
-#: for a broadcast; tof (s), snr_db, path: of the signal at that receiver; local_time: the MAC
-#: stamp of that node (NaN for a drop).
+#: event: "tx" | "rx" | "drop" | "offer" (a frame handed to a node's MAC); reason: None |
+#: "range" | "no_path" | "snr" | "half_duplex" | "collision" | "per" | "sleep" | "energy", or a
+#: MAC's (``aquasim_py.net.mac.DROP_REASONS``; docs/traces.md); node: the node the row is about
+#: (sender for "tx", "offer" and a MAC's drop, receiver otherwise); dst: -1 for a broadcast;
+#: tof (s), snr_db, path: of the signal at that receiver; local_time: the MAC stamp of that
+#: node (NaN for a drop or an offer).
 PACKET_FIELDS = (
     "time",
     "event",

@@ -42,6 +42,8 @@ from aquasim_py.scenario.load import Overrides, variant_error
 if TYPE_CHECKING:
     import pandas as pd
 
+    from aquasim_py.net.metrics import NetWindow
+
 __all__ = [
     "RunResult",
     "check_output_format",
@@ -49,6 +51,7 @@ __all__ = [
     "compare",
     "execute",
     "json_safe",
+    "network_window",
     "paper_citations",
     "relocate_results",
     "run_scenario",
@@ -84,6 +87,9 @@ class RunResult:
     out: Path | None = field(default=None)  # where write() last put the outputs
     #: metric family -> "ExceptionType: message" for families whose computation failed
     metric_errors: dict[str, str] = field(default_factory=dict)
+    #: the bound beside each estimate that declared its references (``bounds.csv``,
+    #: :mod:`aquasim_py.estimate_bounds`); None where none did
+    bounds: pd.DataFrame | None = None
 
     @property
     def seed(self) -> int:
@@ -181,6 +187,8 @@ class RunResult:
                 frames[name] = self.tables[name]
             elif src.resolve() != dst.resolve():
                 shutil.copyfile(src, dst)
+        if self.bounds is not None and (wanted is None or "estimates" in wanted):
+            frames["bounds"] = self.bounds
         write_frames({**frames, **self.derived_tables()}, directory, fmt)
         (directory / "summary.json").write_text(json.dumps(self.summary(), indent=2) + "\n")
 
@@ -357,6 +365,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
     selects into the existing directory ``dest``, unstaged: callers stage), then compute the
     metrics from the files written."""
     from aquasim_py import metrics
+    from aquasim_py.estimate_bounds import applied_range_noise, estimate_bounds
 
     sim = _scenario.build(sc)
     with _streamed_trace(sim, sc, dest) as finish:
@@ -368,6 +377,7 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
     del sim, finish
     gc.collect()
     errors: dict[str, str] = {}
+    bounds = estimate_bounds(tables, applied_range_noise(sc))
     m = metrics.summarize(
         tables,
         sc.protocols(),
@@ -375,10 +385,29 @@ def execute(sc: Scenario, progress: Progress = False, dest: Path | None = None) 
         warmup_s=sc.metrics.warmup_s,
         unknown_roles=sc.metrics.unknown_roles,
         errors=errors,
+        bounds=bounds,
+        network=network_window(sc),
     )
     return RunResult(
-        scenario=sc, tables=tables, metrics=dict(m), wall_time_s=wall, variant=sc.variant, metric_errors=errors
+        scenario=sc,
+        tables=tables,
+        metrics=dict(m),
+        wall_time_s=wall,
+        variant=sc.variant,
+        metric_errors=errors,
+        bounds=bounds,
     )
+
+
+def network_window(sc: Scenario) -> NetWindow | None:
+    """The window of a run's network metrics (``net.*``): computed where a node group names
+    its MAC or runs a protocol that asks for them (``net_metrics = True``, the traffic
+    protocol); None elsewhere (a run as before MACs existed gets no new metrics)."""
+    from aquasim_py.net.metrics import NetWindow
+
+    if not (any(g.mac is not None for g in sc.nodes) or any(getattr(c, "net_metrics", False) for c in sc.protocols())):
+        return None
+    return NetWindow(sc.metrics.warmup_s, sc.simulation.duration_s, _scenario.channel_config(sc).airtime)
 
 
 def _run(sim: Any, sc: Scenario, progress: Progress) -> float:

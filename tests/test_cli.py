@@ -11,8 +11,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from console_table import assert_printed
 
-from aquasim_py import cli, display, metrics, trace
+from aquasim_py import cli, metrics, trace
 
 SCENARIO = """\
 [simulation]
@@ -241,10 +242,9 @@ def test_run_writes_trace_summary_and_prints_metrics(scen, tmp_path, capsys):
     assert sc["output"]["directory"] == str(out)
     m = summary["metrics"]
     assert m["packets.sent"] > 0 and m["beacon.ranges"] > 0
-    # every metric is in the printed table, as printed: its name with the unit, its value in that unit
+    # every metric is in the printed table, as printed (see assert_printed)
     for k, v in m.items():
-        shown, (cell,) = display.format_row(k, [v if v is not None else math.nan])
-        assert re.search(rf"│ {re.escape(shown)} +│ +{re.escape(cell)} │", stdout), (k, shown, cell)
+        assert_printed(stdout, k, v)
     assert "range error per anchor" in stdout  # the protocol's report()
     # nothing but the output directory itself appears next to it
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res", "scen.toml"]
@@ -262,8 +262,7 @@ def test_csv_trace_reloaded_gives_the_printed_metrics(scen, tmp_path, capsys):
             assert math.isnan(again[k]), k
         else:
             assert again[k] == pytest.approx(v, rel=1e-12, abs=1e-12), k
-        shown, (cell,) = display.format_row(k, [again[k]])
-        assert re.search(rf"│ {re.escape(shown)} +│ +{re.escape(cell)} │", stdout), (k, shown, cell)
+        assert_printed(stdout, k, again[k])
 
 
 def test_same_seed_same_trace_bytes(scen, tmp_path, capsys):
@@ -329,6 +328,31 @@ def test_version_and_help(capsys):
     assert rc == 0 and "--workers" in out and "--scheduler" in out and "examples:" in out
 
 
+def test_help_lists_every_subcommand_and_help_is_one(capsys):
+    from aquasim_py.cli import _COMMANDS
+
+    rc, out, _ = run(capsys, "--help")
+    assert rc == 0
+    for name in (*_COMMANDS, "help"):
+        assert re.search(rf"^  aquasim-py {name} ", out, re.M), name
+    assert run(capsys, "help")[:2] == (0, out)
+    for name in _COMMANDS:
+        rc, page, _ = run(capsys, "help", name)
+        assert rc == 0 and page.startswith(f"usage: aquasim-py {name}"), name
+    rc, _, err = run(capsys, "help", "nosuch")
+    assert rc == 2 and err.count("\n") == 1 and "no command 'nosuch'" in err
+
+
+def test_a_run_that_heard_nothing_warns_naming_the_key(scen, tmp_path, capsys):
+    """max_range_m = 3.5 typed for 3.5 km: every packet is sent and none received."""
+    rc, _, err = run(capsys, scen, "--out", tmp_path / "o", "--quiet", "--set", "channel.max_range_m=3.5")
+    assert rc == 0
+    line = next(x for x in err.splitlines() if "none received" in x)
+    assert line.startswith("warning: ") and "channel.max_range_m = 3.5 m" in line and "nearest two nodes" in line
+    rc, _, err = run(capsys, scen, "--out", tmp_path / "p", "--quiet")
+    assert rc == 0 and "none received" not in err
+
+
 def test_real_subprocess(scen, tmp_path):
     exe = Path(sys.executable).parent / "aquasim-py"
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "aquasim_py.cli"]
@@ -353,7 +377,7 @@ def test_real_subprocess(scen, tmp_path):
         check=False,
     )
     assert good.returncode == 0, good.stderr
-    assert "beacon.range_rmse (m)" in good.stdout and (tmp_path / "y" / "summary.json").exists()
+    assert re.search(r"│   range_rmse \(m\) +│", good.stdout) and (tmp_path / "y" / "summary.json").exists()
 
 
 def test_progress_bar_follows_simulated_time(scen, tmp_path, capsys, monkeypatch):

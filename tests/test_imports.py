@@ -1,13 +1,18 @@
 """Import structure, observed by importing in fresh interpreters: the channel loads without the
-kernel, and modules load on their own (an import cycle shows up as a partially initialized
-module when the cycle is entered from the wrong end)."""
+kernel, modules load on their own (an import cycle shows up as a partially initialized
+module when the cycle is entered from the wrong end), and the heavy libraries load only
+where they are used (start-up time)."""
 
 from __future__ import annotations
 
 import json
+import math
+import resource
 import subprocess
 import sys
 import textwrap
+import time
+from pathlib import Path
 
 import pytest
 
@@ -95,3 +100,68 @@ def test_every_module_loads_alone_in_a_fresh_interpreter():
         if r.returncode:
             failed[name] = r.stderr.strip().splitlines()[-1]
     assert not failed
+
+
+#: loaded only by the code that uses them: never by ``import aquasim_py``, ``aquasim-py --version``
+#: or ``--help``, nor by the modules a run loads before its first event
+HEAVY = ("scipy", "pandas", "networkx", "matplotlib", "sklearn", "numba")
+
+#: the top-level packages loaded after each step (argv[1:]), in one fresh interpreter per step
+_STEP = textwrap.dedent(
+    """
+    import contextlib, io, json, sys
+    step = sys.argv[1]
+    if step == "import":
+        import aquasim_py
+    elif step == "run-modules":  # what a run imports before its first event
+        import aquasim_py.cli.run, aquasim_py.kernel, aquasim_py.runner, aquasim_py.scenario
+        from aquasim_py import registry
+        registry.available()  # imports every built-in protocol family
+    else:
+        from aquasim_py.cli import main
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert main(sys.argv[2:]) == 0
+    print(json.dumps(sorted({m.partition(".")[0] for m in sys.modules})))
+    """
+)
+
+
+@pytest.mark.parametrize(
+    "step",
+    [["import"], ["cli", "--version"], ["cli", "--help"], ["cli", "sweep", "--help"], ["cli", "report", "--help"]],
+    ids=" ".join,
+)
+def test_startup_loads_no_heavy_module(step):
+    loaded = _python(_STEP, *step)
+    assert isinstance(loaded, list) and "aquasim_py" in loaded
+    assert not [m for m in HEAVY if m in loaded]
+    if step != ["import"]:  # the command needs neither numpy nor pydantic until it runs something
+        assert "numpy" not in loaded and "pydantic" not in loaded
+
+
+def test_a_run_loads_heavy_modules_only_where_used():
+    """The kernel, the runner and every built-in protocol load neither scipy nor the plotting,
+    graph, learning or compiler libraries; pandas may come with the trace (its CSV writer and
+    tables use it in every run)."""
+    loaded = _python(_STEP, "run-modules")
+    assert isinstance(loaded, list) and "aquasim_protocols" in loaded
+    assert set(HEAVY) & set(loaded) <= {"pandas"}
+
+
+def test_version_is_quick():
+    """``aquasim-py --version`` takes well under 0.3 s on an idle machine (docs/performance.md);
+    checked on its CPU time, which load barely changes, with the wall time as a loose bound."""
+    exe = Path(sys.executable).parent / "aquasim-py"
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "aquasim_py.cli"]
+    best_cpu = best_wall = math.inf
+    for _ in range(3):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        r = subprocess.run([*cmd, "--version"], check=False, capture_output=True, text=True, timeout=60)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        assert r.returncode == 0 and r.stdout.startswith("aquasim-py "), r.stderr
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        best_cpu, best_wall = min(best_cpu, cpu), min(best_wall, wall)
+    assert best_cpu < 0.3, f"aquasim-py --version used {best_cpu:.2f} s of CPU"
+    assert best_wall < 3.0, f"aquasim-py --version took {best_wall:.2f} s"

@@ -170,6 +170,7 @@ def test_positions_at_interpolates_linear_motion_exactly():
     np.testing.assert_allclose(got, expect)
 
 
+@pytest.mark.exact
 def test_positions_at_answers_each_query_as_if_asked_alone():
     """Queries of several nodes in any order (repeated nodes, a node without samples, times
     outside the samples): the batch gives each query's answer alone, bit for bit."""
@@ -187,6 +188,7 @@ def test_positions_at_answers_each_query_as_if_asked_alone():
     assert np.isnan(got[q_node == 8]).all() and np.isfinite(got[q_node != 8]).all()
 
 
+@pytest.mark.exact
 @settings(max_examples=40, deadline=None)
 @given(chunk=st.integers(1, 40), seed=st.integers(0, 2**16), on_samples=st.booleans())
 def test_positions_at_in_chunks_equals_the_whole_table(chunk, seed, on_samples):

@@ -470,3 +470,24 @@ def test_signal_in_process_exit_status_and_no_leftovers(tmp_path, capsys, monkey
     assert err.splitlines() == [f"error: interrupted by {sig.name} (no output written)"]
     assert listing(tmp_path) == ["scen.toml"]
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # the handlers are put back
+
+
+def test_the_temporary_directory_is_found_before_signals_are_handled(tmp_path, monkeypatch):
+    """tempfile finds TMPDIR on first use by writing and removing a probe file with a bare
+    8-letter name; a SIGTERM handled in between left that file behind (test_sigterm_to_a_run,
+    once in CI). The CLI finds it before its handlers are installed."""
+    from aquasim_py.cli import _interruptible
+
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    seen = []
+    real = signal.signal
+
+    def installing(signum: int, handler: Any) -> Any:
+        seen.append(tempfile.tempdir)
+        return real(signum, handler)
+
+    monkeypatch.setattr(signal, "signal", installing)
+    with _interruptible():
+        pass
+    assert seen and all(d == str(tmp_path) for d in seen)

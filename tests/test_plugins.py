@@ -12,6 +12,7 @@ from multiprocessing import get_context
 from pathlib import Path
 
 import pytest
+from console_table import assert_printed
 
 import aquasim_py
 from aquasim_py import cli, plugins, registry, scenario, sweep
@@ -49,7 +50,7 @@ def test_the_docs_template_runs_through_the_cli_from_elsewhere(project, tmp_path
     assert m["my_toa.fixes"] == m["localization.estimates"]
     assert m["localization.rmse_m"] < 1.0  # 0.1 m depth noise, drift between beacons
     assert summary["scenario"]["nodes"][0]["protocol"] == "./myproto.py:MyNode"  # as written: portable
-    assert "my_toa.median_error (m)" in capsys.readouterr().out
+    assert_printed(capsys.readouterr().out, "my_toa.median_error_m", m["my_toa.median_error_m"])
 
 
 def test_run_scenario_and_the_nodes_table_name(project, monkeypatch, tmp_path):

@@ -173,7 +173,7 @@ def test_integer_accepted_for_float_but_nothing_else_converted(base):
         ('environment.sound_speed={model="ctd", file="x.csv", depth_m=[0, 1]}', "environment.sound_speed", "not both"),
         ('environment.sound_speed={model="ctd", file="nope.csv"}', "environment.sound_speed.file", "not found"),
         ('nodes.1.placement={kind="grid", shape=[2, 2, 2]}', "nodes[1].count", r"differs from the grid"),
-        ('nodes.1.placement={kind="ring"}', "nodes[1].placement.kind", "unknown placement kind 'ring'"),
+        ('nodes.1.placement={kind="spiral"}', "nodes[1].placement.kind", "unknown placement kind 'spiral'"),
         ("nodes.1.placement.hi=[900, 700, 500]", "nodes[1].placement.hi", "outside the volume"),
         ('nodes.1.name="group0"', "nodes[1].name", r"already the name of nodes\[0\]"),
         ('nodes.1.mobility={model="teleport"}', "nodes[1].mobility.model", "must be one of"),

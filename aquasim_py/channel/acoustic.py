@@ -8,7 +8,17 @@ transmitting during any part of it -> "half_duplex"; another signal overlapping 
 "collision" (with ``capture``, the packet survives if its SNR exceeds the total power of the
 overlapping signals by ``capture_threshold_db``; :func:`~.modem.verdict`). By then every
 signal that can overlap the reception and every transmission of the receiver that can cut it
-are known (they started before that instant), so the verdict needs no second event.
+are known (they started before that instant), so the verdict needs no second event. With
+``reception = "sinr"`` the verdict is the SINR receiver's (:mod:`.sinr`: acquisition, SINR in
+pieces, a packet-error draw; "collision" or "per"), and signals too weak to decode but above
+``interference_floor_db`` are recorded at their receivers too, where they interfere.
+
+Sleep and energy: a node's modem may sleep (:meth:`AcousticChannel.sleep`) and, when the kernel
+counts energy, has a meter (``RadioPort.energy``, :mod:`aquasim_py.energy`) the channel reports
+each transmission and each detected signal to. A modem asleep or with an empty battery sends
+nothing (its packet is dropped at its first bit, reason "sleep" or "energy", and the event the
+node waits on still fires after the packet's airtime) and receives nothing (reason "sleep" or
+"energy" for a reception any part of which falls in its sleep or after its depletion).
 
 The deliveries of one transmission take turns as one SimPy timeout at a time
 (:class:`_Deliveries`), so the queue holds one event per transmission in flight, not one per
@@ -31,10 +41,11 @@ import simpy
 
 from ..packet import Packet
 from ..radio import NetworkView, PacketLog, RadioPort
-from .config import ChannelConfig, LossModel, default_loss_model
+from .config import ChannelConfig, LossModel, default_loss_model, no_snr
 from .environment import Environment
 from .links import LinkModel
 from .modem import Modem, Signal, verdict
+from .sinr import SinrReceiver
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ssp import SoundSpeedProfile
@@ -103,10 +114,20 @@ class AcousticChannel:
         self._jitter_std = float(config.jitter_std_s)
         self._uid = 0
         self._max_duration = 0.0  # the longest packet so far (s)
-        # overlaps matter only with a collision model
-        self._track = config.collision in ("destructive", "capture")
+        # the SINR receiver, or None: the threshold model
+        self._sinr = SinrReceiver(config) if config.reception == "sinr" else None
+        if self._sinr is not None and loss is no_snr:
+            raise ValueError("AcousticChannel: reception 'sinr' needs an SNR loss model (not no_snr)")
+        # overlaps matter only with a collision model or the SINR receiver
+        self._track = config.collision in ("destructive", "capture") or self._sinr is not None
+        # signals are recorded at the receivers for the reception model, or for carrier sense
+        self._record = self._track
+        self._energy = False  # some node has an energy meter
+        self._gate = False  # some modem may be asleep or dead: check before sending or receiving
         self._pressure_kind = config.pressure_kind
-        self._emitter: tuple[int, Any] = (-1, None)  # (uid, source position) of the last emission heard
+        # (packet, source position) of the last emission heard: keyed by the packet object, not
+        # its uid, which a MAC's retransmission repeats from another position
+        self._emitter: tuple[Packet | None, Any] = (None, None)
 
     @property
     def ssp(self) -> SoundSpeedProfile | None:
@@ -119,7 +140,67 @@ class AcousticChannel:
         """Give the channel the next node's modem port (its index must be the number attached so far)."""
         if port.index != len(self._modems):
             raise ValueError(f"attach: expected the port of node {len(self._modems)}, got node {port.index}")
-        self._modems.append(Modem(port))
+        modem = Modem(port, sinr=self._sinr is not None)
+        if modem.energy is not None:
+            self._energy = self._gate = True
+        self._modems.append(modem)
+
+    def sleep(self, node: int) -> None:
+        """Put ``node``'s modem to sleep once its transmit queue has emptied (now if it is
+        idle): until :meth:`wake` it sends and receives nothing and draws sleep power."""
+        m = self._modems[node]
+        now = self._env.now
+        t = m.tx_free_at if m.tx_free_at > now else now
+        m.forget_sleeps(now - 2.0 * self._max_duration)
+        m.sleep(t)
+        if m.energy is not None:
+            m.energy.sleep(t)
+        self._gate = True
+
+    def wake(self, node: int) -> None:
+        """Wake ``node``'s modem now (a sleep still waiting for the queue to empty is cancelled)."""
+        m = self._modems[node]
+        now = self._env.now
+        m.wake(now)
+        if m.energy is not None:
+            m.energy.wake(now)
+
+    def asleep(self, node: int) -> bool:
+        """Whether ``node``'s modem is asleep, or will be once its transmit queue empties."""
+        sleeps = self._modems[node].sleeps
+        return bool(sleeps) and sleeps[-1][1] == math.inf
+
+    def sense_carrier(self) -> None:
+        """Record every signal at its receivers, so that their modems can sense it
+        (:meth:`carrier_busy`), also without a collision model (called before the run by a
+        node whose MAC senses the carrier)."""
+        self._record = True
+
+    def carrier_busy(self, node: int) -> bool:
+        """Whether node ``node``'s own modem senses a carrier now: it is transmitting, or a
+        signal recorded at it is arriving (:meth:`~.modem.Modem.busy_at`)."""
+        return self._modems[node].busy_at(self._env.now)
+
+    def airtime(self, bits: int) -> float:
+        """How long a packet of ``bits`` bits lasts on the air (s): :meth:`.ChannelConfig.airtime`."""
+        return self.config.airtime(bits)
+
+    def new_uid(self) -> int:
+        """A packet uid not used before (a MAC numbers a frame when it is offered; its
+        transmissions, the first and any retransmission, carry it)."""
+        uid = self._uid
+        self._uid = uid + 1
+        return uid
+
+    def mac_row(
+        self, node: int, event: str, reason: str | None, dst: int | None, uid: int, kind: str, bits: int
+    ) -> None:
+        """A ``packets`` row a node's MAC writes now about a frame of its own: ``"offer"`` (the
+        protocol handed it the frame) or ``"drop"`` with the reason it gave the frame up."""
+        nan = math.nan
+        self._row(
+            (self._env.now, event, reason, node, node, -1 if dst is None else dst, uid, kind, bits, nan, nan, None, nan)
+        )
 
     def signals_at(self, node: int) -> int:
         """How many past signals the channel still keeps at ``node`` for collision checks
@@ -136,26 +217,39 @@ class AcousticChannel:
 
     # -- transmit ---------------------------------------------------------------------------------
 
-    def transmit(self, src: int, dst: int | None, kind: str, payload: Any, bits: int) -> simpy.Event:
+    def transmit(
+        self,
+        src: int,
+        dst: int | None,
+        kind: str,
+        payload: Any,
+        bits: int,
+        uid: int | None = None,
+        overhear: bool = False,
+    ) -> simpy.Event:
         """Queue a packet on node ``src``'s modem; the event fires when its last bit has left,
-        with the sender's MAC transmit stamp (local s) as its value."""
+        with the sender's MAC transmit stamp (local s) as its value.
+
+        ``uid``: the packet's uid (a MAC's frame, :meth:`new_uid`); None: the next one when its
+        first bit leaves. ``overhear``: a unicast that every node decoding it is handed, not
+        only ``dst`` (a MAC's RTS / CTS, which the nodes around must hear to defer)."""
         if bits <= 0:
             raise ValueError(f"a packet needs bits > 0, got {bits}")
         modem = self._modems[src]
         env = self._env
         now = env.now
-        duration = bits / self.config.bitrate_bps
+        duration = self.airtime(bits)
         if duration > self._max_duration:
             self._max_duration = duration
         start = modem.tx_free_at if modem.tx_free_at > now else now
         modem.tx_free_at = start + duration
         if start == now:
-            tx_local = self._start(modem, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration, uid, overhear)
             return env.timeout(duration, tx_local)
         done = env.event()
 
         def later(_: simpy.Event) -> None:
-            tx_local = self._start(modem, dst, kind, payload, bits, duration)
+            tx_local = self._start(modem, dst, kind, payload, bits, duration, uid, overhear)
 
             def sent(_e: simpy.Event) -> None:
                 done.succeed(tx_local)
@@ -175,17 +269,37 @@ class AcousticChannel:
             s += float(rng.normal(0.0, self._jitter_std))
         return s
 
-    def _start(self, modem: Modem, dst: int | None, kind: str, payload: Any, bits: int, duration: float) -> float:
+    def _start(
+        self,
+        modem: Modem,
+        dst: int | None,
+        kind: str,
+        payload: Any,
+        bits: int,
+        duration: float,
+        uid: int | None = None,
+        overhear: bool = False,
+    ) -> float:
         """The first bit leaves now: stamp, trace, and schedule every reception."""
         t0 = self._env.now
         src = modem.index
-        uid = self._uid
-        self._uid = uid + 1
+        if uid is None:
+            uid = self._uid
+            self._uid = uid + 1
         tx_local = self._stamp(modem, t0)
-        pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
         dst_code = -1 if dst is None else dst
         nan = math.nan
         row = self._row
+        if self._gate:
+            why = modem.offline(t0, t0)
+            if why is not None:  # asleep or dead: nothing leaves
+                row((t0, "drop", why, src, src, dst_code, uid, kind, bits, nan, nan, None, nan))
+                return tx_local
+            if modem.energy is not None:
+                modem.energy.transmit(t0, t0 + duration)
+        pkt = Packet(uid, src, dst, kind, payload, bits, tx_local)
+        if self._sinr is not None:
+            self._sinr.transmitting(modem, t0, self._max_duration)
         modem.transmitting(t0, t0 + duration, t0, self._max_duration)
         row((t0, "tx", None, src, src, dst_code, uid, kind, bits, nan, nan, None, tx_local))
 
@@ -193,18 +307,25 @@ class AcousticChannel:
         if dst is not None and dst not in in_range:
             row((t0, "drop", "range", dst, src, dst, uid, kind, bits, nan, nan, None, nan))
         for rid, reason, T, path, s in lost:
-            if dst is None or dst == rid:
+            if dst is None or dst == rid or overhear:
                 if reason == "no_path":
                     row((t0, "drop", reason, rid, src, dst_code, uid, kind, bits, nan, nan, path, nan))
                 else:
                     row((t0 + T, "drop", reason, rid, src, dst_code, uid, kind, bits, T, s, path, nan))
-        track = self._track
+        track = self._record
         # A pending reception ends after now, so it began after now - longest packet, and a
         # signal arriving before now - 2 * longest packet cannot overlap it: forget those.
         forget = t0 - 2.0 * self._max_duration
         sigs: list[Signal] = []
         modems = self._modems
-        if dst is None:
+        if self._energy:  # each receiver's modem receives (draws rx power) while a signal it detects arrives
+            for rid, T, _path, _s in heard:
+                meter = modems[rid].energy
+                if meter is not None:
+                    meter.receive(t0 + T, t0 + T + duration, t0)
+        if self._sinr is not None:
+            sigs = self._record_sinr(pkt, dst, heard, lost, t0, duration, forget, overhear)
+        elif dst is None:
             for rid, T, path, s in heard:
                 arr = t0 + T
                 end = arr + duration
@@ -215,9 +336,10 @@ class AcousticChannel:
                     modems[rid].record(sig, forget)
                 sigs.append(sig)
         else:
-            # a unicast is heard (and interferes) everywhere in range; only its addressee delivers
+            # a unicast is heard (and interferes) everywhere in range; only its addressee
+            # delivers (every node decoding it, where it is to be overheard)
             for rid, T, path, s in heard:
-                intended = rid == dst
+                intended = rid == dst or overhear
                 if not (track or intended):
                     continue
                 arr = t0 + T
@@ -230,6 +352,47 @@ class AcousticChannel:
         if sigs:  # heard is sorted by delay, so sigs are in order of arrival
             self._schedule(_Deliveries(sigs, t0, self._deliver))
         return tx_local
+
+    def _record_sinr(
+        self,
+        pkt: Packet,
+        dst: int | None,
+        heard: list[Any],
+        lost: list[Any],
+        t0: float,
+        duration: float,
+        forget: float,
+        overhear: bool = False,
+    ) -> list[Signal]:
+        """Record the signals of a transmission at every receiver under the SINR model, with
+        their power in noise units (the weak ones, below the detection threshold but not below
+        the interference floor, too: they interfere but are never decoded); the deliveries'
+        records, in order of arrival."""
+        rx = self._sinr
+        assert rx is not None
+        lock = rx.lock != "none"
+        md = self._max_duration
+        modems = self._modems
+        dst_code = -1 if dst is None else dst
+        sigs: list[Signal] = []
+        for rid, T, path, snr in heard:
+            arr = t0 + T
+            sig = (arr, arr + duration, snr, rid, pkt, T, path, dst_code)
+            m = modems[rid]
+            if lock:  # decide what arrived before now, before the log forgets any of it
+                rx.advance(m, t0, md)
+            m.record(sig, forget, 10.0 ** (snr / 10.0))
+            if dst is None or rid == dst or overhear:
+                sigs.append(sig)
+        floor = rx.floor
+        for rid, reason, T, path, snr in lost:
+            if reason == "snr" and snr >= floor:
+                arr = t0 + T
+                m = modems[rid]
+                if lock:
+                    rx.advance(m, t0, md)
+                m.record((arr, arr + duration, snr, rid, pkt, T, path, dst_code), forget, 10.0 ** (snr / 10.0))
+        return sigs
 
     # -- receive ----------------------------------------------------------------------------------
 
@@ -244,14 +407,17 @@ class AcousticChannel:
         then queue the transmission's next delivery (after the events this one made, as their
         sequence numbers order them)."""
         sig = d.sigs[d.k]
-        arr, _end, snr, rid, pkt, tof, path, dst_code = sig
+        arr, end, snr, rid, pkt, tof, path, dst_code = sig
         rx = self._modems[rid]
-        # no verdict to take where signals cannot collide and the receiver sent nothing lately
-        if self._track or rx.busy_until > arr:
-            c = self.config
-            reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
-        else:
-            reason = None
+        # asleep or dead during any of it, else the reception model's verdict
+        reason = rx.offline(arr, end) if self._gate else None
+        if reason is None:
+            if self._sinr is not None:
+                reason = self._sinr.verdict(sig, rx, self._max_duration)
+            # no verdict to take where signals cannot collide and the receiver sent nothing lately
+            elif self._track or rx.busy_until > arr:
+                c = self.config
+                reason = verdict(sig, rx, self._max_duration, c.collision, c.capture_threshold_db)
         if reason is None:
             rx_local = rx.clock_stamp(arr) if self._jitter_std <= 0.0 else self._stamp(rx, arr)
             p = self._pressure(pkt, rx, arr - tof, arr) if pkt.kind == self._pressure_kind else math.nan
@@ -270,9 +436,9 @@ class AcousticChannel:
         with the noise drawn from the receiver's own ("node", id, "pressure") stream."""
         from .pressure import received_pressure
 
-        if self._emitter[0] != pkt.uid:  # one source position per emission, shared by its receivers
+        if self._emitter[0] is not pkt:  # one source position per emission, shared by its receivers
             src = self._net.positions_at(np.array([pkt.src]), np.array([t_send]))[0]
-            self._emitter = (pkt.uid, src)
+            self._emitter = (pkt, src)
         c = self.config
         here = self._net.positions_at(np.array([rx.index]), np.array([t_arr]))[0]
         h = float(received_pressure(self._emitter[1], here, c.pressure_source_level, c.pressure_exponent))

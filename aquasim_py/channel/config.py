@@ -11,12 +11,13 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .obstacles import ObstacleConfig
+from .phy import ErrorModel, PerTable
 from .rays import Eigenray
 
 __all__ = ["ChannelConfig", "LossModel", "default_loss_model", "no_snr", "physical_snr"]
@@ -60,6 +61,35 @@ class ChannelConfig:
         receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
         decisions use the true SNR. Without noise a node could invert the loss model for its
         exact range.
+
+    The physical layer (docs/network.md; :mod:`.phy`, :mod:`.sinr`):
+
+    reception: how a reception is decided. "threshold": the SNR threshold and the ``collision``
+        rule above (the default). "sinr": from the SINR over the packet in pieces (every
+        overlapping signal plus the noise), the modulation's bit errors and a packet-error draw
+        from the receiver's own ("node", id, "per") stream; ``collision`` and
+        ``capture_threshold_db`` do not apply.
+    modulation, modulation_order, coding_gain_db: the bit error model of "sinr" (:mod:`.phy`:
+        "bpsk", "qpsk", "bfsk" non-coherent, "mfsk" non-coherent of order M, or "table").
+    per_table, per_table_bits: "table": ((sinr_db, per), ...) measured on packets of
+        per_table_bits bits.
+    lock: the acquisition rule of "sinr". A signal is acquired when its SINR at its first bit
+        reaches snr_threshold_db while the receiver is not transmitting; "first": a receiver
+        that has acquired a packet acquires no other until its last bit (ns-3's UanPhyGen);
+        "relock": a later signal acquired meanwhile takes the receiver over (the first is
+        lost); "none": every signal is demodulated on its own, as by a receiver per arrival.
+    per_combining: "pieces": PER = 1 - prod_k (1 - BER_k)^bits_k over the SINR pieces;
+        "worst": every bit at the lowest piece's SINR (ns-3's UanPhyGen).
+    interference_floor_db: under "sinr", signals whose SNR is at or above this (dB) but below
+        snr_threshold_db are still recorded at the receiver, where they interfere (weaker ones
+        are neglected: each adds less than 10^(floor/10) of the noise power).
+    noise_band: "carrier": the noise PSD at the carrier, flat over the band (N(f_c) + 10 log10
+        B); "integrated": the PSD integrated over [f_c - B/2, f_c + B/2] (loss.noise_band_db).
+        None: "integrated" under "sinr", "carrier" under "threshold".
+    overhead_s: preamble and header time added to each packet's airtime (s).
+    modem: the preset these figures came from (:mod:`.modem_presets`), for the record.
+    tx_power_w, rx_power_w, idle_power_w, sleep_power_w: the modem's power (W) by state; all
+        four given: the kernel counts each node's energy (aquasim_py.energy); None: not counted.
     """
 
     max_range_m: float = 5000.0
@@ -86,6 +116,22 @@ class ChannelConfig:
     max_bounces: int = 2
     detection_threshold_db: float | None = None
     direct_only: bool = False
+    reception: Literal["threshold", "sinr"] = "threshold"
+    modulation: str = "bfsk"
+    modulation_order: int = 2
+    coding_gain_db: float = 0.0
+    per_table: tuple[tuple[float, float], ...] | None = None
+    per_table_bits: int = 256
+    lock: Literal["first", "relock", "none"] = "first"
+    per_combining: Literal["pieces", "worst"] = "pieces"
+    interference_floor_db: float = -20.0
+    noise_band: Literal["carrier", "integrated"] | None = None
+    overhead_s: float = 0.0
+    modem: str | None = None
+    tx_power_w: float | None = None
+    rx_power_w: float | None = None
+    idle_power_w: float | None = None
+    sleep_power_w: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("max_range_m", "bitrate_bps", "frequency_khz", "bandwidth_khz"):
@@ -108,6 +154,62 @@ class ChannelConfig:
             raise ValueError(
                 f"ChannelConfig.detection_threshold_db must be finite, got {self.detection_threshold_db!r}"
             )
+        if self.reception not in ("threshold", "sinr"):
+            raise ValueError(f"ChannelConfig.reception must be threshold/sinr, got {self.reception!r}")
+        if self.lock not in ("first", "relock", "none"):
+            raise ValueError(f"ChannelConfig.lock must be first/relock/none, got {self.lock!r}")
+        if self.per_combining not in ("pieces", "worst"):
+            raise ValueError(f"ChannelConfig.per_combining must be pieces/worst, got {self.per_combining!r}")
+        if self.noise_band not in (None, "carrier", "integrated"):
+            raise ValueError(f"ChannelConfig.noise_band must be carrier/integrated, got {self.noise_band!r}")
+        if not (math.isfinite(self.overhead_s) and self.overhead_s >= 0.0):
+            raise ValueError(f"ChannelConfig.overhead_s must be >= 0, got {self.overhead_s!r}")
+        if not math.isfinite(self.interference_floor_db):
+            raise ValueError(f"ChannelConfig.interference_floor_db must be finite, got {self.interference_floor_db!r}")
+        if self.noise_integrated and not self.bandwidth_khz < 2.0 * self.frequency_khz:
+            raise ValueError(
+                f"ChannelConfig: the band ({self.bandwidth_khz} kHz wide around {self.frequency_khz} kHz) must lie "
+                "above 0 Hz to integrate the noise over it"
+            )
+        powers = (self.tx_power_w, self.rx_power_w, self.idle_power_w, self.sleep_power_w)
+        if any(p is not None for p in powers):
+            if any(p is None for p in powers):
+                raise ValueError("ChannelConfig: give all four modem powers (tx, rx, idle, sleep) or none")
+            if not all(p is not None and math.isfinite(p) and p >= 0.0 for p in powers):
+                raise ValueError(f"ChannelConfig: modem powers must be >= 0 W, got {powers!r}")
+        self.error_model()  # checks the modulation and its table
+
+    @property
+    def noise_integrated(self) -> bool:
+        """Whether the ambient noise is the PSD integrated over the band (``noise_band``)."""
+        if self.noise_band is None:
+            return self.reception == "sinr"
+        return self.noise_band == "integrated"
+
+    def error_model(self) -> ErrorModel:
+        """The bit error model of the "sinr" reception (:class:`.phy.ErrorModel`)."""
+        table = None
+        if self.modulation == "table" and self.per_table is not None:
+            table = PerTable(tuple((float(x), float(y)) for x, y in self.per_table), self.per_table_bits)
+        return ErrorModel(
+            self.modulation,
+            self.modulation_order,
+            self.bandwidth_khz * 1e3,
+            self.bitrate_bps,
+            self.coding_gain_db,
+            table,
+        )
+
+    @property
+    def powers(self) -> tuple[float, float, float, float] | None:
+        """(tx, rx, idle, sleep) power of the modem (W), or None when energy is not counted."""
+        p = (self.tx_power_w, self.rx_power_w, self.idle_power_w, self.sleep_power_w)
+        return None if p[0] is None else p  # type: ignore[return-value]
+
+    def airtime(self, bits: Any) -> Any:
+        """How long a packet of ``bits`` bits lasts on the air (s), the preamble / header time
+        ``overhead_s`` included; elementwise on an array."""
+        return bits / self.bitrate_bps + self.overhead_s
 
 
 #: An SNR model: (eigenrays to the receivers, config) -> SNR in dB per receiver (NaN = unknown,
@@ -147,13 +249,18 @@ def _snr_constants(
     config: ChannelConfig,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
     """(N(f) in dB re 1 uPa^2/Hz, 10 log10 B in dB-Hz, Thorp's alpha(f) in dB/km, 10 k) of a
-    channel config (alpha is what ``loss.path_loss_db`` computes itself when not given, 10 k
+    channel config (the noise integrated over the band: its power in dB re 1 uPa^2, and 0) (alpha is what ``loss.path_loss_db`` computes itself when not given, 10 k
     the factor ``loss.spreading_loss_db`` applies: the same bits)."""
     from . import loss
 
-    noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
     alpha = loss.thorp_absorption_db_per_km(config.frequency_khz)
     k10 = 10.0 * loss._spreading_k(config.spreading)
+    if config.noise_integrated:
+        # the noise power in the band [f_c - B/2, f_c + B/2], the band's 10 log10 B folded into it
+        f, half = config.frequency_khz, config.bandwidth_khz / 2.0
+        power = loss.noise_band_db(f - half, f + half, config.shipping, config.wind_mps)
+        return np.asarray(power), np.asarray(0.0), alpha, k10
+    noise = loss.noise_psd_db(config.frequency_khz, config.shipping, config.wind_mps)
     return noise, 10.0 * np.log10(np.asarray(config.bandwidth_khz * 1e3, dtype=float)), alpha, k10
 
 

@@ -24,10 +24,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from itertools import chain
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = ["NeighbourIndex"]
 
@@ -87,6 +90,8 @@ class NeighbourIndex:
     def _build(self, pos: NDArray[np.float64]) -> None:
         """The tree of ``pos`` (n, 3) and every node's neighbourhood (itself first, then the
         others sorted) as one flat array with offsets: no per-node work at query time."""
+        from scipy.spatial import cKDTree
+
         self._tree = tree = cKDTree(pos)
         n = len(pos)
         reach = self.range_m + (2.0 * self.max_speed * self.staleness_s if self.max_speed > 0.0 else 0.0)

@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from aquasim_py.cli.common import EXIT_USAGE, Interrupted, UsageError
-from aquasim_py.scenario import ScenarioError
+from aquasim_py.errors import ScenarioError
 
 __all__ = ["EXIT_USAGE", "UsageError", "main"]
 
@@ -33,7 +33,7 @@ __all__ = ["EXIT_USAGE", "UsageError", "main"]
 def _one_line_warnings() -> Iterator[None]:
     """Scenario deprecations (e.g. an old mobility model name) and implausible values as one
     ``warning:`` line each."""
-    from aquasim_py.scenario import ScenarioDeprecationWarning, ScenarioWarning
+    from aquasim_py.errors import ScenarioDeprecationWarning, ScenarioWarning
 
     def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
         print(f"warning: {message}", file=sys.stderr)
@@ -54,8 +54,14 @@ def _interruptible() -> Iterator[None]:
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    import tempfile
+
     from aquasim_py.outdir import INTERRUPTIONS
 
+    # tempfile finds the temporary directory on first use by writing and removing a probe file
+    # of a bare random name there; an interruption raised between the two would leave it (seen
+    # once in CI as a stray 8-letter name in TMPDIR after a SIGTERM): find it before handling
+    tempfile.gettempdir()
     sigs = (signal.SIGINT, signal.SIGTERM)
 
     def handler(signum: int, frame: Any) -> None:
@@ -74,23 +80,48 @@ def _interruptible() -> Iterator[None]:
         INTERRUPTIONS.clear()
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``aquasim-py``; returns the exit status."""
-    from aquasim_py.cli import arrivals, report, run, sweep
+_COMMANDS = ("sweep", "report", "arrivals", "reproduce")
 
+
+def _help(rest: Sequence[str]) -> list[str]:
+    """The argv that shows the help ``aquasim-py help [COMMAND]`` asks for."""
+    if not rest or rest[0] == "help":
+        return ["--help"]
+    if rest[0] not in _COMMANDS:
+        raise UsageError(f"help: no command {rest[0]!r} (commands: {', '.join(_COMMANDS)}; see aquasim-py --help)")
+    return [rest[0], "--help"]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``aquasim-py``; returns the exit status. Each subcommand's module is
+    imported when it runs, so that ``--version`` and ``--help`` load no more than they need."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
+        if argv[:1] == ["help"]:  # "aquasim-py help [COMMAND]": that command's --help
+            argv = _help(argv[1:])
         with _interruptible(), _one_line_warnings():
             if argv and argv[0] == "sweep":
+                from aquasim_py.cli import sweep
+
                 return sweep.command(argv[1:])
             if argv and argv[0] == "report":
+                from aquasim_py.cli import report
+
                 return report.command(argv[1:])
             if argv and argv[0] == "arrivals":
+                from aquasim_py.cli import arrivals
+
                 return arrivals.command(argv[1:])
+            if argv and argv[0] == "modems":
+                from aquasim_py.cli import modems
+
+                return modems.command(argv[1:])
             if argv and argv[0] == "reproduce":
                 from aquasim_py.cli import reproduce
 
                 return reproduce.command(argv[1:])
+            from aquasim_py.cli import run
+
             return run.command(argv)
     except (ScenarioError, UsageError) as e:
         print(f"error: {e}", file=sys.stderr)

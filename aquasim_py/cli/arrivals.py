@@ -15,6 +15,7 @@ from aquasim_py.cli import common
 EXAMPLES = """examples:
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120
   aquasim-py arrivals scenarios/itmtl.toml --from 0,0,50 --to 800,300,120 --json --max-bounces 3
+  aquasim-py arrivals scenarios/geographic.toml --from -2000,7500,40 --to 600,3900,90
 """
 
 
@@ -65,23 +66,22 @@ def parser() -> argparse.ArgumentParser:
 def _environment(path: str) -> tuple[Any, Any]:
     from aquasim_py.scenario import load
     from aquasim_py.scenario.build import make_ssp
-    from aquasim_py.scenario.ocean import make_environment, range_dependent
+    from aquasim_py.scenario.ocean import depth_profile, make_environment
 
     sc = load(path)
-    profile = None if range_dependent(sc) and sc.environment.sound_speed.model in ("section", "grid") else make_ssp(sc)
-    return sc, make_environment(sc, profile)
+    return sc, make_environment(sc, make_ssp(sc) if depth_profile(sc) else None)
 
 
 def command(argv: Sequence[str]) -> int:
-    from aquasim_py.channel.arrivals import arrivals
-
     # "--from -1500,0,40": a negative x is a value, not an option (argparse would say so only
     # for a plain number)
     argv = list(argv)
     for i in range(len(argv) - 1):
         if argv[i] in ("--from", "--to") and argv[i + 1].startswith("-"):
             argv[i : i + 2] = [f"{argv[i]}={argv[i + 1]}", ""]
-    args = parser().parse_args([a for a in argv if a != ""])
+    args = parser().parse_args([a for a in argv if a != ""])  # --help exits here
+    from aquasim_py.channel.arrivals import arrivals
+
     sc, env = _environment(args.scenario)
     for name, pt in (("--from", args.src), ("--to", args.dst)):
         floor = float(env.depth(pt[0], pt[1]))

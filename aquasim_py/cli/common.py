@@ -7,9 +7,10 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
-from aquasim_py.scenario import Scenario
+if TYPE_CHECKING:
+    from aquasim_py.scenario import Scenario
 
 EXIT_USAGE = 2
 

@@ -46,7 +46,28 @@ def _link(text: str) -> tuple[int, int]:
         a, b = (int(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected two node ids SRC,DST, got {text!r}") from None
+    if a == b:
+        raise argparse.ArgumentTypeError(f"{text!r}: a link joins two nodes, not node {a} with itself")
+    if a < 0 or b < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: node ids are >= 0")
     return a, b
+
+
+def _check_link(directory: Path, link: tuple[int, int]) -> None:
+    """``--link`` names nodes of every run it would draw, and each is range-dependent (only
+    those have an environment.png to draw a link in): checked before any report is written."""
+    from aquasim_py.reporting.environment import link_problem
+
+    runs = [directory] if (directory / "summary.json").is_file() else []
+    runs += [d for d in sorted(directory.iterdir()) if (d / "summary.json").is_file()] if not runs else []
+    if not runs:
+        raise common.UsageError(
+            f"--link {link[0]},{link[1]}: {directory} is not a run's output (a sweep has no link plot)"
+        )
+    for run in runs:
+        problem = link_problem(run, link)
+        if problem is not None:
+            raise common.UsageError(f"--link {link[0]},{link[1]}: {run}: {problem}")
 
 
 def _report_into(
@@ -54,7 +75,7 @@ def _report_into(
 ) -> Path:
     """Write the report of ``directory`` into ``out`` and list its files in ``out``'s manifest."""
     from aquasim_py.outdir import record_files
-    from aquasim_py.report import write_report
+    from aquasim_py.reporting.report import write_report
 
     html = write_report(directory, out, metrics, link)
     record_files(out, sorted(p.name for p in out.iterdir() if p.suffix == ".png" or p == html))
@@ -74,13 +95,15 @@ def reports_for(out: Path, metrics: Sequence[str] | None = None, link: tuple[int
 
 
 def command(argv: Sequence[str]) -> int:
+    args = parser().parse_args(argv)  # --help exits here
     from aquasim_py.outdir import refuse_foreign
-    from aquasim_py.report import ReportError
+    from aquasim_py.reporting.report import ReportError
 
-    args = parser().parse_args(argv)
     directory = Path(args.directory)
     if not directory.is_dir():
         raise common.UsageError(f"{directory}: no such directory")
+    if args.link is not None:
+        _check_link(directory, args.link)
     try:
         metrics = common.metric_patterns(args.metrics)
         if args.out is None:

@@ -21,7 +21,6 @@ from typing import Any
 from aquasim_py import __version__
 from aquasim_py.cli import common
 from aquasim_py.rows import json_safe
-from aquasim_py.runner import console
 
 EXAMPLES = """\
 examples:
@@ -84,9 +83,10 @@ def parser() -> argparse.ArgumentParser:
 
 
 def command(argv: Sequence[str]) -> int:
+    args = parser().parse_args(argv)  # --help exits here
     from aquasim_py import scenario, sweep
+    from aquasim_py.runner import console
 
-    args = parser().parse_args(argv)
     sc = scenario.load(args.scenario, overrides=args.set, seed=args.seed)
     if sc.sweep is None:
         raise scenario.ScenarioError(sc.path, "sweep", "no [sweep] table: add one with runs and grid to run a sweep")
@@ -243,6 +243,7 @@ def _run_with_bar(
     )
 
     from aquasim_py import sweep
+    from aquasim_py.runner import console
 
     with Progress(
         TextColumn("[bold]{task.description}"),
@@ -271,11 +272,12 @@ def _run_with_bar(
 
 def summary_table(out: Path, name: str, patterns: Sequence[str] | None, width: int | None = None) -> Any:
     """The sweep's metrics per grid point from ``out/sweep.csv``: centre, 95 % interval and n
-    (:func:`aquasim_py.tables.sweep_table`), the metrics ``patterns`` select (default all but
+    (:func:`aquasim_py.reporting.tables.sweep_table`), the metrics ``patterns`` select (default all but
     the packet counts)."""
     from rich.text import Text
 
-    from aquasim_py import report_sweep, tables
+    from aquasim_py.reporting import sweep as report_sweep
+    from aquasim_py.reporting import tables
 
     data = report_sweep.load(out)
     metrics = report_sweep.select(data.metrics, patterns)

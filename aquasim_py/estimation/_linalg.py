@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import SingularMatrixError
@@ -18,6 +17,8 @@ def symmetrize(A: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def cho_factor(S: ArrayLike, what: str = "matrix") -> tuple[NDArray[np.float64], bool]:
     """Cholesky factor of a symmetric positive-definite matrix; SingularMatrixError otherwise."""
+    import scipy.linalg as sla
+
     S = np.asarray(S, dtype=float)
     if not np.all(np.isfinite(S)):
         raise SingularMatrixError(f"{what} has non-finite entries")
@@ -28,6 +29,8 @@ def cho_factor(S: ArrayLike, what: str = "matrix") -> tuple[NDArray[np.float64],
 
 
 def cho_solve(c: tuple[NDArray[np.float64], bool], b: ArrayLike) -> NDArray[np.float64]:
+    import scipy.linalg as sla
+
     return sla.cho_solve(c, np.asarray(b, dtype=float), check_finite=False)
 
 

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize as sopt
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import DegenerateGeometryError, EstimationError, InsufficientMeasurementsError
@@ -125,6 +124,8 @@ def gauss_newton(
             break
     method = "gauss-newton"
     if fallback and (trouble or not converged):
+        import scipy.optimize as sopt  # only the fallback needs it
+
         xb = best[0]
         cache: dict[str, tuple[Array, Array]] = {}
 

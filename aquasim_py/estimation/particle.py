@@ -12,7 +12,6 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg import solve_triangular
 
 from ._linalg import cho_factor
 
@@ -65,6 +64,8 @@ def _rows_times(X: Array, A: Array) -> Array:
 
 def gaussian_log_likelihood(z: ArrayLike, z_pred: ArrayLike, R: ArrayLike) -> Array:
     """log N(z; z_pred[i], R) per particle: z (m,), z_pred (M, m), R (m, m) -> (M,)."""
+    from scipy.linalg import solve_triangular
+
     z = np.asarray(z, dtype=float).reshape(-1)
     Zp = np.asarray(z_pred, dtype=float).reshape(-1, z.size)
     c, _ = cho_factor(np.atleast_2d(np.asarray(R, dtype=float)), "measurement covariance R")

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import erfc
 
 __all__ = [
     "level_probabilities",
@@ -64,6 +63,8 @@ def quantize(z: ArrayLike, thresholds: ArrayLike) -> NDArray[np.int64]:
 def _tails(e: Array, h: Array, s: Array, cap: float = _A_MAX) -> tuple[Array, Array]:
     """a = (edge - h)/sigma and the smaller Gaussian tail Phi(-|a|) = erfc(|a|/sqrt 2)/2 (erfc
     of a non-negative argument: no cancellation); 0 beyond ``cap`` sigmas (erfc not called)."""
+    from scipy.special import erfc
+
     a = (e - h) / s
     m = np.abs(a)
     inside = m <= cap

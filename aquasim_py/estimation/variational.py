@@ -177,8 +177,8 @@ def _sample_gaussian(
 ) -> NDArray[np.float64]:
     """Rows mean + L^-T eps with precision = L L^T, i.e. draws of N(mean, precision): ``mean``
     (..., 4), ``precision`` (..., 4, 4), ``eps`` (..., Ns, 4), leading axes a batch."""
-    chol_cov = np.linalg.cholesky(_sym(_inv(precision)))
-    return mean[..., None, :] + eps @ chol_cov.swapaxes(-1, -2)
+    chol_cov = cast(_F64, np.linalg.cholesky(_sym(_inv(precision))))
+    return mean[..., None, :] + _matvec(chol_cov[..., None, :, :], eps)
 
 
 def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -186,15 +186,32 @@ def _normalized_weights(logw: NDArray[np.float64]) -> NDArray[np.float64]:
     return w / w.sum(axis=-1, keepdims=True)
 
 
+# Products and sums without BLAS: a node's update gives the same bits alone or in a batch, on
+# any CPU. A BLAS kernel may sum in an order that depends on where a row starts in memory (an
+# SSE kernel peels an unaligned first element), and a row of a batch starts where a node alone
+# does not; numpy's reduction over a contiguous last axis (np.add.reduce: pairwise, fixed
+# order) does not depend on either. Measured: with OpenBLAS's Prescott kernels the batched and
+# one-node updates differed in the last bits of a third of the estimates before.
+
+
+def _sum_last(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sum over the last axis in numpy's pairwise order, whatever the leading axes."""
+    return cast(_F64, np.add.reduce(np.ascontiguousarray(x), axis=-1))
+
+
 def _row_sq(res: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Sum of squares over the last axis; leading axes are a batch (each node's rows keep the
-    memory layout they have when the node is alone, so einsum sums them in the same order)."""
-    return np.einsum("...ki,...ki->...k", res, res)
+    """Sum of squares over the last axis; leading axes are a batch."""
+    return _sum_last(res * res)
 
 
 def _vec_dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """a . b over the last axis, one BLAS dot per leading index (the bits of ``a @ b`` for 1-D)."""
-    return (a[..., None, :] @ b[..., :, None])[..., 0, 0]
+    """a . b over the last axis; leading axes are a batch."""
+    return _sum_last(a * b)
+
+
+def _matvec(m: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """m v for matrices m (..., k, j) and vectors v (..., j), broadcast over leading axes."""
+    return _sum_last(m * v[..., None, :])
 
 
 def _delays(
@@ -229,8 +246,9 @@ def state_moments(
     )
     res = np.asarray(z, float)[..., None, :] - delay
     w = _normalized_weights(-0.5 * np.asarray(zeta)[..., None] * _row_sq(res))
-    m1 = (w[..., None, :] @ s)[..., 0, :]
-    m2 = (s * w[..., :, None]).swapaxes(-1, -2) @ s
+    ws = s * w[..., :, None]  # the weighted samples (..., Ns, 4)
+    m1 = _sum_last(ws.swapaxes(-1, -2))
+    m2 = _sum_last(ws.swapaxes(-1, -2)[..., :, None, :] * s.swapaxes(-1, -2)[..., None, :, :])
     return m1, _sym(m2)
 
 
@@ -279,8 +297,8 @@ def mean_update(
     lam = np.asarray(lam, float)
     lp = np.asarray(mu_p_precision, float)
     prec = _sym(lam + lp)
-    rhs = lam @ np.asarray(state, float)[..., None] + lp @ np.asarray(mu_p, float)[..., None]
-    return np.linalg.solve(prec, rhs)[..., 0], prec
+    rhs = _matvec(lam, np.asarray(state, float)) + _matvec(lp, np.asarray(mu_p, float))
+    return cast(_F64, np.linalg.solve(prec, rhs[..., None])[..., 0]), prec
 
 
 def _outer(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -364,7 +382,8 @@ def variational_update_batch(
     rngs: Sequence[np.random.Generator],
 ) -> list[VariationalResult]:
     """:func:`variational_update` for n nodes at once, each node's result bit-identical to its
-    update run alone (same operations, elementwise or one BLAS/LAPACK call per node).
+    update run alone on any CPU (the same operations: elementwise, sums in numpy's fixed order,
+    one LAPACK call per node; no BLAS product, whose order may depend on alignment).
 
     ``z`` (n, Nr), ``refs`` (n, Nr, 2), ``mu_p`` (n, 4), ``mu_p_precision`` (n, 4, 4); ``rngs``
     one distinct generator per node, from which the node draws exactly what it would alone.

@@ -9,7 +9,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.integrate import solve_ivp
 
 from .base import Array, Mobility, _need_rng, _positive, _readonly, _Table, _time
 from .box import Box
@@ -83,6 +82,8 @@ class _CurrentDrift(Mobility):
 
     def _extend(self) -> None:
         """Integrate one more chunk of ``_CHUNK`` table steps from the last knot."""
+        from scipy.integrate import solve_ivp
+
         n, spu, L = self.n, self.steps_per_unit, self.length_scale
         k0 = self._pv.count - 1
         last = self._pv.last[:, 0]

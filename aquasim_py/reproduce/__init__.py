@@ -18,13 +18,15 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from .claims import REL_TOL, Claim, Paper, Quantity, Reading, Scale
 from .papers import PAPERS
 from .report import claims_table, markdown, write_csv, write_html
 from .runner import Unit, evaluate_claims, plan_units, run_units
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "PAPERS",

@@ -7,11 +7,13 @@ import html
 import math
 from collections.abc import Sequence
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from .claims import REL_TOL, Paper, Scale
 from .runner import ClaimResult
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["claims_table", "markdown", "write_csv", "write_html"]
 
@@ -39,6 +41,8 @@ COLUMNS = [
 
 def claims_table(paper: Paper, results: Sequence[ClaimResult]) -> pd.DataFrame:
     """One row per (claim, reading): the paper's value, ours with its CI, the verdict."""
+    import pandas as pd
+
     rows = []
     for r in results:
         c, o = r.claim, r.outcome

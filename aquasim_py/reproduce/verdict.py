@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from .claims import REL_TOL, Claim
 
@@ -39,6 +38,8 @@ def _stat(x: NDArray[np.float64], how: str, axis: int = -1) -> NDArray[np.float6
 
 
 def _t_interval(x: NDArray[np.float64]) -> tuple[float, float, float]:
+    from scipy import stats
+
     m = float(np.mean(x))
     if x.size < 2:
         return m, math.nan, math.nan

@@ -17,9 +17,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from aquasim_py import registry
+from aquasim_py.errors import ScenarioDeprecationWarning
 from aquasim_py.scenario import ocean
 from aquasim_py.scenario.errors import ScenarioError
-from aquasim_py.scenario.ocean_schema import GridSSP, SectionSSP
 from aquasim_py.scenario.schema import (
     ConstantSSP,
     CtdSSP,
@@ -28,6 +28,7 @@ from aquasim_py.scenario.schema import (
     LayeredSSP,
     MunkSSP,
     NodeGroupSpec,
+    RingPlacement,
     UniformPlacement,
 )
 
@@ -66,10 +67,6 @@ DEPRECATED_MOBILITY = {
         "model, now named 'kinematic'; the Bower/Caruso meandering current is 'meandering_jet'"
     ),
 }
-
-
-class ScenarioDeprecationWarning(DeprecationWarning):
-    """A scenario uses a deprecated name; the CLI prints it as one ``warning:`` line."""
 
 
 def warn_deprecated_mobility(model: str, file: Path | None) -> None:
@@ -130,7 +127,7 @@ def make_ssp(sc: Scenario) -> Any:
 
     spec = sc.environment.sound_speed
     bottom = sc.environment.bottom_m
-    if isinstance(spec, (SectionSSP, GridSSP)):
+    if not ocean.depth_profile(sc):
         return ocean.centre_profile(sc)  # what the scenario checks look at
     try:
         if isinstance(spec, ConstantSSP):
@@ -164,11 +161,16 @@ def placement_positions(
 
     uniform: i.i.d. uniform in the placement box (default the volume), drawn from ``rng``;
     grid: ``shape`` points per axis from lo to hi inclusive (one point: the middle), the last
-    axis varying fastest; explicit: as given.
+    axis varying fastest; explicit: as given; ring: evenly on a horizontal circle.
     """
     p = g.placement
     if isinstance(p, ExplicitPlacement):
         return np.asarray(p.positions, dtype=float).reshape(-1, 3)
+    if isinstance(p, RingPlacement):
+        assert g.count is not None
+        phi = 2.0 * np.pi * np.arange(g.count) / g.count
+        ring = np.stack([np.cos(phi), np.sin(phi), np.zeros(g.count)], axis=1)
+        return np.asarray(p.center, dtype=float) + p.radius_m * ring
     lo = np.asarray(p.lo if p.lo is not None else volume_lo, dtype=float)
     hi = np.asarray(p.hi if p.hi is not None else volume_hi, dtype=float)
     if isinstance(p, UniformPlacement):
@@ -228,6 +230,22 @@ def channel_config(sc: Scenario) -> Any:
         max_bounces=c.max_bounces,
         detection_threshold_db=c.detection_threshold_db,
         direct_only=c.direct_only,
+        reception=c.reception,
+        modulation=c.modulation,
+        modulation_order=c.modulation_order,
+        coding_gain_db=c.coding_gain_db,
+        per_table=None if c.per_table is None else tuple((p[0], p[1]) for p in c.per_table),
+        per_table_bits=c.per_table_bits,
+        lock=c.lock,
+        per_combining=c.per_combining,
+        interference_floor_db=c.interference_floor_db,
+        noise_band=c.noise_band,
+        overhead_s=c.overhead_s,
+        modem=c.modem,
+        tx_power_w=c.tx_power_w,
+        rx_power_w=c.rx_power_w,
+        idle_power_w=c.idle_power_w,
+        sleep_power_w=c.sleep_power_w,
     )
 
 
@@ -248,8 +266,7 @@ def _obstacles(o: Any) -> Any:
 
 def _environment(sc: Scenario, ssp: Any) -> Any:
     """The scenario's Environment (its depth profile ``ssp`` where the sound speed is one)."""
-    profile = None if isinstance(sc.environment.sound_speed, (SectionSSP, GridSSP)) else ssp
-    return ocean.make_environment(sc, profile)
+    return ocean.make_environment(sc, ssp if ocean.depth_profile(sc) else None)
 
 
 def build(sc: Scenario) -> Any:
@@ -306,6 +323,8 @@ def build(sc: Scenario) -> Any:
             clocks=_clock_factory(g.clock),
             params=g.params,
             name=g.name,
+            mac=g.mac,
+            mac_params=g.mac_params,
             sensors=Sensors(
                 depth_std=s.depth_noise_std_m,
                 velocity_std=s.velocity_noise_std_mps,
@@ -313,5 +332,6 @@ def build(sc: Scenario) -> Any:
                 position_std=s.position_noise_std_m,
                 position=s.position_fix,
             ),
+            battery_j=None if g.battery is None else g.battery.capacity_j,
         )
     return sim

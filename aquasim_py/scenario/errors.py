@@ -1,6 +1,6 @@
-"""Scenario errors: :class:`ScenarioError` and the translation of pydantic's validation errors
-into one line ``FILE: KEY.PATH: problem`` (the key path as the file spells it, did-you-mean
-hints for unknown keys)."""
+"""Scenario errors: :class:`ScenarioError` (defined in the leaf module :mod:`aquasim_py.errors`)
+and the translation of pydantic's validation errors into one line ``FILE: KEY.PATH: problem``
+(the key path as the file spells it, did-you-mean hints for unknown keys)."""
 
 from __future__ import annotations
 
@@ -8,32 +8,13 @@ import difflib
 import math
 import re
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 from typing import Any, NoReturn
 
 from pydantic import BaseModel, ValidationError
 
+from aquasim_py.errors import ScenarioError
+
 __all__ = ["ScenarioError", "format_key_path", "raise_validation", "show", "toml_type"]
-
-
-class ScenarioError(Exception):
-    """A mistake in a scenario (or its overrides): which file, which key, what is wrong."""
-
-    def __init__(self, file: str | Path | None, key_path: str, message: str) -> None:
-        self.file = str(file) if file is not None else "<scenario>"
-        self.key_path = key_path
-        self.message = message
-        super().__init__(str(self))
-
-    def __reduce__(self) -> tuple[Any, ...]:  # picklable across worker processes
-        return (type(self), (self.file, self.key_path, self.message))
-
-    def __str__(self) -> str:
-        parts = [self.file]
-        if self.key_path:
-            parts.append(self.key_path)
-        parts.append(self.message)
-        return ": ".join(parts)
 
 
 def format_key_path(loc: Iterable[str | int]) -> str:

@@ -15,6 +15,7 @@ from pydantic import PrivateAttr
 
 from aquasim_py import registry
 from aquasim_py.scenario.ocean import ARRIVAL_KEYS, range_dependent
+from aquasim_py.scenario.schema import PHY_KEYS
 from aquasim_py.scenario.schema import Scenario as _ScenarioModel
 
 __all__ = ["Loc", "Scenario"]
@@ -70,10 +71,10 @@ class Scenario(_ScenarioModel):
         d = self.model_dump(mode="json", exclude_none=False)
         if d.get("variants") is None:
             d.pop("variants", None)  # a file without variants resolves exactly as before they existed
-        if not range_dependent(self):  # the arrival keys do nothing there: unset, as before they existed
-            for key in ARRIVAL_KEYS:
-                if key not in self.channel.model_fields_set:
-                    d["channel"].pop(key, None)
+        unset = [] if range_dependent(self) else list(ARRIVAL_KEYS)  # the arrival keys do nothing there
+        for key in unset + list(PHY_KEYS):  # unset, as before they existed
+            if key not in self.channel.model_fields_set:
+                d["channel"].pop(key, None)
         return d
 
     def protocols(self) -> list[type]:

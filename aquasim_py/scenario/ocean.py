@@ -20,6 +20,12 @@ slope_x = 0.03
 
 [environment.sediment]             # a preset (clay, silt, sand, gravel) or the three values
 name = "sand"
+
+[environment]                      # or the ocean from standard files, placed on the globe
+origin = [40.0, -70.0]             # latitude, longitude (deg) of x = y = 0; x east, y north (m)
+woa = ["woa23_decav_t08_04.nc", "woa23_decav_s08_04.nc"]   # World Ocean Atlas t_an / s_an
+gebco = "gebco_2024_n40.3_s39.8_w-70.3_e-69.7.nc"          # GEBCO elevation (or ETOPO z)
+month = 8                          # or season = "summer"; neither: the files' one period
 ```
 
 A scenario without these keys resolves exactly as before (the keys are left out of the resolved
@@ -40,16 +46,45 @@ from aquasim_py.scenario.ocean_schema import (
     SectionSSP,
 )
 
-__all__ = ["ARRIVAL_KEYS", "centre_profile", "make_environment", "range_dependent"]
+__all__ = ["ARRIVAL_KEYS", "centre_profile", "depth_profile", "local_frame", "make_environment", "range_dependent"]
 
 #: the ``[channel]`` keys of a range-dependent channel (aquasim_py.channel.arrival_links)
 ARRIVAL_KEYS = ("max_bounces", "detection_threshold_db", "direct_only")
 
 
 def range_dependent(sc: Any) -> bool:
-    """The scenario's environment has a section / grid sound speed or a bathymetry."""
+    """The scenario's environment has a section / grid / WOA sound speed or a bathymetry."""
     env = sc.environment
-    return isinstance(env.sound_speed, (SectionSSP, GridSSP)) or env.bathymetry is not None
+    return not depth_profile(sc) or env.bathymetry is not None or env.gebco is not None
+
+
+def depth_profile(sc: Any) -> bool:
+    """The scenario's sound speed is a depth profile (:func:`aquasim_py.scenario.build.make_ssp`):
+    not a section, a grid or the World Ocean Atlas."""
+    env = sc.environment
+    return not isinstance(env.sound_speed, (SectionSSP, GridSSP)) and env.woa is None
+
+
+def local_frame(sc: Any) -> Any:
+    """The :class:`~aquasim_py.channel.geographic.LocalFrame` of a scenario with an ``origin``, else None."""
+    if sc.environment.origin is None:
+        return None
+    from aquasim_py.channel.geographic import LocalFrame
+
+    return LocalFrame(*sc.environment.origin)
+
+
+def _files(sc: Any, key: str) -> tuple[Any, Any, Any]:
+    """The data path(s) of ``environment.<key>``, the local frame and the volume's footprint."""
+    names = getattr(sc.environment, key)
+    paths = [_data_path(sc, f"environment.{key}", n) for n in ([names] if isinstance(names, str) else names)]
+    frame = local_frame(sc)
+    vol = sc.environment.volume
+    try:
+        box = frame.footprint(vol.lo, vol.hi)
+    except ImportError as e:
+        raise ScenarioError(sc.path, "environment.origin", str(e)) from None
+    return paths, frame, box
 
 
 def _data_path(sc: Any, key: str, name: str) -> Any:
@@ -75,6 +110,14 @@ def _field(sc: Any, profile: Any) -> Any:
 
     spec = sc.environment.sound_speed
     key = "environment.sound_speed"
+    if sc.environment.woa is not None:
+        from aquasim_py.channel.oceanfiles import read_woa
+
+        paths, frame, box = _files(sc, "woa")
+        try:
+            return read_woa(paths, frame, month=sc.environment.month, season=sc.environment.season, box=box)
+        except (ValueError, KeyError, OSError, ImportError) as e:
+            raise ScenarioError(sc.path, "environment.woa", str(e)) from None
     try:
         if isinstance(spec, SectionSSP):
             return fields.RangeProfiles(
@@ -103,6 +146,14 @@ def _bathymetry(sc: Any) -> Any:
 
     spec = sc.environment.bathymetry
     key = "environment.bathymetry"
+    if sc.environment.gebco is not None:
+        from aquasim_py.channel.oceanfiles import read_gebco
+
+        paths, frame, box = _files(sc, "gebco")
+        try:
+            return read_gebco(paths[0], frame, box=box)
+        except (ValueError, KeyError, OSError, ImportError) as e:
+            raise ScenarioError(sc.path, "environment.gebco", str(e)) from None
     try:
         if spec is None:
             return None if sc.environment.bottom_m is None else b.Flat(sc.environment.bottom_m)

@@ -4,11 +4,12 @@ file format and the builder). A leaf module: :mod:`.schema` imports it.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
+    "OCEAN_KEYS",
     "PACKAGE_PREFIX",
     "BathymetrySpec",
     "FlatBathymetry",
@@ -16,8 +17,10 @@ __all__ = [
     "GridSSP",
     "PlaneBathymetry",
     "SeamountBathymetry",
+    "Season",
     "SectionSSP",
     "SedimentSpec",
+    "check_geographic",
 ]
 
 PosFloat = Annotated[float, Field(gt=0.0)]
@@ -125,3 +128,33 @@ class SedimentSpec(Strict):
         if self.name is not None and any(v is not None for v in vals):
             raise ValueError("give either name or the three values, not both")
         return self
+
+
+#: the ``[environment]`` keys of a range-dependent environment, left out of the resolved scenario when unset
+OCEAN_KEYS = ("bathymetry", "sediment", "origin", "woa", "gebco", "month", "season")
+
+Season = Literal["winter", "spring", "summer", "autumn"]
+
+
+def check_geographic(env: Any) -> None:
+    """The rules of ``origin``, ``woa``, ``gebco``, ``month`` and ``season`` in ``[environment]``
+    (ValueError naming the keys)."""
+    files = env.woa is not None or env.gebco is not None
+    if files and env.origin is None:
+        raise ValueError("woa and gebco need origin = [latitude, longitude] (deg) of x = y = 0")
+    if env.origin is not None:
+        if not files:
+            raise ValueError("origin places the files woa / gebco on the globe: give at least one of them")
+        lat, lon = env.origin
+        if not -90.0 < lat < 90.0:
+            raise ValueError(f"origin: latitude {lat} must lie strictly between -90 and 90 deg")
+        if not -360.0 <= lon <= 360.0:
+            raise ValueError(f"origin: longitude {lon} must lie in [-360, 360] deg")
+    if env.woa is not None and "sound_speed" in env.model_fields_set:
+        raise ValueError("give sound_speed or woa (the sound speed from the World Ocean Atlas), not both")
+    if env.gebco is not None and (env.bathymetry is not None or env.bottom_m is not None):
+        raise ValueError("give gebco (the floor from a GEBCO / ETOPO grid) or bathymetry / bottom_m, not both")
+    if env.month is not None and env.season is not None:
+        raise ValueError("give month or season, not both")
+    if (env.month is not None or env.season is not None) and env.woa is None:
+        raise ValueError("month and season choose the period of the woa files: give woa")

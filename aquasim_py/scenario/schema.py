@@ -12,12 +12,22 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_serializer, model_validator
 
-from aquasim_py.scenario.ocean_schema import BathymetrySpec, GridSSP, SectionSSP, SedimentSpec
+from aquasim_py.scenario.ocean_schema import (
+    OCEAN_KEYS,
+    BathymetrySpec,
+    GridSSP,
+    Season,
+    SectionSSP,
+    SedimentSpec,
+    check_geographic,
+)
 
 __all__ = [
+    "PHY_KEYS",
     "ROLES",
+    "BatterySpec",
     "ChannelSpec",
     "EnvironmentSpec",
     "MetricsSpec",
@@ -31,6 +41,27 @@ __all__ = [
 ]
 
 ROLES = ("buoy", "anchor", "ordinary", "target", "sink")
+
+#: the ``[channel]`` keys of the physical layer, presets and energy: left out of the resolved
+#: scenario unless set (Scenario.to_dict)
+PHY_KEYS = (
+    "modem",
+    "reception",
+    "modulation",
+    "modulation_order",
+    "coding_gain_db",
+    "per_table",
+    "per_table_bits",
+    "lock",
+    "per_combining",
+    "interference_floor_db",
+    "noise_band",
+    "overhead_s",
+    "tx_power_w",
+    "rx_power_w",
+    "idle_power_w",
+    "sleep_power_w",
+)
 
 PosFloat = Annotated[float, Field(gt=0.0)]
 NonNegFloat = Annotated[float, Field(ge=0.0)]
@@ -134,15 +165,33 @@ class EnvironmentSpec(Strict):
     # range-dependent environments (aquasim_py.scenario.ocean)
     bathymetry: BathymetrySpec | None = Field(None, description="sea-floor depth over (x, y); instead of bottom_m")
     sediment: SedimentSpec | None = Field(None, description="the bottom's sediment (default sand)")
+    # the ocean from standard files, placed on the globe (aquasim_py.scenario.ocean)
+    origin: Annotated[list[float], Field(min_length=2, max_length=2)] | None = Field(
+        None, description="[latitude, longitude] (deg) of x = y = 0; x east, y north (m)"
+    )
+    woa: str | Annotated[list[str], Field(min_length=1)] | None = Field(
+        None, description="World Ocean Atlas temperature and salinity netCDF file(s); instead of sound_speed"
+    )
+    gebco: str | None = Field(None, description="GEBCO (or ETOPO) bathymetry netCDF file; instead of bathymetry")
+    month: Annotated[int, Field(ge=1, le=12)] | None = Field(None, description="the WOA month (1-12)")
+    season: Season | None = Field(None, description="the WOA season (winter = Jan-Mar, ... autumn = Oct-Dec)")
 
     @model_serializer(mode="wrap")
     def _without_unset_ocean(self, handler: Any) -> Any:
         # a scenario without them resolves exactly as before they existed
         d = handler(self)
-        for key in ("bathymetry", "sediment"):
-            if isinstance(d, dict) and d.get(key) is None:
-                d.pop(key, None)
+        if isinstance(d, dict):
+            for key in OCEAN_KEYS:
+                if d.get(key) is None:
+                    d.pop(key, None)
+            if "woa" in d:  # the sound speed is the atlas's, not the (default) profile
+                d.pop("sound_speed", None)
         return d
+
+    @model_validator(mode="after")
+    def _geographic(self) -> EnvironmentSpec:
+        check_geographic(self)
+        return self
 
     @model_validator(mode="after")
     def _one_floor(self) -> EnvironmentSpec:
@@ -231,6 +280,61 @@ class ChannelSpec(Strict):
         False,
         description="analysis switch: receptions stamped on a reflected arrival are lost ('indirect'); not a modem",
     )
+    # the physical layer, modem presets and energy (docs/network.md); left out of the resolved
+    # scenario unless set (Scenario.to_dict), so a file without them resolves as before
+    modem: str | None = Field(
+        None,
+        description="a modem preset (aquasim-py modems): sets the keys it lists unless the file gives them",
+    )
+    reception: Literal["threshold", "sinr"] = Field(
+        "threshold",
+        description="threshold: SNR threshold + collision rule; sinr: SINR over the packet, modulation, PER draw",
+    )
+    modulation: Literal["bpsk", "qpsk", "bfsk", "mfsk", "table"] = Field(
+        "bfsk", description="bit errors under reception = sinr (bfsk / mfsk non-coherent, bpsk / qpsk coherent)"
+    )
+    modulation_order: Annotated[int, Field(ge=2)] = Field(2, description="M of mfsk (a power of 2)")
+    coding_gain_db: float = Field(0.0, description="coding gain on Eb/N0 (dB)")
+    per_table: list[Annotated[list[float], Field(min_length=2, max_length=2)]] | None = Field(
+        None, description="modulation = table: [[sinr_db, per], ...] in increasing SINR"
+    )
+    per_table_bits: PosInt = Field(256, description="packet length (bits) the PER table was measured on")
+    lock: Literal["first", "relock", "none"] = Field(
+        "first", description="acquisition under sinr: first (ns-3), relock (a later acquired signal takes over), none"
+    )
+    per_combining: Literal["pieces", "worst"] = Field(
+        "pieces", description="PER over the SINR pieces (pieces) or every bit at the worst piece (worst, ns-3)"
+    )
+    interference_floor_db: float = Field(
+        -20.0, description="under sinr, signals down to this SNR (dB) interfere though too weak to decode"
+    )
+    noise_band: Literal["carrier", "integrated"] | None = Field(
+        None, description="noise PSD flat at the carrier or integrated over the band; default integrated under sinr"
+    )
+    overhead_s: NonNegFloat = Field(0.0, description="preamble / header time added to each packet (s)")
+    tx_power_w: NonNegFloat | None = Field(None, description="modem power transmitting (W); all four: energy counted")
+    rx_power_w: NonNegFloat | None = Field(None, description="modem power receiving (W)")
+    idle_power_w: NonNegFloat | None = Field(None, description="modem power listening, idle (W)")
+    sleep_power_w: NonNegFloat | None = Field(None, description="modem power asleep (W)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _preset(cls, data: Any) -> Any:
+        """A known ``modem`` fills the keys its preset sets that the file does not give."""
+        from aquasim_py.channel.modem_presets import PRESETS
+
+        if isinstance(data, dict) and isinstance(data.get("modem"), str) and data["modem"] in PRESETS:
+            return {**PRESETS[data["modem"]].values(), **data}
+        return data
+
+    @field_validator("modem")
+    @classmethod
+    def _known_modem(cls, v: str | None) -> str | None:
+        from aquasim_py.channel.modem_presets import PRESETS
+
+        if v is not None and v not in PRESETS:
+            raise ValueError(f"unknown modem {v!r} (known: {', '.join(PRESETS)}; list them: aquasim-py modems)")
+        return v
 
 
 # --------------------------------------------------------------------------- [[nodes]]
@@ -255,7 +359,18 @@ class ExplicitPlacement(Strict):
     positions: Annotated[list[Vec3], Field(min_length=1)]
 
 
-PlacementSpec = Annotated[UniformPlacement | GridPlacement | ExplicitPlacement, Field(discriminator="kind")]
+class RingPlacement(Strict):
+    """``count`` nodes evenly spaced on a horizontal circle of ``radius_m`` around ``center``,
+    the first on the +x side (e.g. many nodes at one distance from a receiver)."""
+
+    kind: Literal["ring"]
+    center: Vec3 = Field(description="centre of the circle (m); the nodes are at its depth")
+    radius_m: PosFloat
+
+
+PlacementSpec = Annotated[
+    UniformPlacement | GridPlacement | ExplicitPlacement | RingPlacement, Field(discriminator="kind")
+]
 
 
 class MobilitySpec(BaseModel):
@@ -300,6 +415,13 @@ class SensorSpec(Strict):
     position_fix: bool | None = Field(None, description="knows its own position; default buoys and anchors only")
 
 
+class BatterySpec(Strict):
+    """A node's battery (aquasim_py.energy): the modem stops sending and receiving when the
+    energy it has drawn reaches the capacity."""
+
+    capacity_j: PosFloat = Field(description="energy available to the modem (J)")
+
+
 class NodeGroupSpec(Strict):
     name: str | None = Field(None, description="group name (default group<i>); keys its random streams")
     role: Literal["buoy", "anchor", "ordinary", "target", "sink"]
@@ -310,6 +432,26 @@ class NodeGroupSpec(Strict):
     sensors: SensorSpec = Field(default_factory=SensorSpec)
     protocol: str
     params: dict[str, Any] = Field(default_factory=dict, description="the protocol's parameters")
+    battery: BatterySpec | None = Field(None, description="each node's battery; none: unlimited")
+    mac: str | None = Field(
+        None,
+        description="the MAC of the group's nodes (aquasim_py.net.mac): direct, aloha, slotted_aloha, csma, "
+        "sfama, tdma; unset: direct, and no net.* metrics unless a protocol asks for them",
+    )
+    mac_params: dict[str, Any] = Field(default_factory=dict, description="the MAC's parameters")
+
+    @model_serializer(mode="wrap")
+    def _without_unset_keys(self, handler: Any) -> Any:
+        # a group without a battery or a MAC resolves exactly as before they existed
+        d = handler(self)
+        if isinstance(d, dict):
+            if d.get("battery") is None:
+                d.pop("battery", None)
+            if d.get("mac") is None:
+                d.pop("mac", None)
+                if not d.get("mac_params"):
+                    d.pop("mac_params", None)
+        return d
 
 
 # --------------------------------------------------------------------------- the rest

@@ -26,9 +26,16 @@ import numpy as np
 from pydantic import BaseModel, ValidationError
 
 from aquasim_py import registry
-from aquasim_py.scenario.build import make_ssp, mobility_class, warn_deprecated_mobility
+from aquasim_py.errors import ScenarioWarning
+from aquasim_py.scenario.build import make_ssp, mobility_class, placement_positions, warn_deprecated_mobility
 from aquasim_py.scenario.errors import ScenarioError, format_key_path, raise_validation, show
-from aquasim_py.scenario.schema import ExplicitPlacement, GridPlacement, NodeGroupSpec, UniformPlacement
+from aquasim_py.scenario.schema import (
+    ExplicitPlacement,
+    GridPlacement,
+    NodeGroupSpec,
+    RingPlacement,
+    UniformPlacement,
+)
 
 if TYPE_CHECKING:
     from aquasim_py.scenario.model import Scenario
@@ -60,11 +67,8 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "gradient_per_s": (-1.0, 1.0, "ocean gradients are below 1 (m/s)/m"),
     "skew_ppm": (-1000.0, 1000.0, "modem clocks drift by tens of ppm"),
     "node_speed_mps": (0.0, 20.0, "vehicles and currents stay below 20 m/s"),
+    "modem_power_w": (0.0, 500.0, "acoustic modems draw at most a few hundred W"),
 }
-
-
-class ScenarioWarning(UserWarning):
-    """An implausible but legal scenario value; the CLI prints it as one ``warning:`` line."""
 
 
 def _plausible(file: Path | None, key: str, value: float, what: str) -> None:
@@ -121,6 +125,10 @@ def check(sc: Scenario, file: Path | None) -> None:
         if isinstance(p, ExplicitPlacement):
             for j, q in enumerate(p.positions):
                 _inside(q, lo, hi, file, f"nodes[{i}].placement.positions[{j}]")
+        elif isinstance(p, RingPlacement):
+            ring = placement_positions(g, vol.lo, vol.hi, np.random.default_rng(0))  # (no random draw)
+            for j, q in enumerate(ring):
+                _inside(q, lo, hi, file, f"nodes[{i}].placement (node {j} of the ring)")
         elif isinstance(p, (UniformPlacement, GridPlacement)):
             for side in ("lo", "hi"):
                 q = getattr(p, side)
@@ -133,9 +141,61 @@ def check(sc: Scenario, file: Path | None) -> None:
                     file, f"nodes[{i}].placement", f"lo {plo.tolist()} is above hi {phi.tolist()} on some axis"
                 )
         _check_protocol(g, i, file)
+        _check_mac(g, i, file)
         _check_mobility(g, i, file, c_min)
         _check_clock(g, i, file)
+    _check_channel(sc, file)
     _check_network(sc, file)
+
+
+#: the modem's power by state: all four, or none (energy not counted)
+POWER_KEYS = ("tx_power_w", "rx_power_w", "idle_power_w", "sleep_power_w")
+
+
+def _check_channel(sc: Scenario, file: Path | None) -> None:
+    """The physical layer's and energy's keys across ``[channel]`` and the node groups."""
+    from aquasim_py.channel.phy import PerTable
+
+    c = sc.channel
+    given = [k for k in POWER_KEYS if getattr(c, k) is not None]
+    if given and len(given) < len(POWER_KEYS):
+        missing = next(k for k in POWER_KEYS if k not in given)
+        raise ScenarioError(
+            file,
+            f"channel.{missing}",
+            f"missing: give all four of {', '.join(POWER_KEYS)} (or a modem preset), or none",
+        )
+    for k in given:
+        _plausible(file, f"channel.{k}", float(getattr(c, k)), "modem_power_w")
+    for i, g in enumerate(sc.nodes):
+        if g.battery is not None and not given:
+            raise ScenarioError(
+                file,
+                f"nodes[{i}].battery",
+                'a battery needs the modem\'s power: set [channel] modem = "NAME" (aquasim-py modems) or its '
+                + ", ".join(POWER_KEYS),
+            )
+    if c.reception == "sinr" and c.loss_model == "none":
+        raise ScenarioError(file, "channel.reception", "'sinr' needs the SNR loss model (loss_model = 'default')")
+    if c.modulation == "table":
+        if c.per_table is None:
+            raise ScenarioError(
+                file, "channel.per_table", "modulation = 'table' needs per_table = [[sinr_db, per], ...]"
+            )
+        try:
+            PerTable(tuple((p[0], p[1]) for p in c.per_table), c.per_table_bits)
+        except ValueError as e:
+            raise ScenarioError(file, "channel.per_table", str(e)) from None
+    if c.modulation == "mfsk" and c.modulation_order & (c.modulation_order - 1):
+        raise ScenarioError(file, "channel.modulation_order", f"M-ary FSK needs a power of 2, got {c.modulation_order}")
+    integrated = c.noise_band == "integrated" or (c.noise_band is None and c.reception == "sinr")
+    if integrated and not c.bandwidth_khz < 2.0 * c.frequency_khz:
+        raise ScenarioError(
+            file,
+            "channel.bandwidth_khz",
+            f"{c.bandwidth_khz:g} kHz around {c.frequency_khz:g} kHz reaches below 0 Hz: the noise cannot be "
+            "integrated over it",
+        )
 
 
 def _check_count(g: NodeGroupSpec, i: int, file: Path | None) -> None:
@@ -148,7 +208,7 @@ def _check_count(g: NodeGroupSpec, i: int, file: Path | None) -> None:
         _limit(file, f"nodes[{i}].placement.shape", "nodes", implied, "nodes")
     if implied is None:
         if g.count is None:
-            raise ScenarioError(file, f"nodes[{i}].count", "required key missing (a uniform placement needs a count)")
+            raise ScenarioError(file, f"nodes[{i}].count", f"required key missing (a {p.kind} placement needs a count)")
     elif g.count is None:
         g.count = implied
     elif g.count != implied:
@@ -190,10 +250,33 @@ def _check_protocol(g: NodeGroupSpec, i: int, file: Path | None) -> None:
         cls = registry.get(g.protocol, base=file.parent if file is not None else None)
     except registry.UnknownProtocolError as e:
         raise ScenarioError(file, f"nodes[{i}].protocol", e.message) from None
-    _check_finite(g.params, ["nodes", i, "params"], file)
     Params: type[BaseModel] = cls.Params  # type: ignore[attr-defined]  # every registered Node has one
+    # the resolved scenario carries every parameter, defaults included
+    g.params = _checked_params(g.params, Params, i, "params", f"protocol {g.protocol!r}", file)
+
+
+def _check_mac(g: NodeGroupSpec, i: int, file: Path | None) -> None:
+    """The group's MAC by name, and its parameters against its ``Params``."""
+    from aquasim_py.net import mac
+
+    name = g.mac if g.mac is not None else "direct"
+    try:
+        cls = mac.get(name)
+    except mac.UnknownMacError as e:
+        raise ScenarioError(file, f"nodes[{i}].mac", str(e)) from None
+    params = _checked_params(g.mac_params, cls.Params, i, "mac_params", f"MAC {name!r}", file)
+    if g.mac is not None:  # (unset: direct, which takes none; the group resolves as before)
+        g.mac_params = params
+
+
+def _checked_params(
+    raw: dict[str, Any], Params: type[BaseModel], i: int, key: str, owner: str, file: Path | None
+) -> dict[str, Any]:
+    """``nodes[i].<key>`` validated by ``Params`` (unknown names with a hint, NaN, types: one
+    line naming the key), as a dict with every parameter, defaults included."""
+    _check_finite(raw, ["nodes", i, key], file)
     fields = set(Params.model_fields)
-    for k in g.params:
+    for k in raw:
         if k not in fields:
             near = difflib.get_close_matches(k, sorted(fields), n=1)
             hint = (
@@ -201,14 +284,13 @@ def _check_protocol(g: NodeGroupSpec, i: int, file: Path | None) -> None:
                 if near
                 else (f" (allowed: {', '.join(sorted(fields))})" if fields else " (it takes none)")
             )
-            raise ScenarioError(file, f"nodes[{i}].params.{k}", f"unknown parameter of protocol {g.protocol!r}{hint}")
+            raise ScenarioError(file, f"nodes[{i}].{key}.{k}", f"unknown parameter of {owner}{hint}")
     try:
         # strict: a quoted number is not a number (no silent conversion, as for the file itself)
-        validated = Params.model_validate(g.params, strict=True)
+        validated = Params.model_validate(raw, strict=True)
     except ValidationError as e:
-        raise_validation(e, g.params, file, prefix=("nodes", i, "params"), model=Params)
-    # the resolved scenario carries every parameter, defaults included
-    g.params = validated.model_dump(mode="json")
+        raise_validation(e, raw, file, prefix=("nodes", i, key), model=Params)
+    return validated.model_dump(mode="json")
 
 
 def _check_mobility(g: NodeGroupSpec, i: int, file: Path | None, c_min: float = math.inf) -> None:

@@ -47,12 +47,10 @@ SCHEMAS: dict[str, tuple[tuple[str, str], ...]] = {
         ("error", "f"),
         ("confidence", "f"),
         ("is_reference", "o"),
-        # added after the DESIGN.md columns (issue 35): horizontal / vertical error, and the
-        # bound of the geometry a node declared (log_estimate(refs=...)), NaN where it did not
+        # after the DESIGN.md columns: horizontal / vertical error (the bound of the geometry
+        # a node declared is computed after the run: aquasim_py.estimate_bounds, bounds table)
         ("error_h", "f"),
         ("error_v", "f"),
-        ("crb_h_m", "f"),
-        ("gdop", "f"),
     ),
     "clocks": (
         ("time", "f"),

@@ -78,6 +78,13 @@ class PeriodicBeaconNode(Node):
     # default of 4096 each of Table 1's 40 anchors would hold its last 4096 receptions, about
     # 100 MiB at the end of a 500-s run. 256 keeps every period's beacons.
     inbox_capacity = 256
+
+    @classmethod
+    def measurement_noise(cls, params: BaseModel) -> tuple[float, float]:
+        """The family's ToA error: each of its nodes draws ``noise_ratio`` x delay onto the
+        delays it measures (STVF, SLMP and their baselines), a range std relative to the range."""
+        return 0.0, float(getattr(params, "noise_ratio", 0.0))
+
     #: take the inbox at once and localize in turn (_Turns) instead of one recv() event per
     #: reception; False keeps the per-reception loop (the same traces, a test compares them)
     drain_inbox = True

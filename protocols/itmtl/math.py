@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.optimize import least_squares
 
 from aquasim_py.channel import straight_line_time, travel_time, travel_time_gradient
 from aquasim_py.channel.ssp import SoundSpeedProfile
@@ -148,6 +147,8 @@ def position_fix(
     eigenray time (Ramezani et al.'s GNA on the ToF equations). ``weights`` (one per
     reference, e.g. inverse variances) make it a weighted least squares.
     """
+    from scipy.optimize import least_squares
+
     ref = np.asarray(ref_pos, dtype=float).reshape(-1, 3)
     tau = np.asarray(tau, dtype=float).reshape(-1)
     p0 = np.asarray(p0, dtype=float).reshape(3).copy()

@@ -127,7 +127,8 @@ class ReqResNode(Node):
         "packets",
         "reqres_rounds",
         "reqres_replies",
-    )  # what metrics / derived_tables / report / paper_comparison read
+        "positions",
+    )  # what metrics / derived_tables / report / paper_comparison / the bounds read
     Params = ReqResParams
 
     # -- state ----------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ receive stamp of the fresh ranges it used, carried to the log and beacon instant
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 from pydantic import Field
@@ -40,37 +40,24 @@ from aquasim_py.estimation.variational import project_delay
 from aquasim_py.node import Role
 from aquasim_py.registry import register
 
-from ..common.periodic import PeriodicBeaconNode, PeriodicParams
+from ..common.periodic import PeriodicBeaconNode
 from ..stvf.metrics import localization_metrics
 from .math import MobilityPredictor, in_range, slmp_confidence
+from .node import SlmpSharedParams
 
 __all__ = ["MultilaterationAllRefsNode", "MultilaterationAllRefsParams"]
 
 KIND = "mlat_all_beacon"
 
 
-class MultilaterationAllRefsParams(PeriodicParams):
-    """Parameters of ``multilateration_all_refs`` (SLMP's STVF Sec. 5.3 defaults where shared)."""
+class MultilaterationAllRefsParams(SlmpSharedParams):
+    """Parameters of ``multilateration_all_refs``: SLMP's (:class:`~.node.SlmpSharedParams`),
+    and how stale references and self-estimates are used."""
 
-    training_s: float = Field(100.0, ge=0, description="beacon training before unknown nodes localize (s)")
-    window_s: float = Field(60.0, gt=0, description="prediction window (s)")
-    overlap: float = Field(0.2, ge=0, lt=1, description="overlap of neighbouring windows (fraction)")
-    order: int = Field(15, ge=1, description="prediction step: order of the linear predictor")
-    range_m: float = Field(80.0, gt=0, description="communication range (m), for the error threshold")
-    error_ratio: float = Field(0.05, gt=0, description="prediction error threshold / range")
     validity_s: float = Field(60.0, ge=0, description="how long a reference's beacon stays usable (s)")
-    delta: float = Field(0.9, ge=0, le=1, description="confidence threshold for references")
-    min_refs: int = Field(3, ge=3, description="references needed for multilateration (2-D)")
     self_min_refs: int = Field(2, ge=0, description="references in view needed to self-estimate")
-    speed_mps: float = Field(1500.0, gt=0, description="nominal sound speed (m/s)")
-    noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay")
     max_speed_mps: float | None = Field(
         2.0, gt=0, description="cap on the predicted velocity (m/s): the kinematic current's speed bound; null = none"
-    )
-    estimate_epoch: Literal["measurement", "listen_end"] = Field(
-        "measurement",
-        description="a fix is the position at the mean receive stamp of its fresh ranges (measurement) "
-        "or at the end of the listening window (listen_end: the former stamp)",
     )
 
 

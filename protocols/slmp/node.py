@@ -50,13 +50,15 @@ from ..stvf.genie import crb_metrics
 from ..stvf.metrics import localization_metrics
 from .math import MobilityPredictor, in_range, prediction_residual, slmp_confidence
 
-__all__ = ["SlmpNode", "SlmpParams"]
+__all__ = ["SlmpNode", "SlmpParams", "SlmpSharedParams"]
 
 KIND = "slmp_beacon"
 
 
-class SlmpParams(PeriodicParams):
-    """SLMP parameters (STVF Sec. 5.3 defaults; SLMP's own where STVF is silent)."""
+class SlmpSharedParams(PeriodicParams):
+    """What SLMP and ``multilateration_all_refs`` share (STVF Sec. 5.3 defaults; SLMP's own
+    where STVF is silent): the anchors' training, the mobility predictor and its threshold,
+    references and their confidence, the ranging model, the epoch of a fix."""
 
     training_s: float = Field(100.0, ge=0, description="anchor training before ordinary nodes localize (s)")
     window_s: float = Field(60.0, gt=0, description="prediction window (s)")
@@ -70,9 +72,13 @@ class SlmpParams(PeriodicParams):
     noise_ratio: float = Field(0.02, ge=0, description="ranging error std / delay")
     estimate_epoch: Literal["measurement", "listen_end"] = Field(
         "measurement",
-        description="a fix is the position at the mean receive stamp of its ranges (measurement) "
-        "or at the end of the listening window (listen_end: the former stamp)",
+        description="a fix is the position at the mean receive stamp of the ranges heard this period "
+        "(measurement) or at the end of the listening window (listen_end: the former stamp)",
     )
+
+
+class SlmpParams(SlmpSharedParams):
+    """SLMP parameters: the shared ones (:class:`SlmpSharedParams`), no others."""
 
 
 @register

@@ -25,8 +25,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import linalg
-from scipy.optimize import least_squares
 
 from aquasim_py.estimation.errors import DegenerateGeometryError
 from aquasim_py.estimation.lsq import multilaterate
@@ -239,6 +237,7 @@ def lssvr_fit(X: ArrayLike, Y: ArrayLike, *, c: float, width: float) -> LssvrMod
     alpha = nu - eta b; one Cholesky factorization (scipy.linalg.cho_factor), on one BLAS
     thread (BLAS threads contend badly on shared machines for matrices this small).
     """
+    from scipy import linalg
     from threadpoolctl import threadpool_limits
 
     X = np.asarray(X, float)
@@ -396,6 +395,8 @@ def _regional_solution(S: Array, R: Array, lo: Array, hi: Array) -> Array:
     """A subnetwork's local estimate: the range least-squares fix constrained to the monitored
     region [lo, hi] (always exists: the "regional optimal solution" that avoids the
     no-solution case), started from the linear multilateration fix clipped to the region."""
+    from scipy.optimize import least_squares
+
     try:
         x0 = multilaterate(S, R) if S.shape[0] >= 4 else S.mean(axis=0)
     except (DegenerateGeometryError, ValueError, np.linalg.LinAlgError):

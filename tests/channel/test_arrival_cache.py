@@ -168,6 +168,7 @@ def test_bad_ids() -> None:
         cache.get([1, 1], [[0, 0, 10]] * 2, [[100, 0, 10]] * 2)
 
 
+@pytest.mark.exact
 def test_follow_tier_matches_the_exact_search() -> None:
     """The following tier (no Taylor tier): both ends moved by up to 0.8 m (inside follow_m =
     1 m) are served by following the last search's eigenrays; every followed link's arrivals

@@ -20,11 +20,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_range_independent_runs_do_not_import_the_ocean_extras() -> None:
-    """A shipped range-independent scenario runs without importing gsw, xarray or pelagic."""
+    """A shipped range-independent scenario runs without importing gsw, xarray, pyproj, h5netcdf or pelagic."""
     code = (
         "import sys, aquasim_py\n"
         f"aquasim_py.run_scenario({str(ROOT / 'scenarios' / 'beacon.toml')!r}, out=None)\n"
-        "print(sorted(m for m in ('gsw', 'xarray', 'pelagic') if m in sys.modules))\n"
+        "print(sorted(m for m in ('gsw', 'xarray', 'pyproj', 'h5netcdf', 'pelagic') if m in sys.modules))\n"
     )
     r = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert r.returncode == 0, r.stderr

@@ -307,6 +307,7 @@ def test_no_direct_path_surface_and_bottom() -> None:
     assert np.isfinite(iso.travel_time(b, 0.1, [0, 0, 0.0], [1000, 0, 0.0]))
 
 
+@pytest.mark.exact
 def test_broadcasting_and_array_parameters() -> None:
     rng = np.random.default_rng(2)
     src = np.array([0.0, 0.0, 100.0])

@@ -393,6 +393,7 @@ def test_bad_reflections_option() -> None:
 # ---------------------------------------------------------------- the compiled family evaluations
 
 
+@pytest.mark.exact
 @settings(max_examples=40)
 @given(seed=st.integers(0, 2**32 - 1), layers=st.one_of(st.integers(1, 12), st.integers(129, 140)))
 def test_compiled_ranges_equal_numpy(seed: int, layers: int) -> None:

@@ -67,6 +67,7 @@ def test_every_profile_gives_arrivals(name: str) -> None:
     assert np.array_equal(reasons != "", none)
 
 
+@pytest.mark.exact
 def test_dispatch_targets() -> None:
     src, dst = pairs(500, seed=2)
     iso = PROFILES["isogradient"]

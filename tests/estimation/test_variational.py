@@ -276,6 +276,7 @@ def test_localization_confidence_hand_computed():
     assert vf.localization_confidence(eta_refs, pos, refs, exact, v) == pytest.approx(0.95)
 
 
+@pytest.mark.exact
 def test_localization_confidence_has_the_bits_of_the_numpy_form():
     """The per-localization fast path (np.add.reduce, no clip inside (0, 1)) against the
     plain numpy form it replaced: the same float, bit for bit, clipped or not."""

@@ -71,6 +71,10 @@ CASES: dict[str, tuple[str, list[str]]] = {
         ],
     ),
     "genie_multilateration": ("stvf_quick.toml#genie_multilateration", ["simulation.duration_s=22.0"]),
+    "traffic": (
+        "mac_compare.toml#csma",
+        ["simulation.duration_s=100.0", "nodes.1.count=20", 'trace.tables=["nodes", "packets"]'],
+    ),
     "multilateration_all_refs": (
         "stvf_quick.toml",
         [
@@ -182,6 +186,8 @@ def test_protocol_contract(name: str, tmp_path: Path) -> None:
             assert cols <= set(df.columns), f"{path.name} lacks {sorted(cols - set(df.columns))}"
         if "protocol" in df.columns and path.stem != "nodes":
             own_rows += int((df["protocol"] == name).sum())
+        elif path.stem == "packets" and getattr(registry.get(name), "net_metrics", False):
+            own_rows += int(df["event"].isin(["offer", "tx"]).sum())  # its output is its frames
     assert own_rows, f"{name} logged nothing in its tiny run"
 
 

@@ -194,6 +194,7 @@ def _estimates(monkeypatch, batch: bool, listen_s: float) -> tuple[pd.DataFrame,
     return _run(sets)["estimates"], sizes
 
 
+@pytest.mark.exact
 def test_batched_updates_give_the_inline_trace(monkeypatch):
     inline, inline_sizes = _estimates(monkeypatch, batch=False, listen_s=0.9)
     batched, sizes = _estimates(monkeypatch, batch=True, listen_s=0.9)
@@ -205,6 +206,7 @@ def test_batched_updates_give_the_inline_trace(monkeypatch):
     assert sum(sizes) == len(inline) and max(sizes) > 30
 
 
+@pytest.mark.exact
 def test_no_batch_when_the_next_period_starts_at_the_localization_instant(monkeypatch):
     """listen_s = period_s: a node localizes at the instant its next period starts, when it
     reads its own confidence for its beacon; deferring the update to the end of the instant

@@ -37,6 +37,7 @@ def test_every_frame_is_estimated_by_every_algorithm():
     assert m["svlpf.frames"] == 5 and np.isfinite(m["svlpf.accumulated_error_m"])
 
 
+@pytest.mark.exact
 def test_an_estimator_alone_gives_what_it_gives_beside_others():
     beside, m = _run("scenarios/svlpf.toml", 'nodes.0.params.algorithm="consensus"', 'nodes.0.params.also=["toa_pf"]')
     alone, m2 = _run("scenarios/svlpf.toml", 'nodes.0.params.algorithm="toa_pf"')

@@ -12,6 +12,7 @@ import pandas as pd
 from test_contract import CASES, SCENARIOS  # tests/protocols, beside this file
 
 from aquasim_py import scenario
+from aquasim_py.estimate_bounds import applied_range_noise, estimate_bounds
 from aquasim_py.trace import SCHEMAS
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "traces.md"
@@ -20,7 +21,9 @@ RANGE_DEPENDENT = "range-dependent environment only"
 #: cases beyond the contract's, for columns its tiny runs do not reach
 EXTRA_CASES = {"ramezani#tracking": ("ramezani_tracking.toml", ["simulation.duration_s=60.0"])}
 #: documented tables that no run here writes, and why
-RARE_TABLES = {"ramezani_failures": "written only when a frame's estimation fails"}
+RARE_TABLES = {
+    "ramezani_failures": "written only when a frame's estimation fails",
+}
 KERNEL_TABLES = ("packets", "positions", "estimates", "clocks", "nodes")
 
 
@@ -61,7 +64,12 @@ def _written() -> dict[str, dict[str, set[str]]]:
             sc = scenario.resolve(sc, variant=variant)
         sim = scenario.build(sc)
         sim.run(until=sc.simulation.duration_s)
-        for table, df in sim.trace.frames().items():
+        frames = sim.trace.frames()
+        # the table the runner computes from the traces after a run (aquasim_py.estimate_bounds)
+        bounds = estimate_bounds(frames, applied_range_noise(sc))
+        if bounds is not None:
+            frames["bounds"] = bounds
+        for table, df in frames.items():
             if not len(df.columns):
                 continue
             protos = pd.unique(df["protocol"].astype(str)) if "protocol" in df.columns else [""]

@@ -4,6 +4,12 @@
   Atlantic Bight (temperature, salinity, bathymetry on an across-shelf section), made by
   ``tools/make_shelfbreak_sample.py`` from published climatological values (its docstring cites
   them). Read it with :func:`shelfbreak` or in a scenario as ``file = "package:shelfbreak"``.
+* ``woa23_t08``, ``woa23_s08``, ``gebco``: synthetic files in the formats of the World Ocean
+  Atlas 2023 (August temperature and salinity, 1/4 degree) and of a GEBCO grid subset (15 arc
+  seconds) over a continental slope near 40 N, 70 W, made by ``tools/make_geographic_sample.py``
+  (its docstring says what they hold; no WOA or GEBCO data is shipped). In a scenario:
+  ``woa = ["package:woa23_t08", "package:woa23_s08"]``, ``gebco = "package:gebco"``,
+  ``origin = [40.0, -70.0]``.
 """
 
 from __future__ import annotations
@@ -14,7 +20,12 @@ from typing import Any
 
 __all__ = ["SAMPLES", "sample_path", "shelfbreak"]
 
-SAMPLES = {"shelfbreak": "shelfbreak.nc"}
+SAMPLES = {
+    "shelfbreak": "shelfbreak.nc",
+    "woa23_t08": "woa23_sample_t08.nc",
+    "woa23_s08": "woa23_sample_s08.nc",
+    "gebco": "gebco_sample.nc",
+}
 
 
 def sample_path(name: str) -> Path:
