@@ -58,6 +58,70 @@ def line_crossings(grid: FloatArray, start: FloatArray, step: FloatArray, length
     return np.where(np.isfinite(r), r, np.nan)
 
 
+def hermite_weights(axis: FloatArray, q: FloatArray) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """Node indices (n, 4) into the ghost-padded axis (:func:`ghost_padded`), the interpolation
+    weights (n, 4) and their derivatives by q (n, 4) at the points q (clamped to the axis: beyond
+    it the caller zeroes the slope along that axis): the cubic Hermite polynomial of each interval
+    with the slopes at its nodes of the parabola through them and their neighbours (Catmull-Rom
+    on a uniform axis; exact for quadratics on any). ``axis``: at least 2 increasing values."""
+    q = np.clip(q, axis[0], axis[-1])
+    ax = np.concatenate([[2 * axis[0] - axis[1]], axis, [2 * axis[-1] - axis[-2]]])
+    i = np.clip(np.searchsorted(axis, q, side="right") - 1, 0, axis.size - 2) + 1  # padded
+    hp, hc, hn = ax[i] - ax[i - 1], ax[i + 1] - ax[i], ax[i + 2] - ax[i + 1]
+    u = (q - ax[i]) / hc
+    u2, u3 = u * u, u * u * u
+    # node slopes as weights of the four values: m_i = a . f[i-1 .. i+1], m_i+1 = b . f[i .. i+2]
+    am1, ap1 = -hc / (hp * (hp + hc)), hp / (hc * (hp + hc))
+    b0, b2 = -hn / (hc * (hc + hn)), hc / (hn * (hc + hn))
+    h00, h10, h01, h11 = 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2
+    d00, d10, d01, d11 = 6 * u2 - 6 * u, 3 * u2 - 4 * u + 1, -6 * u2 + 6 * u, 3 * u2 - 2 * u
+
+    def combine(c00, c10, c01, c11, scale):
+        return (
+            np.stack(
+                [
+                    c10 * hc * am1,
+                    c00 - c10 * hc * (am1 + ap1) + c11 * hc * b0,
+                    c01 + c10 * hc * ap1 - c11 * hc * (b0 + b2),
+                    c11 * hc * b2,
+                ],
+                axis=-1,
+            )
+            * scale[:, None]
+        )
+
+    w = combine(h00, h10, h01, h11, np.ones_like(hc))
+    dw = combine(d00, d10, d01, d11, 1.0 / hc)
+    return (i - 1)[:, None] + np.arange(4)[None, :], w, dw
+
+
+def ghost_padded(values: FloatArray) -> FloatArray:
+    """Grid values (m, n) with one ghost node beyond each edge, continuing the edge's slope."""
+    d = values
+    d = np.concatenate([2 * d[:1] - d[1:2], d, 2 * d[-1:] - d[-2:-1]], axis=0)
+    return np.concatenate([2 * d[:, :1] - d[:, 1:2], d, 2 * d[:, -1:] - d[:, -2:-1]], axis=1)
+
+
+def bicubic(
+    axis0: FloatArray, axis1: FloatArray, padded: FloatArray, q0: ArrayLike, q1: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(value, d value / d q0, d value / d q1) at (q0, q1), broadcast: the tensor product of
+    :func:`hermite_weights` on the grid ``axis0`` x ``axis1`` (``padded``: its values through
+    :func:`ghost_padded`), the edge values beyond the grid with no slope across its edge."""
+    aa, bb = np.broadcast_arrays(np.asarray(q0, float), np.asarray(q1, float))
+    shape = aa.shape
+    af, bf = aa.ravel(), bb.ravel()
+    i0, w0, dw0 = hermite_weights(axis0, af)
+    i1, w1, dw1 = hermite_weights(axis1, bf)
+    patch = padded[i0[:, :, None], i1[:, None, :]]  # (n, 4, 4)
+    v = np.einsum("ni,nik,nk->n", w0, patch, w1)
+    g0 = np.einsum("ni,nik,nk->n", dw0, patch, w1)
+    g1 = np.einsum("ni,nik,nk->n", w0, patch, dw1)
+    g0 = np.where((af < axis0[0]) | (af > axis0[-1]), 0.0, g0)
+    g1 = np.where((bf < axis1[0]) | (bf > axis1[-1]), 0.0, g1)
+    return v.reshape(shape), g0.reshape(shape), g1.reshape(shape)
+
+
 class Bathymetry:
     """Base class: sea-floor depth (m, positive down) over the horizontal plane."""
 
@@ -316,64 +380,9 @@ class GriddedBathymetry(Bathymetry):
                 d = np.maximum(-d, 0.0)
             return cls(np.asarray(ds[x].values, float), np.asarray(ds[y].values, float), d)
 
-    @staticmethod
-    def _weights(axis: FloatArray, q: FloatArray) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
-        """Node indices (n, 4) into the ghost-padded axis, the interpolation weights (n, 4) and
-        their derivatives by q (n, 4) at the points q (clamped to the axis: beyond it the caller
-        zeroes the slope along that axis): the cubic Hermite polynomial of each interval with
-        the slopes at its nodes of the parabola through them and their neighbours (Catmull-Rom
-        on a uniform axis; exact for quadratics on any)."""
-        q = np.clip(q, axis[0], axis[-1])
-        ax = np.concatenate([[2 * axis[0] - axis[1]], axis, [2 * axis[-1] - axis[-2]]])
-        i = np.clip(np.searchsorted(axis, q, side="right") - 1, 0, axis.size - 2) + 1  # padded
-        hp, hc, hn = ax[i] - ax[i - 1], ax[i + 1] - ax[i], ax[i + 2] - ax[i + 1]
-        u = (q - ax[i]) / hc
-        u2, u3 = u * u, u * u * u
-        # node slopes as weights of the four values: m_i = a . f[i-1 .. i+1], m_i+1 = b . f[i .. i+2]
-        am1, ap1 = -hc / (hp * (hp + hc)), hp / (hc * (hp + hc))
-        b0, b2 = -hn / (hc * (hc + hn)), hc / (hn * (hc + hn))
-        h00, h10, h01, h11 = 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2
-        d00, d10, d01, d11 = 6 * u2 - 6 * u, 3 * u2 - 4 * u + 1, -6 * u2 + 6 * u, 3 * u2 - 2 * u
-
-        def combine(c00, c10, c01, c11, scale):
-            return (
-                np.stack(
-                    [
-                        c10 * hc * am1,
-                        c00 - c10 * hc * (am1 + ap1) + c11 * hc * b0,
-                        c01 + c10 * hc * ap1 - c11 * hc * (b0 + b2),
-                        c11 * hc * b2,
-                    ],
-                    axis=-1,
-                )
-                * scale[:, None]
-            )
-
-        w = combine(h00, h10, h01, h11, np.ones_like(hc))
-        dw = combine(d00, d10, d01, d11, 1.0 / hc)
-        return (i - 1)[:, None] + np.arange(4)[None, :], w, dw
-
-    def _padded(self) -> FloatArray:
-        """The depths with one ghost node beyond each edge, continuing the edge's slope."""
-        d = self.depths
-        d = np.concatenate([2 * d[:1] - d[1:2], d, 2 * d[-1:] - d[-2:-1]], axis=0)
-        return np.concatenate([2 * d[:, :1] - d[:, 1:2], d, 2 * d[:, -1:] - d[:, -2:-1]], axis=1)
-
     def _eval(self, x: ArrayLike, y: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(depth, d depth / dx, d depth / dy) at (x, y), broadcast."""
-        xx, yy = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        shape = xx.shape
-        xf, yf = xx.ravel(), yy.ravel()
-        ix, wx, dwx = self._weights(self.x, xf)
-        iy, wy, dwy = self._weights(self.y, yf)
-        patch = self._padded()[ix[:, :, None], iy[:, None, :]]  # (n, 4, 4)
-        d = np.einsum("ni,nik,nk->n", wx, patch, wy)
-        gx = np.einsum("ni,nik,nk->n", dwx, patch, wy)
-        gy = np.einsum("ni,nik,nk->n", wx, patch, dwy)
-        out = (xf < self.x[0]) | (xf > self.x[-1])
-        gx = np.where(out, 0.0, gx)
-        gy = np.where((yf < self.y[0]) | (yf > self.y[-1]), 0.0, gy)
-        return d.reshape(shape), gx.reshape(shape), gy.reshape(shape)
+        return bicubic(self.x, self.y, ghost_padded(self.depths), x, y)
 
     def depth(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         return self._eval(x, y)[0]
