@@ -79,6 +79,21 @@ def test_narrow_family_on_a_seamount_flank_is_found() -> None:
         assert near.any(), (code, guess_deg)
 
 
+@pytest.mark.parametrize("name", ["seamount", "ridge", "canyon"])
+def test_no_eigenray_missed_on_one_link(name: str) -> None:
+    """The acceptance's check on one 7 km link per case, with the tracer's fan at 3e-4 rad
+    (edges and folds still bisected / sought): every eigenray it finds at least 1e-3 deg from
+    its family's edge is ours, within the delay tolerance, and none of ours is extra. The slow
+    test below runs 12 links per case at 1e-4 rad."""
+    case = CASES[name]
+    src, dst = cc.links(case, 1, seed=7)[0]
+    cmp = cc.compare(case, src, dst, dth=3e-4)
+    assert len(cmp.reference) >= 10
+    assert not cmp.missed_far, [(e.code, math.degrees(e.launch)) for e in cmp.missed_far]
+    assert cmp.worst_ratio <= 1.0
+    assert not cmp.extra
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["seamount", "ridge", "canyon"])
 def test_no_eigenray_missed_against_the_tracer(name: str) -> None:
