@@ -8,20 +8,27 @@ the floor at most; every ordered pair is a link (9 900), arrivals up to ``--max-
 Timed, after a warm-up (numba compilation) on other links:
 
 1. ``solve``: every link solved once by the exact search (aquasim_py.channel.arrivals);
-2. ``cache``: filled once (every link searched and expanded), then for each of ``--speeds``
-   (m/s) and each following mode (one leg, ``follow_back``) from a copy of it: the nodes drift
-   (each in its own fixed direction) and every link is evaluated every ``--step`` s for
-   ``--steps`` steps through ArrivalCache (1e-7 s bound): the rate, the shares of the tiers,
-   and on ``--check`` served links per step the Taylor tier's error against the same eigenrays
-   carried exactly to the new ends in moves of 1 cm (and its ratio to the bound) and whether
-   the arrival set equals a new search's;
+2. ``cache``, for each of ``--modes``: ``channel`` (the channel's cache: no Taylor tier, every
+   delay exact, links followed within 1 m of their last search), ``channel_10m`` (the same,
+   followed within 10 m: fewer searches, more arrival sets that differ), ``taylor`` (the Taylor tier,
+   1e-7 s bound, one-leg following), ``taylor_back`` (the same with ``follow_back``): filled once
+   (every link searched, and expanded for the Taylor tier), then for each of ``--speeds`` (m/s)
+   from a copy of it: the nodes drift (each in its own fixed direction) and every link is
+   evaluated every ``--step`` s for ``--steps`` steps: the rate, the shares of the tiers, and on
+   ``--check`` links per step (the Taylor modes: links its tier served) the served delays against
+   the exact eigenrays (the Taylor tier: the same eigenrays carried to the new ends in moves of 1
+   cm, and the error's ratio to the bound; the channel: a new search's, eigenray by eigenray) and
+   whether the arrival set equals a new search's;
 3. ``bellhop``: BELLHOP (pelagic, arrivals run, ``--beams`` beams, its default step) on
-   ``--bellhop-links`` of the same links, one run per link (each link has its own section; the
-   range-dependent sound speed as BELLHOP's 'Q' option), and its delay errors against ours
-   on the arrivals both list.
+   ``--bellhop-links`` of the same links, one run per link (each link of the network has its own
+   section: no two receivers of a source share a vertical plane; the range-dependent sound speed
+   as BELLHOP's 'Q' option), and its delay errors against ours on the arrivals both list; and,
+   counted fairly where the geometry allows one run for many receivers, BELLHOP with
+   ``--line-receivers`` receivers on one vertical plane of a source (one run, an irregular
+   receiver grid) against our search of the same links.
 
-    python tools/bench_arrivals.py                 # the table of docs/channel.md
-    python tools/bench_arrivals.py --json out.json
+    python tools/bench_arrivals.py                 # the tables of docs/channel.md
+    python tools/bench_arrivals.py --modes channel --speeds 0.3 --json out.json
 
 BELLHOP's throughput is reported per link; the ratio ours / BELLHOP is the issue's figure (goal:
 at least 0.5 at 1000x its timing accuracy).
@@ -75,6 +82,17 @@ def continued(env, ref, s0, d0, s1, d1, mb: int, step_m: float = 0.01):
     return cur, ok
 
 
+def bellhop_floor(sec, q: int) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(ranges, depths, curved) of link q's floor for BELLHOP: a curved floor (our arcs) every 10
+    m as its curvilinear bathymetry, else the section's polyline."""
+    r, _c, fz = sec.link(q)
+    a, b = sec.offs[q], sec.offs[q + 1]
+    if not np.any(sec.floor_shape[a:b, 5:7] != 0.0):
+        return r, fz, False
+    rq = np.linspace(r[0], r[-1], int(np.ceil((r[-1] - r[0]) / 10.0)) + 1)
+    return rq, sec.floor_at(q, rq), True
+
+
 def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
     """Every link every ``args.step`` s for ``args.steps`` steps, the nodes drifting at ``vel``
     (m/s) from ``pos`` through the filled ``cache``; the results under ``key``."""
@@ -89,6 +107,8 @@ def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
         p = pos + vel * (k * args.step)
         bound = cache.bound(ids, p[si], p[di])
         served = np.flatnonzero(np.isfinite(bound))
+        if cache.tol_s <= 0.0:  # no Taylor tier: check any links
+            served = np.arange(ids.size)
         sample = served[:: max(1, served.size // max(args.check, 1))][: args.check]
         ref = cache.last(ids[sample])  # the Taylor references of a sample of the served links
         s0, d0 = cache.positions(ids[sample])
@@ -100,8 +120,25 @@ def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
             continue
         # served delays against the same eigenrays carried exactly to the new ends (the error
         # the bound is about), and the arrival sets against a new search
-        fol, ok = continued(env, ref, s0, d0, p[si[sample]], p[di[sample]], mb)
         new = arrivals(env, p[si[sample]], p[di[sample]], max_bounces=mb)
+        if cache.tol_s <= 0.0:
+            # every delay served is exact: against the new search's, eigenray by eigenray (the
+            # nearest launch angle in its bounce sequence)
+            for q, link in enumerate(sample):
+                g = slice(got.offsets[link], got.offsets[link + 1])
+                e = slice(new.offsets[q], new.offsets[q + 1])
+                compared += 1
+                differ = sorted(got.bounce_code[g]) != sorted(new.bounce_code[e])
+                sets_differ += int(differ)
+                for i in range(g.start, g.stop):
+                    same = np.flatnonzero(new.bounce_code[e] == got.bounce_code[i])
+                    if same.size:
+                        j = e.start + same[np.argmin(np.abs(new.launch_angle[e][same] - got.launch_angle[i]))]
+                        if abs(new.launch_angle[j] - got.launch_angle[i]) < 1e-4:
+                            worst = max(worst, abs(float(got.delay[i] - new.delay[j])))
+                checked += 1
+            continue
+        fol, ok = continued(env, ref, s0, d0, p[si[sample]], p[di[sample]], mb)
         for q, link in enumerate(sample):
             g = slice(got.offsets[link], got.offsets[link + 1])
             f = slice(fol.offsets[q], fol.offsets[q + 1])
@@ -146,8 +183,12 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=1.0, help="time between evaluations of every link (s)")
     ap.add_argument("--steps", type=int, default=10, help="drift steps after the fill")
     ap.add_argument("--check", type=int, default=200, help="served links checked per step (0: none, timing only)")
+    ap.add_argument(
+        "--modes", default="channel,channel_10m,taylor,taylor_back", help="cache configurations (comma separated)"
+    )
     ap.add_argument("--beams", type=int, default=2001)
     ap.add_argument("--bellhop-links", type=int, default=40)
+    ap.add_argument("--line-receivers", type=int, default=40, help="receivers on one plane for BELLHOP's batched run")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
@@ -184,25 +225,41 @@ def main() -> None:
     res["links_without_arrival"] = int((np.diff(ex.offsets) == 0).sum())
     show("nodes", "links", "max_bounces", "solve_links_per_s", "arrivals_per_link", "links_without_arrival")
 
-    cache = ArrivalCache(env, n * n, max_bounces=mb)
-    # the cold fill: every link searched, its Taylor expansion made
-    t0 = time.perf_counter()
-    cache.get(ids, pos[si], pos[di])
-    t_fill = time.perf_counter() - t0
-    res["cache_fill_links_per_s"] = ids.size / t_fill
-    res["cache_fill_uncacheable_links"] = cache.stats.uncacheable
-    res["cache_fill_taylor_links"] = int((cache.radius(ids) > 0).sum())
-    res["step_s"], res["drift_steps"] = args.step, args.steps
-    show("cache_fill_links_per_s", "cache_fill_uncacheable_links", "cache_fill_taylor_links", "step_s", "drift_steps")
     heading = rng.normal(size=(n, 3))
     heading[:, 2] *= 0.1
     heading /= np.linalg.norm(heading, axis=1, keepdims=True)
-    for back in (False, True):
+    from aquasim_py.channel.arrival_links import FOLLOW_M
+
+    # mode -> (Taylor bound s, following radius m, follow_back)
+    configs = {
+        "channel": (0.0, FOLLOW_M, False),
+        "channel_10m": (0.0, 10.0, False),
+        "taylor": (1e-7, 1.0, False),
+        "taylor_back": (1e-7, 1.0, True),
+    }
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    filled: dict[float, ArrivalCache] = {}
+    for mode in modes:
+        tol, follow_m, back = configs[mode]
+        if tol not in filled:
+            cache = ArrivalCache(env, n * n, max_bounces=mb, tol_s=tol)
+            # the cold fill: every link searched (and with the Taylor tier, its expansion made)
+            t0 = time.perf_counter()
+            cache.get(ids, pos[si], pos[di])
+            t_fill = time.perf_counter() - t0
+            tag = "cache_fill" if tol > 0.0 else "channel_fill"
+            res[f"{tag}_links_per_s"] = ids.size / t_fill
+            if tol > 0.0:
+                res["cache_fill_uncacheable_links"] = cache.stats.uncacheable
+                res["cache_fill_taylor_links"] = int((cache.radius(ids) > 0).sum())
+            show(*[k for k in res if k.startswith(tag)])
+            filled[tol] = cache
+        res["step_s"], res["drift_steps"] = args.step, args.steps
         for speed in args.speeds:
-            copied = copy.deepcopy(cache)
-            copied.follow_back = back
-            tag = f"drift_{speed:g}{'_back' if back else ''}_"
-            print("follow_back" if back else "follow (one leg)", end=" ")
+            copied = copy.deepcopy(filled[tol])
+            copied.follow_m, copied.follow_back = follow_m, back
+            tag = f"{mode}_drift_{speed:g}_"
+            print(mode, end=" ")
             drift(env, copied, pos, heading * speed, si, di, ids, args, res, tag)
 
     try:
@@ -219,9 +276,22 @@ def main() -> None:
         t0 = time.perf_counter()
         outs = []
         for q in range(pick.size):
-            r, c, fz = sec.link(q)
+            r, c, _fz = sec.link(q)
+            rb, fb, curved = bellhop_floor(sec, q)
             outs.append(
-                bellhop_ref.run(r, fz, sec.z, c, sec.zs[q], sec.zr[q], bottom, beams=args.beams, R=float(sec.R[q]))
+                bellhop_ref.run(
+                    r,
+                    fb,
+                    sec.z,
+                    c,
+                    sec.zs[q],
+                    sec.zr[q],
+                    bottom,
+                    beams=args.beams,
+                    R=float(sec.R[q]),
+                    curved=curved,
+                    floor_r=rb,
+                )
             )
         tb = time.perf_counter() - t0
         ours = arrivals(env, pos[si[pick]], pos[di[pick]], max_bounces=mb)
@@ -240,10 +310,39 @@ def main() -> None:
         bellhop_rate = pick.size / tb
         res["ratio_solve_over_bellhop"] = ids.size / t_solve / bellhop_rate
         for speed in args.speeds:
-            for mode in ("", "_back"):
-                rate = res[f"drift_{speed:g}{mode}_links_per_s"]
+            for mode in modes:
+                rate = res[f"{mode}_drift_{speed:g}_links_per_s"]
                 assert isinstance(rate, float)
-                res[f"ratio_drift_{speed:g}{mode}_over_bellhop"] = rate / bellhop_rate
+                res[f"ratio_{mode}_drift_{speed:g}_over_bellhop"] = rate / bellhop_rate
+        # fairly counted: one BELLHOP run for many receivers of a source on one vertical plane
+        # (an irregular receiver grid), against our search of the same links
+        k = args.line_receivers
+        if k > 0:
+            src = pos[0]
+            az = rng.uniform(0.0, 2.0 * np.pi)
+            # depths increasing with range (a sloping line of receivers: BELLHOP's irregular grid
+            # pairs sorted depths with sorted ranges)
+            rk = np.sort(rng.uniform(300.0, 2000.0, k))
+            px, py = src[0] + rk * np.cos(az), src[1] + rk * np.sin(az)
+            zk = np.linspace(10.0, 0.8 * float(np.min(env.depth(px, py))), k)
+            dst = np.c_[px, py, zk]
+            far = int(np.argmax(rk))
+            sec1 = sections(env, src, dst[far])
+            r, c, _fz = sec1.link(0)
+            rb, fb, curved = bellhop_floor(sec1, 0)
+            t0 = time.perf_counter()
+            line = bellhop_ref.run(
+                r, fb, sec1.z, c, src[2], zk, bottom, beams=args.beams, R=rk, curved=curved, floor_r=rb
+            )
+            tl = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            ours_line = arrivals(env, np.broadcast_to(src, (k, 3)), dst, max_bounces=mb)
+            to = time.perf_counter() - t0
+            res["bellhop_line_links_per_s"] = k / tl
+            res["solve_line_links_per_s"] = k / to
+            res["ratio_solve_over_bellhop_line"] = tl / to
+            res["bellhop_line_arrivals"] = int(line.delay.size)
+            res["line_arrivals"] = int(ours_line.delay.size)
     else:
         res["bellhop"] = f"skipped: {why}" if not ok else "skipped: --bellhop-links 0"
 

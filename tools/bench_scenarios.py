@@ -5,6 +5,7 @@ this checkout against another one, timed in the same session and alternated.
     python tools/bench_scenarios.py --baseline v0.1.0 --rounds 5
     python tools/bench_scenarios.py --baseline-python ../old/.venv/bin/python
     python tools/bench_scenarios.py --only itmtl,stvf_quick --json out/bench.json
+    python tools/bench_scenarios.py --no-baseline --only slope,slope_flat,network,network_flat --rounds 1
 
 Each run is the CLI on a shipped scenario (``aquasim-py SCENARIO --quiet``, every variant unless
 one is named), in a fresh process, its CPU (user + system) and peak RSS read from the kernel's
@@ -15,6 +16,11 @@ on its path: this checkout as it is, and the baseline, a git revision; or the ba
 another environment's Python (``--baseline-python``). Each round runs every scenario on
 both sides, the side that goes first alternating between rounds; the table gives the medians
 and the ratio of the medians (current / baseline).
+
+The range-dependent runs (``slope``, ``network``) are not in the default set (``--only`` picks
+them): each is timed with its flat, range-independent twin (same network, traffic and seed; one
+profile over a flat floor), and the table gives the ratio of their CPU times ("vs flat twin")
+when both ran.
 """
 
 from __future__ import annotations
@@ -41,10 +47,20 @@ RUNS: dict[str, tuple[str, tuple[str, ...]]] = {
     "mswpf_2d": ("scenarios/mswpf_2d.toml", ()),
     "svlpf": ("scenarios/svlpf.toml", ()),
     "beacon": ("scenarios/beacon.toml", ()),
-    # 500 nodes routing for an hour: flooding (every node forwards every packet) and DBR
+    # range-dependent runs and their flat twins (not in the default set)
+    "slope": ("scenarios/slope.toml", ()),
+    "slope_flat": ("scenarios/slope_flat.toml", ()),
+    "network": ("scenarios/shelfbreak_network.toml", ()),
+    "network_flat": ("scenarios/shelfbreak_network_flat.toml", ()),
+    # 500 nodes routing for an hour: flooding (every node forwards every packet) and DBR (not in
+    # the default set either)
     "routing_flooding_500": ("scenarios/routing_compare.toml", ("--variant", "flooding", "--set", "nodes.1.count=486")),
     "routing_dbr_500": ("scenarios/routing_compare.toml", ("--variant", "dbr", "--set", "nodes.1.count=486")),
 }
+#: the default set (the research runs of docs/performance.md's table)
+DEFAULT = ("itmtl", "stvf_quick", "stvf_table1", "mswpf_2d", "svlpf", "beacon")
+#: range-dependent run -> its flat, range-independent twin
+TWINS = {"slope": "slope_flat", "network": "network_flat"}
 
 #: runs named only with --only (not in the default set: a baseline from before their options
 #: existed could not run them): the same research run under another reading of the channel
@@ -132,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.rounds < 1:
         ap.error("--rounds must be >= 1")
-    names = list(RUNS) if not args.only else [n.strip() for n in args.only.split(",")]
+    names = list(DEFAULT) if not args.only else [n.strip() for n in args.only.split(",")]
     runs = {**RUNS, **EXTRA_RUNS}
     unknown = [n for n in names if n not in runs]
     if unknown:
@@ -164,9 +180,12 @@ def main(argv: list[str] | None = None) -> int:
         return statistics.median(m[i] for m in ms)
 
     cur, old = sides[0].label, (sides[1].label if len(sides) > 1 else None)
+    twins = any(name in TWINS and TWINS[name] in names for name in names)
     cols = ["run", "CPU s", "wall s", "peak MiB"]
     if old:
         cols += [f"CPU s ({old})", f"peak MiB ({old})", "CPU ratio"]
+    if twins:
+        cols += ["CPU vs flat twin"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for name in names:
@@ -175,6 +194,9 @@ def main(argv: list[str] | None = None) -> int:
         if old:
             b = results[name][old]
             row += f" {med(b, 1):.2f} | {med(b, 2):.0f} | {med(c, 1) / med(b, 1):.3f} |"
+        if twins:
+            flat = TWINS.get(name, "")
+            row += f" {med(c, 1) / med(results[flat][cur], 1):.2f} |" if flat in names else " |"
         print(row)
     print(f"\nmedians of {args.rounds} round(s), sides alternated; CPU = user + system of the run's process")
     if args.json:

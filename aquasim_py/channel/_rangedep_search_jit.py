@@ -1,7 +1,29 @@
-"""Compiled eigenray search of the range-dependent solver (numba): the per-link fan, the
-bisection towards family edges, regula falsi inside a family (:func:`search`, :func:`search_links`)
-and the following of known eigenrays to moved end points (:func:`track_links`). The ray walk they
+"""Compiled eigenray search of the range-dependent solver (numba): the per-link fan and its
+refinement, the safeguarded Newton iteration inside a family (:func:`search`, :func:`search_links`)
+and the following of known eigenrays to moved end points (:func:`follow_links`). The ray walk they
 call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the public API.
+
+The search of one link works on the depth miss f(theta) = z(theta, R) - z_R of the ray launched
+at theta, its exact derivative q = d z / d theta (the walk's tangent-linear map) and its bounce
+sequence ("family", code < 0: lost, or below -1 a family with more bounces than the limit,
+each its own). Every eigenray is a root of f inside a family. A fan of launch angles is refined,
+interval by interval, until each interval is one of:
+
+* both ends lost or in one family beyond the bounce limit, and no bounce predicted to change
+  inside it;
+* a family edge (the ends in different families) narrower than ``_EDGE_RAD`` (5.7e-4 deg), or,
+  where the miss of an end heads for zero at the edge (its first-order prediction changes sign
+  across the interval), narrower than 1e-13 rad: an eigenray at least ``_EDGE_RAD`` from its
+  family's edge then lies inside a family interval (and every family at least that wide has a
+  sample). Where an end predicts the edge (below: to first order, usually within 10 %), the
+  interval is split at two samples around the prediction instead of halved;
+* one family: no bounce predicted to change inside it (the walk predicts, to first order, the
+  offsets of the launch angle at which a bounce would appear or vanish: a family narrower than
+  the fan, e.g. a ray grazing a seamount's flank, lies there), the cubic through f and q at
+  both ends monotone inside it, and, where the miss could reach zero inside at its steeper end
+  slope, both end slopes within 2x of the secant's (else a fold may hide two roots: split to
+  ``_FOLD_RAD``, then the extremum of f located by the secant on q and its sign compared with
+  the ends'). A root is bracketed wherever f changes sign.
 """
 
 from __future__ import annotations
@@ -10,29 +32,21 @@ import math
 
 import numpy as np
 
-from ._rangedep_jit import S_REACHED, _jit, _part_at, _plane, trace
+from ._rangedep_jit import S_OVER, S_REACHED, _jit, _part_at, _plane, trace
 
 NF = 14  # fields of one arrival row, see search()
 F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR, F_KINK = range(NF)
-_BISECT_LEVELS = 8  # towards a family's edge
-_NONLIN_LEVELS = 6  # inside a family, where the miss is far from linear
-_EDGE_LEVELS = 40  # towards an edge where the miss heads for zero
-
-
-@_jit
-def _heading(f_end, f_prev, code):
-    """The miss of family ``code`` heads for zero at the edge: it shrank from f_prev to f_end
-    (same sign) and a few more such steps would reach zero."""
-    if code < 0 or not math.isfinite(f_prev) or not math.isfinite(f_end):
-        return False
-    if (f_end > 0.0) != (f_prev > 0.0):
-        return False
-    return abs(f_end) < abs(f_prev) and abs(f_end) < 8.0 * (abs(f_prev) - abs(f_end))
-
-
-_STACK = 96
-_MAXIT = 100
+_EDGE_RAD = 1e-5  # a family's edge is located to this (the acceptance: eigenrays 1.75e-5 rad from it)
+_EVENT_RAD = 1e-9  # a predicted change of the bounce sequence is pursued to this
+_FOLD_RAD = 1e-4  # an interval that may hold a fold is split to this before its extremum is sought
+_HEAD_LEVELS = 44  # bisection levels towards an edge at which the miss heads for zero
+_MAX_LEVELS = 60
+_STACK = 160
+_MAXIT = 60
 _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
+# a sample: angle, miss, code, d miss / d angle, predicted event offsets above and below
+S_TH, S_F, S_CODE, S_Q, S_EVP, S_EVM = range(6)
+NS = 6
 
 
 @_jit
@@ -51,77 +65,94 @@ def _speed_src(rr, zz, cc, zs, R):
 
 
 @_jit
-def _miss(rr, zz, cc, bb, floor, zs, zr, R, th, maxb, bpar, dummy):
-    st, ze, _t, _a, _l, _n1, _n2, code, _lo, _nt, _np, _c, _k = trace(
-        rr, zz, cc, bb, floor, zs, th, R, maxb, bpar, False, dummy
-    )
-    if st != S_REACHED:
-        return math.nan, -1
-    return ze - zr, code
-
-
-@_jit
-def _refine(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, ztol, out, row, dummy):
-    """Illinois regula falsi on the depth miss at r = R inside one bounce family [a, b]; the
-    converged ray's fields go to out[row]. Returns False if the family is not contiguous."""
-    m = a
-    fm = fa
-    if fa == 0.0:
-        m, fm = a, fa
-    elif fb == 0.0:
-        m, fm = b, fb
+def _sample(rr, zz, cc, bb, ff, floor, zs, zr, R, th, maxb, bpar, dummy, ev, out):
+    """Walk the ray launched at ``th`` and write its sample (S_* fields) to ``out``."""
+    res = trace(rr, zz, cc, bb, ff, floor, zs, th, R, maxb, bpar, False, dummy, ev)
+    out[S_TH] = th
+    if res[0] == S_REACHED:
+        out[S_F] = res[1] - zr
+        out[S_CODE] = res[7]
+        out[S_Q] = res[13]
+    elif res[0] == S_OVER:  # a family beyond the bounce limit: its own code, below -1
+        out[S_F] = res[1] - zr
+        out[S_CODE] = -2 - res[7]
+        out[S_Q] = res[13]
     else:
-        for _ in range(_MAXIT):
-            m = b - fb * (b - a) / (fb - fa)
-            if not (min(a, b) < m < max(a, b)):
-                m = 0.5 * (a + b)
-            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
-            if cm != code:
-                m = 0.5 * (a + b)
-                fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
-                if cm != code:
-                    return False
-            if abs(fm) <= ztol or abs(b - a) <= 4e-16 * (1.0 + abs(m)):
-                break
-            if (fm > 0.0) != (fb > 0.0):
-                a, fa = b, fb
-            else:
-                fa *= 0.5
-            b, fb = m, fm
-    # a jump of the miss inside a family (a ray hitting a vertex of the floor polyline reflects
-    # off one slope or the other) is not a root: _fill refuses it
-    h = 1e-7 * max(1.0, abs(m)) if abs(b - a) > 1e-6 else 0.25 * abs(b - a)
-    return _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy)
+        out[S_F] = math.nan
+        out[S_CODE] = -1
+        out[S_Q] = math.nan
+    out[S_EVP] = ev[0]
+    out[S_EVM] = ev[1]
 
 
 @_jit
-def _fill(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, m, code, h, out, row, dummy):
+def _miss(rr, zz, cc, bb, ff, floor, zs, zr, R, th, maxb, bpar, dummy, ev):
+    """(depth miss at R, code, d miss / d theta) of the ray launched at ``th``; (NaN, -1, NaN) lost.
+    ``ev``: as :func:`._rangedep_jit.trace`'s (size 0 here: no event predictions)."""
+    res = trace(rr, zz, cc, bb, ff, floor, zs, th, R, maxb, bpar, False, dummy, ev)
+    if res[0] != S_REACHED:
+        return math.nan, -1, math.nan
+    return res[1] - zr, res[7], res[13]
+
+
+@_jit
+def _refine(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, fa, b, fb, code, ztol, out, row, dummy, ev):
+    """Newton's iteration on the depth miss inside one family's bracket [a, b] (f(a) f(b) <= 0),
+    safeguarded: a step that leaves the bracket, or does not halve the miss, is a bisection; the
+    bracket shrinks on every evaluation. The converged ray's fields go to out[row]; False if the
+    family is not contiguous there or the ray does not reach the receiver within _ACCEPT_M."""
+    if fa == 0.0:
+        return _fill(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, code, out, row, dummy, ev)
+    if fb == 0.0:
+        return _fill(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, b, code, out, row, dummy, ev)
+    lo, flo, hi = a, fa, b  # f(lo) has the sign of fa, f(hi) the other
+    # start from the secant point
+    x = b - fb * (b - a) / (fb - fa)
+    if not (min(a, b) < x < max(a, b)):
+        x = 0.5 * (a + b)
+    fx, cx, qx = _miss(rr, zz, cc, bb, ff, floor, zs, zr, R, x, maxb, bpar, dummy, ev)
+    fprev = math.inf
+    for _ in range(_MAXIT):
+        if cx != code:
+            # not this family here: the bracket's middle, once; a family broken inside its bracket
+            x = 0.5 * (lo + hi)
+            fx, cx, qx = _miss(rr, zz, cc, bb, ff, floor, zs, zr, R, x, maxb, bpar, dummy, ev)
+            if cx != code:
+                return False
+        if abs(fx) <= ztol:
+            break
+        if (fx > 0.0) == (flo > 0.0):
+            lo, flo = x, fx
+        else:
+            hi = x
+        if abs(hi - lo) <= 4e-16 * (1.0 + abs(x)):
+            break
+        xn = x - fx / qx if (qx != 0.0 and math.isfinite(qx)) else math.nan
+        if not (min(lo, hi) < xn < max(lo, hi)) or abs(fx) > 0.5 * fprev:
+            xn = 0.5 * (lo + hi)
+        fprev = abs(fx)
+        x = xn
+        fx, cx, qx = _miss(rr, zz, cc, bb, ff, floor, zs, zr, R, x, maxb, bpar, dummy, ev)
+    return _fill(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, x, code, out, row, dummy, ev)
+
+
+@_jit
+def _fill(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, m, code, out, row, dummy, ev):
     """Trace the converged ray of launch angle ``m`` (family ``code``) and write its fields to
-    out[row]; False (nothing written that counts) unless it reaches the receiver within
-    _ACCEPT_M in that family. ``h``: the step of the central difference d z_R / d theta0 (the
-    ray-tube width)."""
-    res = trace(rr, zz, cc, bb, floor, zs, m, R, maxb, bpar, False, dummy)
+    out[row] (the ray-tube width d z_R / d theta0 the walk's exact derivative); False (nothing
+    written that counts) unless it reaches the receiver within _ACCEPT_M in that family (a jump
+    of the miss inside a family is not a root)."""
+    res = trace(rr, zz, cc, bb, ff, floor, zs, m, R, maxb, bpar, False, dummy, ev)
     if res[0] != S_REACHED or res[7] != code or not abs(res[1] - zr) <= _ACCEPT_M:
         return False
     _write_row(rr, zz, cc, zs, zr, R, m, res, out, row)
-    fm = res[1] - zr
-    # ray-tube width: d z_end / d theta0 by a small central difference inside the family
-    fp, cp = _miss(rr, zz, cc, bb, floor, zs, zr, R, m + h, maxb, bpar, dummy)
-    fq, cq = _miss(rr, zz, cc, bb, floor, zs, zr, R, m - h, maxb, bpar, dummy)
-    if cp == code and cq == code:
-        out[row, F_DZDTH] = (fp - fq) / (2.0 * h)
-    elif cp == code:
-        out[row, F_DZDTH] = (fp - fm) / h
-    elif cq == code:
-        out[row, F_DZDTH] = (fm - fq) / h
     return True
 
 
 @_jit
 def _write_row(rr, zz, cc, zs, zr, R, m, res, out, row):
-    """out[row] from the walk ``res`` (:func:`trace`'s tuple) of the eigenray launched at ``m``
-    (F_DZDTH left NaN)."""
-    _st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink = res
+    """out[row] from the walk ``res`` (:func:`trace`'s tuple) of the eigenray launched at ``m``."""
+    _st, ze, t, thr, arc, ns, nb, cd, loss, nturn, _np, cR, kink, q, _qp = res
     # the receiver's depth miss, to first order: dt/dz_R = sin(theta_R) / c_R (Fermat)
     out[row, F_TIME] = t + (zr - ze) * math.sin(thr) / cR
     out[row, F_THETA0] = m
@@ -136,7 +167,60 @@ def _write_row(rr, zz, cc, zs, zr, R, m, res, out, row):
     out[row, F_CR] = cR
     out[row, F_KINK] = kink
     out[row, F_CS] = _speed_src(rr, zz, cc, zs, R)
-    out[row, F_DZDTH] = math.nan
+    out[row, F_DZDTH] = q
+
+
+@_jit
+def _hermite_turns(a, fa, qa, b, fb, qb):
+    """Whether the cubic through (a, fa) and (b, fb) with slopes qa, qb has a stationary point
+    strictly inside (a, b), or the slopes differ in sign (a fold of the miss may lie inside)."""
+    if not (math.isfinite(qa) and math.isfinite(qb)):
+        return True
+    if (qa > 0.0) != (qb > 0.0) or qa == 0.0 or qb == 0.0:
+        return True
+    h = b - a
+    d = (fb - fa) / h
+    # p'(u) on u in [0, 1], times h: qa + (6 d - 4 qa - 2 qb) u + (3 qa + 3 qb - 6 d) u^2
+    c0, c1, c2 = qa, 6.0 * d - 4.0 * qa - 2.0 * qb, 3.0 * qa + 3.0 * qb - 6.0 * d
+    if c2 == 0.0:
+        if c1 == 0.0:
+            return False
+        u = -c0 / c1
+        return 0.0 < u < 1.0
+    disc = c1 * c1 - 4.0 * c2 * c0
+    if disc < 0.0:
+        return False
+    sq = math.sqrt(disc)
+    u1, u2 = (-c1 - sq) / (2.0 * c2), (-c1 + sq) / (2.0 * c2)
+    return 0.0 < u1 < 1.0 or 0.0 < u2 < 1.0
+
+
+@_jit
+def _extremum(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, lo, qlo, hi, qhi, code, dummy, ev):
+    """The extremum of the miss inside [lo, hi] (q(lo), q(hi) of opposite signs): regula falsi
+    (Illinois) on q, to 1e-13 rad. Returns (angle, miss, code there)."""
+    x, fx, cx = lo, math.nan, code
+    side = 0
+    for _ in range(_MAXIT):
+        x = (lo * qhi - hi * qlo) / (qhi - qlo)
+        if not (lo < x < hi):
+            x = 0.5 * (lo + hi)
+        fx, cx, qx = _miss(rr, zz, cc, bb, ff, floor, zs, zr, R, x, maxb, bpar, dummy, ev)
+        if cx != code or not math.isfinite(qx):
+            break
+        if (qx > 0.0) == (qlo > 0.0):
+            lo, qlo = x, qx
+            if side == 1:
+                qhi *= 0.5
+            side = 1
+        else:
+            hi, qhi = x, qx
+            if side == -1:
+                qlo *= 0.5
+            side = -1
+        if hi - lo <= 1e-13:
+            break
+    return x, fx, cx
 
 
 @_jit
@@ -172,15 +256,15 @@ def _cusp_angles(rr, zz, cc, bb, zs):
 
 
 @_jit
-def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
-    """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces. A fan of
-    ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of
-    a waveguide of depth H lie about 2 apart in w), then adaptive bisection of each fan
-    interval: where its ends took different bounce sequences (to put samples next to each
-    family's edge), and where the depth miss at the receiver's range is not nearly linear
-    between them (a fold of the family may hide two roots); regula falsi inside each family
-    where the miss changes sign. Returns the number of arrival rows written to ``out``."""
+def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
+    """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces: a fan of
+    ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of a
+    waveguide of depth H lie about 2 apart in w) with samples next to the angles of rays that
+    turn at a depth node of the source's profile, refined as the module docstring says, and
+    Newton's iteration in every bracket. Returns the number of arrival rows written to ``out``."""
     dummy = np.empty((1, 3))
+    ev = np.empty(2)
+    noev = np.empty(0)  # walks that need no event predictions
     cusp = np.sort(_cusp_angles(rr, zz, cc, bb, zs))
     # the rays that turn between two depth nodes form a band of launch angles; where one is
     # narrower than the fan's spacing there, a fold inside it (two eigenrays) would fall between
@@ -204,100 +288,118 @@ def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, ou
     th[nfan : nfan + cusp.size] = cusp
     th[nfan + cusp.size :] = extra[:ne]
     th = np.sort(th)
-    nfan = th.size
-    f = np.empty(nfan)
-    cd = np.empty(nfan, np.int64)
-    for i in range(nfan):
-        f[i], cd[i] = _miss(rr, zz, cc, bb, floor, zs, zr, R, th[i], maxb, bpar, dummy)
+    nth = th.size
+    smp = np.empty((nth, NS))
+    for i in range(nth):
+        _sample(rr, zz, cc, bb, ff, floor, zs, zr, R, th[i], maxb, bpar, dummy, ev, smp[i])
     n = 0
     cap = out.shape[0]
-    nbmax = 8 * nfan + 256
+    nbmax = 8 * nth + 256
     br = np.empty((nbmax, 4))  # brackets (a, fa, b, fb) and their family
     bc = np.empty(nbmax, np.int64)
     nbr = 0
-    # interval stack: a, f(a), code(a), b, f(b), code(b), and the previous miss of a's family
-    # beyond a and of b's family beyond b (NaN if unknown): is the miss heading for zero at an edge?
-    stack = np.empty((_STACK, 8))
+    stack = np.empty((_STACK, 2 * NS))
     lev = np.zeros(_STACK, np.int64)
-    for i in range(nfan - 1):
-        stack[0, 0], stack[0, 1], stack[0, 2] = th[i], f[i], cd[i]
-        stack[0, 3], stack[0, 4], stack[0, 5] = th[i + 1], f[i + 1], cd[i + 1]
-        stack[0, 6] = f[i - 1] if i > 0 and cd[i - 1] == cd[i] else math.nan
-        stack[0, 7] = f[i + 2] if i + 2 < nfan and cd[i + 2] == cd[i + 1] else math.nan
+    mid = np.empty(NS)
+    mid2 = np.empty(NS)
+    for i in range(nth - 1):
+        stack[0, :NS] = smp[i]
+        stack[0, NS:] = smp[i + 1]
         lev[0] = 0
         top = 1
         while top > 0:
             top -= 1
-            a, fa, b, fb = stack[top, 0], stack[top, 1], stack[top, 3], stack[top, 4]
-            ca, cb = int(stack[top, 2]), int(stack[top, 5])
-            pa, pb = stack[top, 6], stack[top, 7]
+            A = stack[top, :NS].copy()
+            B = stack[top, NS:].copy()
             lv = lev[top]
-            if ca == cb and ca < 0:
-                continue  # both rays lost
-            same = ca == cb
-            stop = lv >= (_NONLIN_LEVELS if same else _BISECT_LEVELS) or top + 2 > _STACK
-            if stop and not same and top + 2 <= _STACK and lv < _EDGE_LEVELS and abs(b - a) > 1e-13:
-                # near a family's edge the miss may race to zero (a ray grazing a boundary):
-                # keep bisecting while it heads there
-                stop = not (_heading(fa, pa, ca) or _heading(fb, pb, cb))
-            if stop:
-                if same and ((fa > 0.0) != (fb > 0.0) or fa == 0.0) and nbr < nbmax:
-                    br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, b, fb
-                    bc[nbr] = ca
-                    nbr += 1
+            a, b = A[S_TH], B[S_TH]
+            ca, cb = int(A[S_CODE]), int(B[S_CODE])
+            w = b - a
+            # a bounce predicted to appear or vanish inside (a family narrower than the interval)
+            event = (A[S_EVP] < w or B[S_EVM] < w) and w > _EVENT_RAD
+            split = False
+            if ca != cb:
+                if w > _EDGE_RAD:
+                    split = True
+                elif lv < _HEAD_LEVELS and w > 1e-13:
+                    # keep going while an end's miss, continued to the other end, changes sign
+                    for E, other in ((A, b), (B, a)):
+                        if E[S_CODE] >= 0 and math.isfinite(E[S_Q]):
+                            fe = E[S_F] + E[S_Q] * (other - E[S_TH])
+                            if (fe > 0.0) != (E[S_F] > 0.0):
+                                split = True
+                split = split or event
+            elif ca < 0:
+                split = event
+            else:
+                fa, fb = A[S_F], B[S_F]
+                qa, qb = A[S_Q], B[S_Q]
+                turns = w > 1e-13 and _hermite_turns(a, fa, qa, b, fb, qb)
+                # bent: the end slopes differ from the secant by more than 2x, near enough to zero
+                # that the miss might reach it (at the steeper slope) inside
+                d = abs(fb - fa) / w
+                bent = not (0.5 * d <= abs(qa) <= 2.0 * d and 0.5 * d <= abs(qb) <= 2.0 * d)
+                near = min(abs(fa), abs(fb)) < max(abs(qa), abs(qb)) * w
+                split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
+                if not split:
+                    if (fa > 0.0) != (fb > 0.0) or fa == 0.0:
+                        if nbr < nbmax:
+                            br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, b, fb
+                            bc[nbr] = ca
+                            nbr += 1
+                    elif turns and (A[S_Q] > 0.0) != (B[S_Q] > 0.0):
+                        # one extremum inside: two roots if its miss has the other sign
+                        x, fx, cx = _extremum(
+                            rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, A[S_Q], b, B[S_Q], ca, dummy, noev
+                        )
+                        if cx == ca and (fx > 0.0) != (fa > 0.0) and nbr + 2 <= nbmax:
+                            br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, x, fx
+                            br[nbr + 1, 0], br[nbr + 1, 1], br[nbr + 1, 2], br[nbr + 1, 3] = x, fx, b, fb
+                            bc[nbr] = ca
+                            bc[nbr + 1] = ca
+                            nbr += 2
+                    continue
+            if not split or lv >= _MAX_LEVELS or top + 3 > _STACK:
                 continue
+            # a family's edge that an end predicts: two samples around the prediction (a tenth of
+            # its distance from that end either side, at least a quarter of _EDGE_RAD), three
+            # intervals; the predictions are first order, usually within 10 % (measured on the
+            # shelf-break sample), so the middle one mostly holds the edge and is narrow
+            if ca != cb and w > _EDGE_RAD:
+                pe, dist = math.nan, 0.0
+                if A[S_EVP] < w:
+                    pe, dist = a + A[S_EVP], A[S_EVP]
+                if B[S_EVM] < w and (math.isnan(pe) or B[S_EVM] < dist):
+                    pe, dist = b - B[S_EVM], B[S_EVM]
+                dl = max(0.1 * dist, 0.25 * _EDGE_RAD)
+                if a < pe - dl and pe + dl < b:
+                    _sample(rr, zz, cc, bb, ff, floor, zs, zr, R, pe - dl, maxb, bpar, dummy, ev, mid)
+                    _sample(rr, zz, cc, bb, ff, floor, zs, zr, R, pe + dl, maxb, bpar, dummy, ev, mid2)
+                    stack[top, :NS] = A
+                    stack[top, NS:] = mid
+                    stack[top + 1, :NS] = mid
+                    stack[top + 1, NS:] = mid2
+                    stack[top + 2, :NS] = mid2
+                    stack[top + 2, NS:] = B
+                    lev[top] = lev[top + 1] = lev[top + 2] = lv + 1
+                    top += 3
+                    continue
             m = 0.5 * (a + b)
-            fm, cm = _miss(rr, zz, cc, bb, floor, zs, zr, R, m, maxb, bpar, dummy)
-            split = True
-            if same and cm == ca:
-                # a fold may hide two roots where the miss bends by more than a quarter of its
-                # distance from zero (ends of one sign), or three where it bends by more than a
-                # quarter of its change across the interval (ends of both signs: an S)
-                dev = abs(fm - 0.5 * (fa + fb))
-                if (fa > 0.0) == (fb > 0.0):
-                    split = min(abs(fa), abs(fb), abs(fm)) < 4.0 * dev
-                else:
-                    split = dev > 0.25 * abs(fb - fa)
-            if split:
-                stack[top, 0], stack[top, 1], stack[top, 2] = a, fa, ca
-                stack[top, 3], stack[top, 4], stack[top, 5] = m, fm, cm
-                stack[top, 6], stack[top, 7] = pa, (fb if cm == cb else math.nan)
-                lev[top] = lv + 1
-                stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = m, fm, cm
-                stack[top + 1, 3], stack[top + 1, 4], stack[top + 1, 5] = b, fb, cb
-                stack[top + 1, 6], stack[top + 1, 7] = (fa if cm == ca else math.nan), pb
-                lev[top + 1] = lv + 1
-                top += 2
-                continue
-            for x0, f0, x1, f1 in ((a, fa, m, fm), (m, fm, b, fb)):
-                if ((f0 > 0.0) != (f1 > 0.0) or f0 == 0.0) and nbr < nbmax:
-                    br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = x0, f0, x1, f1
-                    bc[nbr] = ca
-                    nbr += 1
+            _sample(rr, zz, cc, bb, ff, floor, zs, zr, R, m, maxb, bpar, dummy, ev, mid)
+            stack[top, :NS] = A
+            stack[top, NS:] = mid
+            lev[top] = lv + 1
+            stack[top + 1, :NS] = mid
+            stack[top + 1, NS:] = B
+            lev[top + 1] = lv + 1
+            top += 2
     for q in range(nbr):
         if n >= cap:
             break
         if _refine(
-            rr,
-            zz,
-            cc,
-            bb,
-            floor,
-            zs,
-            zr,
-            R,
-            maxb,
-            bpar,
-            br[q, 0],
-            br[q, 1],
-            br[q, 2],
-            br[q, 3],
-            bc[q],
-            ztol,
-            out,
-            n,
-            dummy,
-        ):
+            rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, br[q, 0], br[q, 1], br[q, 2], br[q, 3], bc[q], ztol,
+            out, n, dummy, noev,
+        ):  # fmt: skip
             # the same eigenray from two brackets sharing a sample
             dup = False
             for p in range(n):
@@ -310,7 +412,9 @@ def search(rr, zz, cc, bb, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, ou
 
 
 @_jit
-def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, cap):
+def search_links(
+    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, cap
+):
     """:func:`search` for every link l: its section rows starts[l]:ends[l] of rr_all (J,),
     cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped). Returns (rows (L, cap, NF),
     counts (L,))."""
@@ -326,6 +430,7 @@ def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, max
             zz,
             cc_all[o0:o1],
             bb_all[o0:o1],
+            ff_all[o0:o1],
             floor,
             zs[l],
             zr[l],
@@ -342,74 +447,131 @@ def search_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, max
 
 
 @_jit
-def trace_links(offs, rr_all, zz, cc_all, bb_all, floor, zs, R, theta0, maxb, bpar, npts):
+def trace_links(offs, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, R, theta0, maxb, bpar, npts):
     """The walk of one ray per link (launch angle theta0[l]): vertices (L, npts, 3) of (r, z, t)
     and their counts, for plots and for the reference checks."""
     L = zs.size
     paths = np.full((L, npts, 3), np.nan)
     cnt = np.zeros(L, np.int64)
+    ev = np.empty(0)
     for l in range(L):
         o0, o1 = offs[l], offs[l + 1]
         res = trace(
-            rr_all[o0:o1], zz, cc_all[o0:o1], bb_all[o0:o1], floor, zs[l], theta0[l], R[l], maxb, bpar, True, paths[l]
-        )
+            rr_all[o0:o1], zz, cc_all[o0:o1], bb_all[o0:o1], ff_all[o0:o1], floor, zs[l], theta0[l], R[l], maxb,
+            bpar, True, paths[l], ev,
+        )  # fmt: skip
         cnt[l] = res[10]
     return paths, cnt
 
 
+_FOLLOW_S = 1e-10  # a followed delay's error from its walk's remaining depth miss, at most
+_FOLLOW_M = 1e-3  # and that miss, at most (the ray-tube width, for the level, is taken there)
+
+
 @_jit
-def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, floor, zs, zr, R, maxb, bpar, theta0, slope, code, ztol):
+def _close_enough(res, zr, ztol):
+    """Whether the walk ``res`` ends near enough the receiver for its delay, corrected to first
+    order in the depth miss f (t + f' sin theta_R / c_R, Fermat), to be within _FOLLOW_S of the
+    eigenray's: the correction's error is f^2 / 2 times the rate of sin(theta_R) / c_R with the
+    depth along the family, (cos theta_R d theta_R/d theta0) / (c_R dz_R/d theta0) + (dc/dz) /
+    c_R^2, |dc/dz| <= 1 1/s in any ocean; doubled."""
+    f = abs(res[1] - zr)
+    if f <= ztol:
+        return True
+    if f > _FOLLOW_M or not (math.isfinite(res[13]) and res[13] != 0.0):
+        return False
+    c = res[11]
+    rate = abs(math.cos(res[3]) * res[14] / res[13]) / c + 1.0 / (c * c)
+    return f * f * rate <= _FOLLOW_S
+
+
+@_jit
+def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, theta0, code, ztol):
     """Follow known eigenrays to moved end points: for each link l and each of its arrivals q
-    (launch angle theta0[l, q], bounce sequence code[l, q] >= 0, depth-miss slope d z_R / d theta0
-    slope[l, q]), secant iterations on the depth miss from the old launch angle in the new
-    section, keeping the bounce sequence, to ``ztol``. Returns the arrival rows (L, Q, NF) (as
-    :func:`search` writes them, the ray-tube width F_DZDTH the secant's last slope, or the
-    given one where no step was needed) and whether each was followed (L, Q): not where its
-    bounce sequence changed (a secant step that leaves it is halved up to six times first) or the
-    secant did not converge in 12 steps (its row is then NaN). Each arrival costs one walk per
-    secant evaluation (usually two or three)."""
+    (launch angle theta0[l, q], bounce sequence code[l, q] >= 0), Newton's iteration on the depth
+    miss from the old launch angle in the new section with the walk's exact derivative, keeping
+    the bounce sequence, to ``ztol`` or until the delay corrected to first order for the remaining
+    miss is within _FOLLOW_S of the eigenray's (:func:`_close_enough`). Where the old angle's ray is no longer in the family (a moved
+    source's ray near a boundary), the family is sought just past the edge that walk predicts on
+    either side (at 1.001, 1.1 and 1.5 times the predicted offset). Returns the arrival rows (L,
+    Q, NF) (as :func:`search` writes them) and whether each was followed (L, Q): not where its
+    bounce sequence changed (a step that leaves it is halved up to six times first) or Newton did
+    not converge in 12 steps, or would have to go as far as half the gap to a sibling (another
+    of the link's eigenrays in its sequence: it might land on it; steps are shortened to stay
+    inside) (its row is then NaN). Each arrival costs one walk per step: one for a move of millimetres, two or three
+    for a metre."""
     L, Q = theta0.shape
     out = np.full((L, Q, NF), np.nan)
     ok_all = np.zeros((L, Q), np.bool_)
     dummy = np.empty((1, 3))
+    ev = np.empty(0)
+    evw = np.empty(2)  # the first walk's predictions
     for l in range(L):
         o0, o1 = starts[l], ends[l]
         if o1 - o0 < 2:
             continue
-        rr, cc, bb = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1]
+        rr, cc, bb, ff = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1], ff_all[o0:o1]
         for q in range(Q):
             cd = code[l, q]
-            s = slope[l, q]
-            if cd < 0 or not math.isfinite(theta0[l, q]) or not (math.isfinite(s) and s != 0.0):
+            if cd < 0 or not math.isfinite(theta0[l, q]):
                 continue
             a = theta0[l, q]
-            res = trace(rr, zz, cc, bb, floor, zs[l], a, R[l], maxb, bpar, False, dummy)
+            # half the gap to its nearest sibling (an eigenray of its sequence): a step beyond it
+            # may land on the sibling (a fold), so it is shortened, and the follow given up
+            # where it cannot be avoided
+            half = math.inf
+            for q2 in range(Q):
+                if q2 != q and code[l, q2] == cd and math.isfinite(theta0[l, q2]):
+                    half = min(half, 0.5 * abs(theta0[l, q2] - a))
+            res = trace(rr, zz, cc, bb, ff, floor, zs[l], a, R[l], maxb, bpar, False, dummy, evw)
             if res[0] != S_REACHED or res[7] != cd:
-                continue
+                # the family moved off the old angle (a moved source's ray near a boundary): just
+                # past the edge this walk predicts, on either side, the family may be found again
+                found = False
+                p, m = evw[0], evw[1]
+                for off in (p, -m):
+                    if not (math.isfinite(off) and abs(off) < 0.05):
+                        continue
+                    for grow in (1.001, 1.1, 1.5):
+                        b = a + off * grow
+                        rb = trace(rr, zz, cc, bb, ff, floor, zs[l], b, R[l], maxb, bpar, False, dummy, ev)
+                        if rb[0] == S_REACHED and rb[7] == cd:
+                            found = True
+                            break
+                    if found:
+                        break
+                if not found:
+                    continue
+                a, res = b, rb
             fa = res[1] - zr[l]
-            ok = abs(fa) <= ztol
+            ok = _close_enough(res, zr[l], ztol)
             for _ in range(12):
                 if ok:
                     break
+                s = res[13]
+                if not (math.isfinite(s) and s != 0.0):
+                    break
                 b = a - fa / s
-                rb = trace(rr, zz, cc, bb, floor, zs[l], b, R[l], maxb, bpar, False, dummy)
+                for _h in range(12):
+                    if abs(b - theta0[l, q]) < half:
+                        break
+                    b = a + 0.5 * (b - a)
+                if not abs(b - theta0[l, q]) < half:
+                    break
+                rb = trace(rr, zz, cc, bb, ff, floor, zs[l], b, R[l], maxb, bpar, False, dummy, ev)
                 # a step that leaves the bounce sequence is shortened (the family may be narrower
                 # than the step), up to 1/64 of it
                 for _h in range(6):
                     if rb[0] == S_REACHED and rb[7] == cd:
                         break
                     b = a + 0.5 * (b - a)
-                    rb = trace(rr, zz, cc, bb, floor, zs[l], b, R[l], maxb, bpar, False, dummy)
+                    rb = trace(rr, zz, cc, bb, ff, floor, zs[l], b, R[l], maxb, bpar, False, dummy, ev)
                 if rb[0] != S_REACHED or rb[7] != cd:
                     break
-                fb = rb[1] - zr[l]
-                if fb != fa and b != a:
-                    s = (fb - fa) / (b - a)
-                a, fa, res = b, fb, rb
-                ok = abs(fa) <= ztol
+                a, fa, res = b, rb[1] - zr[l], rb
+                ok = _close_enough(res, zr[l], ztol)
             if not ok:
                 continue
             _write_row(rr, zz, cc, zs[l], zr[l], R[l], a, res, out[l], q)
-            out[l, q, F_DZDTH] = s
             ok_all[l, q] = True
     return out, ok_all

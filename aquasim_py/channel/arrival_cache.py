@@ -68,7 +68,8 @@ points (none found on the shelf-break benchmark, docs/channel.md).
 
 Arrival-set changes. The stencil doubles as a guard: a link with an eigenray that cannot be
 followed to one of its points, or followed onto a sibling of its bounce sequence, or with a
-bottom reflection point near a kink of the floor polyline (where the delay's gradient jumps:
+bottom reflection point near a point where the floor's slope or curvature jumps (a polyline's
+vertex, where the delay's gradient jumps; a curved floor's arc junctions, where its Hessian does:
 within 2 h, more where the stencil shows the point moving faster than the ends, as it does at
 low grazing angles), is never served by Taylor; searched again within 2 h of where it was refused, it is not
 expanded again (the stencil would most likely be refused again, and costs twice the search). A
@@ -473,7 +474,6 @@ class ArrivalCache:
             X[:, 3:],
             self.max_bounces,
             th_in,
-            np.tile(tab["dz_dlaunch"][slots], (P, 1)),
             code_in,
         )
 
@@ -561,8 +561,9 @@ class ArrivalCache:
         # block's asymmetry, the delays' own error in the second differences
         dH = np.sqrt(6.0) * h**2 / 6.0 * m4 + k_asym + 8.0 * _SOLVER_S / h**2
         coef = np.stack([np.sqrt(2.0) * h**2 / 6.0 * m3, 0.5 * dH, m3 / 6.0], axis=1)
-        # a bottom bounce near a kink of the floor polyline: the delay's gradient jumps where the
-        # reflection point crosses it, so no Taylor bound holds across it. At a low grazing angle
+        # a bottom bounce near a jump of the floor's slope or curvature: the delay's gradient or
+        # Hessian jumps where the reflection point crosses it, so no Taylor bound holds across
+        # it. At a low grazing angle
         # the reflection point moves faster than the ends: its distance to the kink at the stencil
         # points gives the rate (a crossing between a pair of them shows as a fast one), and the
         # served region must stay clear of it by twice what that rate allows, 2 h at least

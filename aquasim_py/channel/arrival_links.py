@@ -107,8 +107,6 @@ class ArrivalLinkModel(LinkModel):
             config.detection_threshold_db if config.detection_threshold_db is not None else config.snr_threshold_db
         )
         self._cache: ArrivalCache | None = None
-        #: transmissions whose stamp still moved by more than the tolerance after MAX_ITER steps
-        self.unconverged = 0
 
     def _new_layout(self, n: int) -> None:
         super()._new_layout(n)

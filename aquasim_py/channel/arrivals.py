@@ -69,7 +69,8 @@ class Arrivals:
     bottom_loss_db: FloatArray  #: summed Rayleigh loss of the bottom bounces, dB
     bounce_code: NDArray[np.int64]  #: bounce sequence, base 3 (1 surface, 2 bottom; first bounce lowest)
     dz_dlaunch: FloatArray  #: d (depth at the receiver's range) / d launch angle, m/rad (ray-tube width)
-    floor_kink_distance: FloatArray  #: m from the nearest bottom reflection point to a kink of the floor (inf: none)
+    #: m from the nearest bottom reflection point to a jump of the floor's slope or curvature (inf: none)
+    floor_kink_distance: FloatArray
     source_speed: FloatArray  #: c at the source, m/s (the traced section's)
     receiver_speed: FloatArray  #: c at the receiver, m/s
 
@@ -180,15 +181,14 @@ def follow(
     src_from: ArrayLike | None = None,
 ) -> tuple[Arrivals, NDArray[np.bool_]]:
     """The arrivals ``prev`` (of n links, each solved at nearby end points) followed to the end
-    points ``src``, ``dst`` ((n, 3), m): each eigenray from its launch angle by a few secant
-    steps on the depth miss, keeping its bounce sequence (:func:`.rangedep.follow`), instead of a
-    search. Returns (the arrivals, (n,) whether every arrival of the link was followed): a
+    points ``src``, ``dst`` ((n, 3), m): each eigenray from its launch angle by Newton's
+    iteration on the depth miss with the walk's exact slope, keeping its bounce sequence
+    (:func:`.rangedep.follow`), instead of a search. Returns (the arrivals, (n,) whether every arrival of the link was followed): a
     link is not followed where one of its eigenrays changed its bounce sequence (a path about to
     vanish), or two of one sequence met or swapped their order (a fold, where following one may
     land on the other); its arrivals are then meaningless and must be searched again. A
     followed link has exactly ``prev``'s eigenrays: one that appeared since is not found. The
-    ray-tube width (for the level) is the secant's last slope instead of a central difference:
-    within 1e-3 of it for moves of a metre away from caustics (a few thousandths of a dB).
+    ray-tube width (for the level) is the walk's exact derivative, as a search's.
     ``src_from`` (n, 3): where the sources were when ``prev`` was solved; given, a moved
     source's move is followed backwards from the receiver (:func:`.rangedep.follow_ends`),
     which keeps far more eigenrays than following it from the source."""
@@ -201,15 +201,13 @@ def follow(
     rows_of = np.repeat(np.arange(n), cnt)
     col = np.arange(prev.delay.size) - prev.offsets[:-1][rows_of]
     theta = np.full((n, max(q, 1)), np.nan)
-    slope = np.full((n, max(q, 1)), np.nan)
     code = np.full((n, max(q, 1)), -1, np.int64)
     theta[rows_of, col] = prev.launch_angle
-    slope[rows_of, col] = prev.dz_dlaunch
     code[rows_of, col] = prev.bounce_code
     used = code >= 0
     # without src_from no source counts as moved: one leg
     s0 = s if src_from is None else np.asarray(src_from, dtype=float).reshape(n, 3)
-    rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, slope, code)
+    rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, code)
     # a link is followed where every eigenray is: not one changed its bounce sequence, and none
     # moved by half the gap to a sibling of its sequence or more (a fold)
     whole = np.all(ok | ~used, axis=1)

@@ -10,8 +10,9 @@ the origin).
 Data files (World Ocean Atlas temperature and salinity, GEBCO or ETOPO bathymetry,
 :mod:`.oceanfiles`) stay on their own grid: :class:`LatLonGrid` takes a point of the frame back
 to latitude / longitude (exactly, through the projection) and interpolates bilinearly in
-latitude and longitude between the four grid nodes around it (clamped at the grid's edges). So a
-grid node's value is the file's, wherever the node lands in the frame.
+latitude and longitude between the four grid nodes around it (clamped at the grid's edges); the
+floor is bicubic there instead (:class:`GeographicBathymetry`: a continuous slope for the ray
+tracer's smooth floor). So a grid node's value is the file's, wherever the node lands in the frame.
 
 In the frame the grid's parallels and meridians are curves (the meridians converge). The ray
 tracer samples a field along a straight line at its kinks (:meth:`LatLonGrid.crossings`): the
@@ -35,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .bathymetry import Bathymetry
+from .bathymetry import Bathymetry, bicubic, ghost_padded
 from .fields import SoundSpeedField, _check_depths, _check_speeds, _depth_interp
 
 __all__ = ["GeographicBathymetry", "GeographicField", "LatLonGrid", "LocalFrame"]
@@ -332,7 +333,12 @@ class GeographicField(SoundSpeedField):
 @dataclass(frozen=True, eq=False)
 class GeographicBathymetry(Bathymetry):
     """Sea-floor depths ``depths`` (m, n; m, positive down, 0 on land) on a :class:`LatLonGrid`,
-    bilinear in latitude and longitude, the edge values beyond."""
+    bicubic in latitude and longitude between the nodes (as :class:`~.bathymetry.GriddedBathymetry`
+    in x and y: Hermite with the slopes of the parabola through each node and its neighbours,
+    through every node, with a continuous slope), the edge values beyond. The ray tracer's floor
+    is then the smooth curve through its samples with their slopes (:meth:`slope_along`); a grid
+    with a single latitude or longitude is bilinear (linear along its one axis), and its section
+    the polyline of the samples."""
 
     grid: LatLonGrid
     depths: FloatArray
@@ -346,8 +352,30 @@ class GeographicBathymetry(Bathymetry):
         d.setflags(write=False)
         object.__setattr__(self, "depths", d)
 
+    @cached_property
+    def _padded(self) -> FloatArray | None:
+        """The depths with ghost nodes (:func:`~.bathymetry.ghost_padded`); None on a one-node axis."""
+        return ghost_padded(self.depths) if min(self.grid.shape) >= 2 else None
+
     def depth(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
-        return self.grid.bilinear(self.depths, x, y)
+        if self._padded is None:
+            return self.grid.bilinear(self.depths, x, y)
+        lat, lon = self.grid.latlon(x, y)
+        return bicubic(self.grid.latitude, self.grid.longitude, self._padded, lat, lon)[0]
+
+    def slope_along(self, x, y, ux, uy) -> FloatArray | None:
+        """d depth / d r along (ux, uy): the bicubic's latitude and longitude slopes times the
+        rates of latitude and longitude along the line (central differences of the exact inverse
+        projection over +-1 m: the projection's curvature makes their error ~1e-12 relative,
+        rounding ~1e-9)."""
+        if self._padded is None:
+            return None
+        x, y, ux, uy = (np.asarray(a, float) for a in (x, y, ux, uy))
+        lat, lon = self.grid.latlon(x, y)
+        _d, g_lat, g_lon = bicubic(self.grid.latitude, self.grid.longitude, self._padded, lat, lon)
+        lat_p, lon_p = self.grid.latlon(x + ux, y + uy)
+        lat_m, lon_m = self.grid.latlon(x - ux, y - uy)
+        return g_lat * 0.5 * (lat_p - lat_m) + g_lon * 0.5 * (lon_p - lon_m)
 
     def max_depth(self) -> float:
         return float(self.depths.max())

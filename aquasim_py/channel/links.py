@@ -13,7 +13,9 @@ the network only through :class:`~aquasim_py.radio.NetworkView`.
    vectorized distance computation over all node positions. The exact test is the same;
 2. delay: the eigenray time from p_s to the receiver's position *at the arrival instant*,
    i.e. the fixed point t_a = t0 + T(p_s, p_rx(t_a)), iterated (vectorized over receivers)
-   until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step.
+   until it moves by less than 1e-10 s. The map contracts by about |v_rx| / c ~ 1e-3 per step;
+   where the first eigenray switches paths across the receiver's track it may have no fixed
+   point, and the stamp is the last of ``MAX_ITER`` iterates (counted in ``unconverged``).
    Iteration starts from the fixed point of the receivers' straight-line motion at t0 (no
    mobility queries): in closed form for a constant sound speed, else by a few secant steps
    seeded with the exact slope grad T . v. It is exact for constant velocity, so the exact
@@ -98,6 +100,9 @@ class LinkModel:
         self.ssp = ssp
         self.config = config
         self.loss_model = loss_model
+        #: transmissions whose stamp still moved by more than the tolerance after MAX_ITER steps
+        #: at some receiver (kept at the last iterate)
+        self.unconverged = 0
         self._range2 = float(config.max_range_m) ** 2
         self._static_links: dict[int, tuple[int, Links]] = {}
         self._layout_n = -1  # node count _static / _index were made for (see _new_layout)
@@ -343,7 +348,9 @@ class LinkModel:
                 active = active[step > FIXED_POINT_TOL_S]
             ray = Eigenray(**fields)
             if active.size:
-                raise RuntimeError(f"arrival-time fixed point did not converge for {active.size} receivers")
+                # no fixed point: the eigenray switches paths across the receiver's track (the
+                # direct one and a reflection, say); the stamp is the last iterate's
+                self.unconverged += 1
         snr = np.asarray(self.loss_model(ray, self.config), dtype=float)
         return np.asarray(ray.time, dtype=float), np.asarray(ray.path), snr
 

@@ -83,12 +83,12 @@ def test_second_order_term_is_there() -> None:
         out[rows, cols] = values
         return out
 
-    th, slope = per_link(ref.launch_angle, np.nan), per_link(ref.dz_dlaunch, np.nan)
+    th = per_link(ref.launch_angle, np.nan)
     code = per_link(ref.bounce_code, -1).astype(np.int64)
 
     def exact(ds: np.ndarray, dd: np.ndarray) -> np.ndarray:
         """(n, q) the reference's eigenrays followed to the moved ends, in its order."""
-        return track(env, s + ds, d + dd, 1, th, slope, code)
+        return track(env, s + ds, d + dd, 1, th, code)
 
     u = rng.normal(size=(n, 6))
     u *= 0.4 / np.linalg.norm(u, axis=1, keepdims=True)

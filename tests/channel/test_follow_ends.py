@@ -85,7 +85,7 @@ def test_two_legs_keep_what_one_leg_loses() -> None:
         np.testing.assert_allclose(two.delay[g], new.delay[e], rtol=0, atol=1e-9)
         lv.append(np.abs(two.level_db[g] - new.level_db[e]))
     assert same >= 0.8 * ok2.sum()
-    # levels: the ray-tube width is the last secant's slope (converted by reciprocity on the
-    # second leg), not the search's central difference; they differ most near caustics
+    # levels: the ray-tube width of the second leg is the reversed walk's, converted by the
+    # reciprocity of the propagator; they differ most near caustics
     lv = np.concatenate(lv)
     assert np.quantile(lv, 0.9) <= 0.01 and lv.max() <= 0.2

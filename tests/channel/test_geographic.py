@@ -161,16 +161,17 @@ def _environment() -> Environment:
 
 
 def test_sections_sample_the_files_between_their_kinks() -> None:
-    """The tracer's section of a link is the environment at the kinks and linear between them:
-    along the link, the true floor (bilinear in latitude / longitude) departs from the section's
-    floor polyline by at most a quarter of the largest twist |d00 - d10 - d01 + d11| of a grid
-    cell (the bilinear's departure from its chord between two edge crossings), plus 1 mm; a
-    missed kink would leave metres. The same for the sound speed's columns."""
+    """The tracer's section of a link samples the environment at the grid's crossings: along the
+    link, the section's smooth floor passes through the file's floor (bicubic in latitude /
+    longitude) at them and departs from it between them by at most h^2 / 8 times the largest
+    difference of the two curves' second derivatives (two curves with equal values and slopes at
+    both ends of each interval h), far below the polyline of the same samples; a missed crossing
+    would leave metres. The sound speed's columns are linear between the crossings: within a
+    quarter of the grid's largest cell twist |c00 - c10 - c01 + c11| (bilinear's departure from
+    its chord between two edge crossings)."""
     env = _environment()
     bathy = env.bathymetry
     assert isinstance(bathy, GeographicBathymetry) and isinstance(env.field, GeographicField)
-    d = bathy.depths
-    twist = np.max(np.abs(d[:-1, :-1] - d[1:, :-1] - d[:-1, 1:] + d[1:, 1:]))
     c = env.field.speeds
     c_twist = np.max(np.abs(c[:-1, :-1] - c[1:, :-1] - c[:-1, 1:] + c[1:, 1:]))
     rng = np.random.default_rng(11)
@@ -182,8 +183,33 @@ def test_sections_sample_the_files_between_their_kinks() -> None:
         q = np.linspace(r[0], r[-1], 4001)
         x, y = src[i, 0] + q * sec.ux[i], src[i, 1] + q * sec.uy[i]
         np.testing.assert_allclose(fz, env.depth(src[i, 0] + r * sec.ux[i], src[i, 1] + r * sec.uy[i]), atol=1e-9)
-        floor_err = np.abs(np.interp(q, r, fz) - env.depth(x, y))
-        assert floor_err.max() <= twist / 4 + 1e-3, (i, floor_err.max(), twist)
+        floor_err = np.abs(sec.floor_at(i, q) - env.depth(x, y))
+        h = 1e-2
+        true2 = (env.depth(x + h * sec.ux[i], y + h * sec.uy[i]) - 2 * env.depth(x, y)
+                 + env.depth(x - h * sec.ux[i], y - h * sec.uy[i])) / h**2  # fmt: skip
+        ours2 = (sec.floor_at(i, q + h) - 2 * sec.floor_at(i, q) + sec.floor_at(i, q - h)) / h**2
+        bound = np.diff(r).max() ** 2 / 8.0 * np.max(np.abs(ours2 - true2))
+        assert floor_err.max() <= bound + 1e-6, (i, floor_err.max(), bound)
+        assert floor_err.max() < 0.5 * np.abs(np.interp(q, r, fz) - env.depth(x, y)).max()
         speed = env.field.columns(x, y)
         lin = np.stack([np.interp(q, r, cols[:, k]) for k in range(env.field.depths.size)], axis=1)
         assert np.max(np.abs(lin - speed)) <= c_twist / 4 + 1e-6
+
+
+def test_floor_is_bicubic_through_the_nodes_with_its_slope() -> None:
+    """The file's floor passes through every node, and the slope the tracer's smooth floor takes
+    (slope_along) is the derivative of depth along the line (central differences, 1 mm: their
+    truncation and rounding are ~1e-7 of the slope's scale here)."""
+    bathy = read_gebco(sample_path("gebco"), FRAME)
+    x, y = bathy.grid.nodes_xy()
+    np.testing.assert_allclose(bathy.depth(x, y), bathy.depths, rtol=0, atol=1e-8)
+    rng = np.random.default_rng(5)
+    p = rng.uniform([-3000, 1000], [3000, 9000], (300, 2))
+    th = rng.uniform(0.0, 2 * np.pi, 300)
+    ux, uy = np.cos(th), np.sin(th)
+    s = bathy.slope_along(p[:, 0], p[:, 1], ux, uy)
+    assert s is not None
+    h = 1e-3
+    fd = (bathy.depth(p[:, 0] + h * ux, p[:, 1] + h * uy) - bathy.depth(p[:, 0] - h * ux, p[:, 1] - h * uy)) / (2 * h)
+    np.testing.assert_allclose(s, fd, rtol=0, atol=1e-6)
+    assert np.abs(s).max() > 0.01  # the sample's slope, not a flat patch

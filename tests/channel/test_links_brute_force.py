@@ -78,3 +78,26 @@ def test_links_against_brute_force():
                     tau = brentq(gap, 0.0, 2.0 * RANGE / C + 1.0, xtol=1e-15, rtol=1e-15)
                     assert abs(tof - tau) <= FIXED_POINT_TOL_S
     assert min(seen.values()) > 10, seen
+
+
+def test_a_fixed_point_without_convergence_keeps_the_last_iterate(monkeypatch):
+    """Where the arrival-time iteration does not settle (no fixed point: the first eigenray
+    switching paths across the receiver's track), the link keeps the last iterate's stamp and
+    the transmission is counted in ``unconverged``; the run goes on (no iteration at all here)."""
+    import aquasim_py.channel.links as links_mod
+    from aquasim_py.channel import Layered
+
+    sim = Simulation(
+        1,
+        ssp=Layered([0.0, 50.0, 120.0], [1520.0, 1490.0, 1495.0], bottom=120.0),
+        volume=Box([0.0, 0.0, 0.0], [800.0, 800.0, 120.0]),
+        channel=ChannelConfig(max_range_m=RANGE, collision="none"),
+    )
+    p0 = np.array([[100.0, 100.0, 30.0], [200.0, 150.0, 60.0], [150.0, 250.0, 40.0]])
+    v = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [-1.0, 1.0, 0.0]])
+    sim.add_group(Idle, 3, mobility=ConstantVelocity(p0, Box([0.0, 0.0, 0.0], [800.0, 800.0, 120.0]), velocity=v))
+    monkeypatch.setattr(links_mod, "MAX_ITER", 0)
+    ids, heard, _lost = sim.channel.links.links(0, 0.5, 3)
+    assert sorted(ids) == [1, 2] and len(heard) == 2
+    assert all(np.isfinite(tof) for _j, tof, _p, _s in heard)
+    assert sim.channel.links.unconverged == 1
