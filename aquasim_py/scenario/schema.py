@@ -64,7 +64,7 @@ PHY_KEYS = (
     "sleep_power_w",
 )
 
-# constraints as annotated-types markers, not Field(...): pydantic before 2.11 wrote a field's
+# constraints as annotated-types markers, not Field(...): pydantic before 2.12 wrote a field's
 # default into a shared Annotated[..., Field()] alias, so a later required field of the same
 # alias silently took that default (BatterySpec.capacity_j = 10.0 from drift_interval_s)
 PosFloat = Annotated[float, at.Gt(0.0)]
