@@ -24,7 +24,10 @@ __all__ = [
     "check_geographic",
 ]
 
-# annotated-types markers, not Field(...): see PosFloat in schema.py
+# constraints as annotated-types markers, not Field(...): pydantic before 2.12 wrote a field's
+# default into a shared Annotated[..., Field()] alias, so a later required field of the same
+# alias silently took that default (BatterySpec.capacity_j = 10.0 from drift_interval_s);
+# schema.py uses these too
 PosFloat = Annotated[float, at.Gt(0.0)]
 NonNegFloat = Annotated[float, at.Ge(0.0)]
 

@@ -19,6 +19,8 @@ from aquasim_py.scenario.ocean_schema import (
     OCEAN_KEYS,
     BathymetrySpec,
     GridSSP,
+    NonNegFloat,
+    PosFloat,
     Season,
     SectionSSP,
     SedimentSpec,
@@ -64,11 +66,7 @@ PHY_KEYS = (
     "sleep_power_w",
 )
 
-# constraints as annotated-types markers, not Field(...): pydantic before 2.12 wrote a field's
-# default into a shared Annotated[..., Field()] alias, so a later required field of the same
-# alias silently took that default (BatterySpec.capacity_j = 10.0 from drift_interval_s)
-PosFloat = Annotated[float, at.Gt(0.0)]
-NonNegFloat = Annotated[float, at.Ge(0.0)]
+# annotated-types markers, not Field(...): see PosFloat in ocean_schema.py
 PosInt = Annotated[int, at.Ge(1)]
 Vec3 = Annotated[list[float], at.Len(3, 3)]
 

@@ -50,7 +50,7 @@ from .math import TETRAHEDRON, fix_crb, paper_transition, pcrb_along, tof_functi
 
 __all__ = ["RamezaniNode"]
 
-Vec3 = Annotated[list[float], at.Len(3, 3)]  # not Field(...): see PosFloat in aquasim_py/scenario/schema.py
+Vec3 = Annotated[list[float], at.Len(3, 3)]  # not Field(...): see PosFloat in aquasim_py/scenario/ocean_schema.py
 _ANCHOR_ROLES = (Role.ANCHOR, Role.BUOY)
 _PING = "rz_ping"
 
