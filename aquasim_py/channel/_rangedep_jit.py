@@ -404,6 +404,9 @@ def trace(rr, zz, cc, bb, ff, floor, z0, theta0, R, maxb, bottom_par, want_path,
     j = 0
     while j < J - 2 and rr[j + 1] <= rn:
         j += 1
+    # a source a rounding error across a node line from the cell the ray enters starts on that
+    # line (outside its cell, the first step would leave through the line at once, the wrong way)
+    z = min(max(z0, zz[k]), zz[k + 1])
     part = _part_at(rr, zz, cc, j, k, rn, zn)
     entry = E_NONE
     c_end = math.nan

@@ -150,6 +150,26 @@ def test_reciprocity_and_order() -> None:
     assert same.mean() >= 0.98
 
 
+@pytest.mark.parametrize("node", [50.0, 125.0])
+def test_source_a_rounding_error_from_a_depth_node(node: float) -> None:
+    """A source one ulp above or below a depth node of the field (a drifting node kept at a node's
+    depth by arithmetic that rounds) has the arrivals of the source on the node: the same bounce
+    sequences and delays within rounding. (The walk once started such a ray outside its first
+    cell, which it left at once through the node line the wrong way: bogus bounce sequences,
+    delays of seconds on a 1.2 km link, the arrival without bounces lost.)"""
+    from aquasim_py.channel.data import shelfbreak
+
+    env = shelfbreak()
+    assert node in env.field.depths
+    dst = np.array([300.0, 800.0, 5.0])
+    src = [np.array([1471.8, 403.1, z]) for z in (np.nextafter(node, 0.0), node, np.nextafter(node, 1e3))]
+    a = [arrivals(env, s, dst, max_bounces=2) for s in src]
+    for other in (a[0], a[2]):
+        assert np.array_equal(np.sort(other.bounce_code), np.sort(a[1].bounce_code))
+        assert np.allclose(np.sort(other.delay), np.sort(a[1].delay), rtol=0.0, atol=1e-12)
+    assert np.any(a[1].bounce_code == 0)  # a path without bounces
+
+
 def test_seamount_blocks_direct_path() -> None:
     """Behind a seamount whose crest is above the straight line, no direct arrival exists; the
     first arrival is surface- or bottom-reflected and later than the straight-line time."""
