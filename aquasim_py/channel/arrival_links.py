@@ -20,11 +20,15 @@ order of the answer are the link model's; what differs is the arrival of each li
 3. moving receivers: the stamp solves t_a = t0 + T(p_src(t0), p_rx(t_a)), T the delay of the
    first detectable arrival, iterated on the receiver's true trajectory until it moves by less
    than 1e-10 s. The first iterate starts from the straight-line time at the mean of the two
-   end speeds (its error, ~1e-3 of the delay, moves a drifting receiver by a millimetre); each
-   later one follows the eigenrays found there (:mod:`.arrival_cache`, exact). The map
-   contracts by |v_rx| / c ~ 1e-3 per step; a stamp that keeps jumping between two arrivals
-   (a receiver exactly where one crosses the threshold) stops after ``MAX_ITER`` steps at the
-   last one.
+   end speeds (its error, ~1e-3 of the delay, moves a drifting receiver by a millimetre); the
+   second is a Newton step from it, the slope grad T . v - 1 from the stamped eigenray's
+   slowness vector at the receiver (Fermat) and the receiver's velocity at t0, which leaves an
+   error of second order in the first one's (one request of the link fewer than plain
+   iteration, which contracts by |v_rx| / c ~ 1e-3 per step); each later iterate is plain. Every
+   iterate after the first follows the eigenrays found there (:mod:`.arrival_cache`, exact), and
+   the answer is the iterate that moved by less than the tolerance, as in plain iteration. A
+   stamp that keeps jumping between two arrivals (a receiver exactly where one crosses the
+   threshold) stops after ``MAX_ITER`` steps at the last one.
 
 The arrivals of each link are kept between transmissions in an :class:`~.arrival_cache.
 ArrivalCache` without its Taylor tier (every delay exact): a link whose ends are where they
@@ -166,30 +170,39 @@ class ArrivalLinkModel(LinkModel):
         p_src_k = np.broadcast_to(p_src, (k, 3))
         moving = np.flatnonzero(net.is_moving()[cand])
         p = np.array(p_rx, dtype=float)
-        start = np.zeros(k)
+        guess = np.zeros(k)  # the delay at whose instant each receiver is placed
         if moving.size:
             # first iterate: the straight-line time at the mean of the end speeds
             pm = p[moving]
             c0 = self.env.speed(p_src[0], p_src[1], p_src[2])
             c1 = self.env.speed(pm[:, 0], pm[:, 1], pm[:, 2])
-            start[moving] = np.linalg.norm(pm - p_src, axis=1) / (0.5 * (c0 + c1))
-            p[moving] = net.positions_at(cand[moving], t0 + start[moving])
-        rec = self._records(cache.get(ids, p_src_k, p))
+            guess[moving] = np.linalg.norm(pm - p_src, axis=1) / (0.5 * (c0 + c1))
+            p[moving] = net.positions_at(cand[moving], t0 + guess[moving])
+        arr = cache.get(ids, p_src_k, p)
+        rec = self._records(arr)
         time = rec[0]
-        active = moving[np.abs(time[moving] - start[moving]) > FIXED_POINT_TOL_S]  # NaN: no stamp, done
+        active = moving[np.abs(time[moving] - guess[moving]) > FIXED_POINT_TOL_S]  # NaN: no stamp, done
+        if active.size:
+            # then one Newton step on T(p_rx(t0 + g)) - g, its slope grad T . v - 1 with the
+            # stamped eigenray's slowness vector at the receiver (Fermat) and the receiver's
+            # velocity at t0: the next iterate is then usually within the tolerance
+            v = v_rx[active] if v_rx is not None else self._velocities(cand[active], t0)
+            slope = np.einsum("ij,ij->i", _stamp_slowness(arr, rec[7][active], p_src, p[active]), v)
+            guess[active] += (time[active] - guess[active]) / (1.0 - slope)
         for _ in range(MAX_ITER):
             if not active.size:
                 break
-            p_new = net.positions_at(cand[active], t0 + time[active])
+            p_new = net.positions_at(cand[active], t0 + guess[active])
             sub = self._records(cache.get(ids[active], p_src_k[: active.size], p_new))
-            step = np.abs(sub[0] - time[active])
+            step = np.abs(sub[0] - guess[active])
             for full, part in zip(rec, sub):
                 full[active] = part
+            guess[active] = sub[0]
             active = active[step > FIXED_POINT_TOL_S]
         else:
             if active.size:
                 self.unconverged += 1
-        time, label, count, spread, first, direct, snr = rec
+        time, label, count, spread, first, direct, snr, _row = rec
         paths = [
             ArrivalPath(_LABELS[c] if c >= 0 else "none", n, sp, f, dr)
             for c, n, sp, f, dr in zip(label.tolist(), count.tolist(), spread.tolist(), first.tolist(), direct.tolist())
@@ -198,7 +211,8 @@ class ArrivalLinkModel(LinkModel):
 
     def _records(self, arr: Arrivals) -> list[NDArray[Any]]:
         """Per link of ``arr``: [stamp delay (s, NaN: none), stamped class code (-1: none),
-        arrival count, delay spread (s), first delay (s), first direct delay (s), SNR (dB)]."""
+        arrival count, delay spread (s), first delay (s), first direct delay (s), SNR (dB), the
+        stamped arrival's row of ``arr`` (-1: none)]."""
         n = arr.offsets.size - 1
         if self._snr:
             idx, stamp = first_detectable(arr, self.config.source_level_db, self._noise_db, self._detect_db)
@@ -226,7 +240,26 @@ class ArrivalLinkModel(LinkModel):
             arr.first_delay.reshape(n),
             direct,
             snr,
+            np.asarray(idx, dtype=np.int64).reshape(n),
         ]
+
+
+def _stamp_slowness(
+    arr: Arrivals, rows: NDArray[np.int64], p_src: NDArray[np.float64], p_rx: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(k, 3) the gradient (s/m) of each stamped arrival's delay with respect to its receiver's
+    position (Fermat: the slowness vector (cos theta_R u, sin theta_R) / c_R, u the link's
+    horizontal unit vector, theta_R positive down); zero where there is no stamp."""
+    has = rows >= 0
+    r = np.maximum(rows, 0)
+    th = np.where(has, arr.arrival_angle[r], 0.0) if arr.delay.size else np.zeros(rows.size)
+    c = np.where(has, arr.receiver_speed[r], np.inf) if arr.delay.size else np.full(rows.size, np.inf)
+    dx = p_rx[:, :2] - np.asarray(p_src, dtype=float)[:2]
+    hr = np.hypot(dx[:, 0], dx[:, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(hr[:, None] > 0.0, dx / hr[:, None], 0.0)
+    h = np.cos(th) / c
+    return np.stack([h * u[:, 0], h * u[:, 1], np.sin(th) / c], axis=1)
 
 
 def arrival_row_writer(append: Callable[..., None]) -> Callable[[tuple[Any, ...]], None]:
