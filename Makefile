@@ -8,7 +8,7 @@ UV     ?= uv
 # one universal lock for Python 3.11 and newer (markers where a newest release dropped 3.11)
 COMPILE = $(UV) pip compile pyproject.toml --universal --python-version 3.11 --quiet --no-header
 
-.PHONY: run test lint docs docs-check install install-test install-lint install-docs lock lock-check clean
+.PHONY: run test lint docs docs-check install install-test install-lint install-docs lock lock-check clean clean-numba
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -90,5 +90,10 @@ lock-check:
 	  diff -u $(LOCKS)/$$f.txt $$tmp/$$f.txt || { echo "$(LOCKS)/$$f.txt is out of step with pyproject.toml: run make lock"; exit 1; }; \
 	done && echo "locks match pyproject.toml"
 
-clean:
+clean: clean-numba
 	rm -rf $(VENV) $(DOCS_VENV) out site
+
+# numba's compiled kernels cached beside their sources (docs/internals.md: a cache is not
+# refreshed when a kernel it calls in another module changes)
+clean-numba:
+	find aquasim_py -name '*.nbi' -delete -o -name '*.nbc' -delete
