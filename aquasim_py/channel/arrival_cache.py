@@ -640,13 +640,8 @@ def _fermat(u: NDArray, th_s: NDArray, th_r: NDArray, c_s: NDArray, c_r: NDArray
     """(n, A, 6) the in-plane gradient of each delay (s/m) with respect to the ends: minus the
     slowness vector at the source, the slowness vector at the receiver (Fermat); u (n, 3) the
     plane's horizontal unit vector, angles (rad) and speeds (m/s) (n, A)."""
-    g = np.empty((*th_s.shape, 6))
-    hs, hr = np.cos(th_s) / c_s, np.cos(th_r) / c_r
-    g[..., 0], g[..., 1] = -hs * u[:, None, 0], -hs * u[:, None, 1]
-    g[..., 2] = -np.sin(th_s) / c_s
-    g[..., 3], g[..., 4] = hr * u[:, None, 0], hr * u[:, None, 1]
-    g[..., 5] = np.sin(th_r) / c_r
-    return g
+    ux, uy = u[:, None, 0], u[:, None, 1]
+    return np.concatenate([-_arrivals.slowness(ux, uy, th_s, c_s), _arrivals.slowness(ux, uy, th_r, c_r)], axis=-1)
 
 
 def _links_of(got: Arrivals, ok: NDArray[np.bool_]) -> Arrivals:

@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 
 from ..radio import NetworkView
 from .arrival_cache import ArrivalCache
-from .arrivals import ArrivalClass, Arrivals, detection_snr_db, first_detectable
+from .arrivals import ArrivalClass, Arrivals, detection_snr_db, first_detectable, slowness
 from .config import ChannelConfig, LossModel, _snr_constants, no_snr, physical_snr
 from .environment import Environment
 from .fixed_point import FIXED_POINT_TOL_S, MAX_ITER
@@ -248,8 +248,7 @@ def _stamp_slowness(
     arr: Arrivals, rows: NDArray[np.int64], p_src: NDArray[np.float64], p_rx: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """(k, 3) the gradient (s/m) of each stamped arrival's delay with respect to its receiver's
-    position (Fermat: the slowness vector (cos theta_R u, sin theta_R) / c_R, u the link's
-    horizontal unit vector, theta_R positive down); zero where there is no stamp."""
+    position (:func:`.arrivals.slowness` at the arrival angle); zero where there is no stamp."""
     has = rows >= 0
     r = np.maximum(rows, 0)
     th = np.where(has, arr.arrival_angle[r], 0.0) if arr.delay.size else np.zeros(rows.size)
@@ -258,8 +257,7 @@ def _stamp_slowness(
     hr = np.hypot(dx[:, 0], dx[:, 1])
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(hr[:, None] > 0.0, dx / hr[:, None], 0.0)
-    h = np.cos(th) / c
-    return np.stack([h * u[:, 0], h * u[:, 1], np.sin(th) / c], axis=1)
+    return slowness(u[:, 0], u[:, 1], th, c)
 
 
 def arrival_row_writer(append: Callable[..., None]) -> Callable[[tuple[Any, ...]], None]:

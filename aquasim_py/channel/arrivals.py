@@ -30,7 +30,7 @@ from . import rangedep
 from .environment import Environment
 from .loss import thorp_absorption_db_per_km
 
-__all__ = ["ArrivalClass", "Arrivals", "arrivals", "detection_snr_db", "first_detectable", "follow"]
+__all__ = ["ArrivalClass", "Arrivals", "arrivals", "detection_snr_db", "first_detectable", "follow", "slowness"]
 
 FloatArray = NDArray[np.float64]
 _CAUSTIC_CAP_DB = 6.0
@@ -281,6 +281,16 @@ def detection_snr_db(arr: Arrivals, source_level_db: float, noise_db: float) -> 
     """SNR (dB) of each arrival: source level + level - noise (``noise_db`` = the noise power
     in the receiver's band, dB re 1 uPa^2, e.g. :func:`.loss.noise_psd_db` + 10 log10 B)."""
     return float(source_level_db) + arr.level_db - float(noise_db)
+
+
+def slowness(ux: NDArray, uy: NDArray, theta: NDArray, c: NDArray) -> NDArray[np.float64]:
+    """(..., 3) the slowness vector (s/m) of a ray at an end of its link, (cos theta u, sin theta)
+    / c: theta (rad, positive down) its angle there in the link's vertical plane, c (m/s) the
+    speed there, (ux, uy) the plane's horizontal unit vector (broadcast together). By Fermat,
+    the gradient of the eigenray's delay with respect to the receiver's position at the arrival
+    angle, and minus the gradient with respect to the source's at the launch angle."""
+    h = np.cos(theta) / c
+    return np.stack(np.broadcast_arrays(h * ux, h * uy, np.sin(theta) / c), axis=-1)
 
 
 def first_detectable(
