@@ -212,13 +212,19 @@ def _hermite_turns(a, fa, qa, b, fb, qb):
 
 
 @_jit
+def _out_of_reach(f_near, q_steep, w):
+    """Whether a miss |f| >= ``f_near`` at both ends of an interval of width ``w`` cannot reach
+    zero inside it: f_near > 2 q_steep w, the steeper end slope bounding the slope inside where
+    the miss is convex or concave there (near its one extremum), doubled."""
+    return f_near > 2.0 * q_steep * w
+
+
+@_jit
 def _extremum(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, lo, flo, qlo, hi, fhi, qhi, code, dummy, ev):
     """Whether the miss, of one sign at both ends of [lo, hi] (flo, fhi) with one extremum inside
     (q(lo), q(hi) of opposite signs), reaches the other sign there: regula falsi (Illinois) on q
-    towards the extremum, to 1e-13 rad, or stopped once the miss cannot reach the other sign:
-    min(|f(lo)|, |f(hi)|) > 2 max(|q(lo)|, |q(hi)|) (hi - lo), the end slopes of the bracket
-    bounding |q| inside it where the miss is convex or concave there (near its one extremum),
-    doubled. (A miss of the other sign is followed to the extremum: the fold's two roots are
+    towards the extremum, to 1e-13 rad, or stopped once the miss cannot reach the other sign in
+    the bracket (:func:`_out_of_reach` of its ends). (A miss of the other sign is followed to the extremum: the fold's two roots are
     bracketed on either side of it.) Returns (angle, miss, code there)."""
     x, fx, cx = lo, math.nan, code
     positive = flo > 0.0
@@ -247,7 +253,7 @@ def _extremum(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, lo, flo, qlo, hi
         if hi - lo <= 1e-13:
             break
         # no root in [lo, hi]: none of the other sign yet, and the misses cannot reach it there
-        if math.isnan(xo) and min(fl, fh) > 2.0 * max(abs(ql), abs(qh)) * (hi - lo):
+        if math.isnan(xo) and _out_of_reach(min(fl, fh), max(abs(ql), abs(qh)), hi - lo):
             break
     if cx == code and (fx > 0.0) == positive and not math.isnan(xo):
         return xo, fo, code
@@ -381,7 +387,7 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 # steeper end slope times the width (the bound of _extremum); two (end slopes of
                 # one sign, the cubic turning) always do
                 one = (qa > 0.0) != (qb > 0.0)
-                far = (fa > 0.0) == (fb > 0.0) and min(abs(fa), abs(fb)) > 2.0 * max(abs(qa), abs(qb)) * w
+                far = (fa > 0.0) == (fb > 0.0) and _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), w)
                 turns = turns and not (one and far)
                 split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
                 if not split:
