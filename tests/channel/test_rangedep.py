@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import ray_ode_rd
 
-from aquasim_py.channel import eigenray, reflected_eigenray, ssp, travel_time
+from aquasim_py.channel import eigenray, rangedep, reflected_eigenray, ssp, travel_time
 from aquasim_py.channel.arrivals import ArrivalClass, arrivals, first_detectable
 from aquasim_py.channel.bathymetry import Flat, FluidBottom, Plane, Seamount
 from aquasim_py.channel.environment import Environment
@@ -168,6 +168,33 @@ def test_source_a_rounding_error_from_a_depth_node(node: float) -> None:
         assert np.array_equal(np.sort(other.bounce_code), np.sort(a[1].bounce_code))
         assert np.allclose(np.sort(other.delay), np.sort(a[1].delay), rtol=0.0, atol=1e-12)
     assert np.any(a[1].bounce_code == 0)  # a path without bounces
+
+
+def test_corner_of_the_miss_at_a_depth_node() -> None:
+    """Where a ray's turning point crosses a depth node of the field, d z / d theta jumps (a corner
+    of the depth miss) and the miss can dip through zero and back within 3e-5 rad, inside one
+    bounce sequence, with end slopes of one sign either side: both eigenrays there are found, as
+    a brute-force scan of the same walk counts them (the search once stopped splitting at 1e-4 rad
+    and missed the pair; a link of the shelf-break benchmark, 1.9 km)."""
+    from aquasim_py.channel.data import shelfbreak
+
+    env = shelfbreak()
+    src, dst = np.array([-889.67, -1055.94, 74.15]), np.array([982.91, -1380.99, 29.64])
+    lo, hi = 0.22080, 0.22090
+    a = arrivals(env, src, dst, max_bounces=2)
+    inside = (a.launch_angle > lo) & (a.launch_angle < hi)
+    th = np.linspace(lo, hi, 401)  # 2.5e-7 rad apart
+    paths, cnt, sec = rangedep.trace_rays(env, np.tile(src, (th.size, 1)), np.tile(dst, (th.size, 1)), th, 2, npts=512)
+    assert cnt.max() < 512
+    end = paths[np.arange(th.size), cnt - 1]
+    assert np.allclose(end[:, 0], sec.R)  # every ray of the window reaches the receiver's range
+    miss = end[:, 1] - sec.zr
+    roots = np.flatnonzero(np.sign(miss[1:]) != np.sign(miss[:-1]))
+    assert roots.size == 2
+    assert inside.sum() == 2 and np.all(a.bounce_code[inside] == a.bounce_code[inside][0])
+    found = np.sort(a.launch_angle[inside])
+    assert np.all((th[roots] <= found) & (found <= th[roots + 1]))
+    assert abs(np.diff(a.delay[inside])[0]) > 1e-3  # not a fold's pair: 1.4 ms apart
 
 
 def test_seamount_blocks_direct_path() -> None:
