@@ -523,23 +523,7 @@ def trace(rr, zz, cc, bb, ff, floor, z0, theta0, R, maxb, bottom_par, want_path,
                 best = s
                 which = E_FLOOR2
         if which == E_NONE or not math.isfinite(best):
-            return (
-                S_LOST,
-                z,
-                t,
-                math.atan2(tz, tr),
-                arc,
-                ns,
-                nb,
-                code,
-                loss,
-                nturn,
-                npath,
-                c_end,
-                kink,
-                math.nan,
-                math.nan,
-            )
+            break  # lost
         if events and k == 0 and tz < 0.0 and part != P_LOWER and part != P_LR and entry != E_TOP:
             near0 = _near_miss(-z, -tz, -tr, kap, 0.0)  # the surface: G = -z
         if 0.0 < near0 < best:
@@ -601,23 +585,7 @@ def trace(rr, zz, cc, bb, ff, floor, z0, theta0, R, maxb, bottom_par, want_path,
             return st, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink, qz, qp
         if which in (E_FLOOR, E_FLOOR2):
             if not floor:
-                return (
-                    S_LOST,
-                    z,
-                    t,
-                    math.atan2(tz, tr),
-                    arc,
-                    ns,
-                    nb,
-                    code,
-                    loss,
-                    nturn,
-                    npath,
-                    c_end,
-                    kink,
-                    math.nan,
-                    math.nan,
-                )
+                break  # lost
             # the floor's normal (into it) at the reflection point
             pr, pz, nr, nz, kf, lo, hi = _piece(rr, bb, ff, j, which == E_FLOOR2)
             if kf != 0.0:
@@ -668,69 +636,21 @@ def trace(rr, zz, cc, bb, ff, floor, z0, theta0, R, maxb, bottom_par, want_path,
         elif which == E_BOTTOM:
             z = zz[k + 1]
             if k + 1 >= K - 1:
-                return (
-                    S_LOST,
-                    z,
-                    t,
-                    math.atan2(tz, tr),
-                    arc,
-                    ns,
-                    nb,
-                    code,
-                    loss,
-                    nturn,
-                    npath,
-                    c_end,
-                    kink,
-                    math.nan,
-                    math.nan,
-                )
+                break  # lost
             k += 1
             part = _part_entering(cc, j, k, E_TOP)
             entry = E_TOP
         elif which == E_RIGHT:
             r = rr[j + 1]
             if j + 1 >= J - 1:
-                return (
-                    S_LOST,
-                    z,
-                    t,
-                    math.atan2(tz, tr),
-                    arc,
-                    ns,
-                    nb,
-                    code,
-                    loss,
-                    nturn,
-                    npath,
-                    c_end,
-                    kink,
-                    math.nan,
-                    math.nan,
-                )
+                break  # lost
             j += 1
             part = _part_entering(cc, j, k, E_LEFT)
             entry = E_LEFT
         elif which == E_LEFT:
             r = rr[j]
             if j == 0:
-                return (
-                    S_LOST,
-                    z,
-                    t,
-                    math.atan2(tz, tr),
-                    arc,
-                    ns,
-                    nb,
-                    code,
-                    loss,
-                    nturn,
-                    npath,
-                    c_end,
-                    kink,
-                    math.nan,
-                    math.nan,
-                )
+                break  # lost
             j -= 1
             part = _part_entering(cc, j, k, E_RIGHT)
             entry = E_RIGHT
@@ -741,21 +661,7 @@ def trace(rr, zz, cc, bb, ff, floor, z0, theta0, R, maxb, bottom_par, want_path,
                 part = P_LR if part == P_UL else P_UL
             entry = E_DIAG
         if ns + nb > maxb + (OVER_BOUNCES if events else 0):
-            return (
-                S_LOST,
-                z,
-                t,
-                math.atan2(tz, tr),
-                arc,
-                ns,
-                nb,
-                code,
-                loss,
-                nturn,
-                npath,
-                c_end,
-                kink,
-                math.nan,
-                math.nan,
-            )
+            break  # lost
+    # lost: no way on, absorbed by the floor (``floor`` False) or the grid's bottom, out of the
+    # section's ends, past the bounce limit, or out of steps
     return S_LOST, z, t, math.atan2(tz, tr), arc, ns, nb, code, loss, nturn, npath, c_end, kink, math.nan, math.nan
