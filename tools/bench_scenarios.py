@@ -113,15 +113,14 @@ def _install(tree: Path, site: Path) -> None:
 
 
 def install_revision(rev: str, tmp: Path) -> Side:
-    """A side for git revision ``rev``: its tree checked out and installed into ``tmp``."""
+    """A side for git revision ``rev``: its files exported into ``tmp`` (``git archive``: no
+    worktree for git to remember if the run is killed) and installed there."""
     tree, site = tmp / "tree", tmp / "site"
-    subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(tree), rev], check=True)
-    try:
-        _install(tree, site)
-    finally:
-        # the files needed are installed; the scenarios are copied out of the tree first
-        shutil.copytree(tree / "scenarios", tmp / "scenarios")
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=True)
+    tree.mkdir(parents=True)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev], check=True, capture_output=True)
+    subprocess.run(["tar", "-x", "-C", str(tree)], input=archive.stdout, check=True)
+    _install(tree, site)
+    shutil.copytree(tree / "scenarios", tmp / "scenarios")
     return Side(rev, sys.executable, tmp, pythonpath=str(site))
 
 

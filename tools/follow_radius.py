@@ -12,7 +12,8 @@ SNR at a 170 dB source, 72 dB of noise in the band) differs from the new search'
 which is earlier: "follow later" = the search found an earlier detectable arrival that
 following missed (a path appeared within r), "search later" = following kept one the search
 missed (the search is not exhaustive either, docs/channel.md), and how many links' arrival
-sets differ.
+sets differ: where following lacks an eigenray the new search has (a path appeared within r,
+or one the search at the old ends missed), and where the new search lacks one following has.
 
     python tools/follow_radius.py --seeds 4 --nodes 20 [--back]
 """
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -43,7 +45,8 @@ def main() -> None:
     args = ap.parse_args()
     radii = [float(v) for v in args.radii.split(",")]
     env = shelfbreak()
-    tot = {r: np.zeros(6) for r in radii}  # links, followed, stamp differs, follow later, search later, set differs
+    # links, followed, stamp differs, follow later, search later, sets differ, following lacks, search lacks
+    tot = {r: np.zeros(8) for r in radii}
     t_search = t_follow = 0.0
     n_search = n_follow = 0
     for seed in range(1, args.seeds + 1):
@@ -72,27 +75,33 @@ def main() -> None:
             f, e = np.nan_to_num(fd, nan=np.inf), np.nan_to_num(ed, nan=np.inf)
             with np.errstate(invalid="ignore"):  # inf - inf: neither has a detectable arrival
                 differs = ok & ~((f == e) | (np.abs(f - e) <= 1e-9))
-            sets = np.array(
-                [
-                    ok[i]
-                    and sorted(fol.bounce_code[fol.offsets[i] : fol.offsets[i + 1]])
-                    != sorted(ex.bounce_code[ex.offsets[i] : ex.offsets[i + 1]])
-                    for i in range(s.shape[0])
-                ]
-            )
+            # per followed link, the eigenrays of each bounce sequence: which side has fewer
+            lacks = np.zeros((s.shape[0], 2), bool)  # following lacks some, the search lacks some
+            for i in np.flatnonzero(ok):
+                cf = Counter(fol.bounce_code[fol.offsets[i] : fol.offsets[i + 1]].tolist())
+                ce = Counter(ex.bounce_code[ex.offsets[i] : ex.offsets[i + 1]].tolist())
+                lacks[i] = bool(ce - cf), bool(cf - ce)
             tot[r] += [
                 s.shape[0],
                 ok.sum(),
                 differs.sum(),
                 (differs & (f > e)).sum(),
                 (differs & (f < e)).sum(),
-                sets.sum(),
+                lacks.any(axis=1).sum(),
+                lacks[:, 0].sum(),
+                lacks[:, 1].sum(),
             ]
     print(f"search {1e3 * t_search / n_search:.2f} ms/link, follow {1e3 * t_follow / n_follow:.2f} ms/link (all links)")
-    print("radius m | links | followed | stamp differs | follow later | search later | sets differ")
+    print(
+        "radius m | links | followed | stamp differs | follow later | search later | sets differ"
+        " | following lacks | search lacks"
+    )
     for r in radii:
         a = tot[r]
-        print(f"{r:8g} | {a[0]:5.0f} | {a[1] / a[0]:8.3f} | {a[2]:13.0f} | {a[3]:12.0f} | {a[4]:12.0f} | {a[5]:11.0f}")
+        print(
+            f"{r:8g} | {a[0]:5.0f} | {a[1] / a[0]:8.3f} | {a[2]:13.0f} | {a[3]:12.0f} | {a[4]:12.0f} | {a[5]:11.0f}"
+            f" | {a[6]:15.0f} | {a[7]:12.0f}"
+        )
 
 
 if __name__ == "__main__":
