@@ -394,10 +394,11 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 far = (fa > 0.0) == (fb > 0.0) and _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), w)
                 turns = turns and not (one and far)
                 split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
-                # end slopes of one sign that differ from the secant by more than 2x within
-                # _FOLD_RAD: not a fold (a fold's extremum lies between slopes of opposite signs,
-                # below) but a corner of the miss (a ray turning at a depth node of the field,
-                # where d z / d theta jumps), beyond which it may dip through zero and back
+                # end slopes of one sign that differ from the secant by more than 2x (or a cubic
+                # through them that turns twice) within _FOLD_RAD: not a fold (a fold's extremum
+                # lies between slopes of opposite signs, below) but a corner of the miss (a ray
+                # turning at a depth node of the field, where d z / d theta jumps), beyond which
+                # it may dip through zero and back
                 split = split or (not one and (turns or bent) and near and w > _EDGE_RAD)
                 if not split:
                     if (fa > 0.0) != (fb > 0.0) or fa == 0.0:
