@@ -6,8 +6,11 @@ call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the
 The search of one link works on the depth miss f(theta) = z(theta, R) - z_R of the ray launched
 at theta, its exact derivative q = d z / d theta (the walk's tangent-linear map) and its bounce
 sequence ("family", code < 0: lost, or below -1 a family with more bounces than the limit,
-each its own). Every eigenray is a root of f inside a family. A fan of launch angles is refined,
-interval by interval, until each interval is one of:
+each its own). Every eigenray is a root of f inside a family. A fan of launch angles, which
+stops on each side at its first angle past those whose rays can reach R within the bounce
+limit at all (:func:`_fan_cut`: a bound from the section's depth, floor tilt and sound speed;
+the steeper rays it leaves out are the walks that cost most), is refined, interval by
+interval, until each interval is one of:
 
 * both ends lost or in one family beyond the bounce limit, and no bounce predicted to change
   inside it;
@@ -51,7 +54,7 @@ import math
 
 import numpy as np
 
-from ._rangedep_jit import OVER_BOUNCES, S_OVER, S_REACHED, _jit, _part_at, _plane, trace
+from ._rangedep_jit import FS_JA, FS_LEFT, FS_RIGHT, OVER_BOUNCES, S_OVER, S_REACHED, _jit, _part_at, _plane, trace
 
 NF = 14  # fields of one arrival row, see search()
 F_TIME, F_THETA0, F_THETAR, F_NS, F_NB, F_CODE, F_ARC, F_LOSS, F_DZDTH, F_NTURN, F_ZMISS, F_CS, F_CR, F_KINK = range(NF)
@@ -297,12 +300,128 @@ def _cusp_angles(rr, zz, cc, bb, zs):
 
 
 @_jit
+def _flattest(phi, ratio, gdrift, v):
+    """A lower bound (rad, <= 0: none) on the flattest angle of a leg that starts at angle
+    ``phi`` (its cosine at most ``ratio`` cos phi there, by c's range) and spans ``v`` in depth,
+    for :func:`_reach`: along a ray of the model (circular arcs in linear c), d(cos phi / c) /
+    ds = -(dc/dr) / c^2, so after a run s, cos phi <= ratio cos phi0 + gdrift s (``gdrift`` =
+    c_max |dc/dr|_max / c_min^2); while phi >= psi the leg has run at most v / sin(psi), so phi
+    never falls to a psi with cos psi > ratio cos phi0 + gdrift v / sin(psi) (the largest such
+    psi, sought by iteration and checked)."""
+    if phi <= 0.0:
+        return 0.0
+    a = ratio * math.cos(phi)
+    if a >= 1.0:
+        return 0.0
+    psi = math.acos(a)
+    d = gdrift * v
+    if d > 0.0:
+        for _ in range(60):
+            x = a + d / math.sin(psi)
+            if x >= 1.0:
+                return 0.0
+            nxt = math.acos(x)
+            done = psi - nxt <= 1e-13
+            psi = nxt
+            if done:
+                break
+        psi *= 1.0 - 1e-6  # just below the largest root, where the inequality is strict
+        if not math.cos(psi) - a - d / math.sin(psi) > 0.0:
+            return 0.0
+    return psi
+
+
+@_jit
+def _reach(th, nlegs, v_first, v_last, hmax, c_src, cmin, cmax, grad, tilt):
+    """An upper bound (m, inf: none) on how far in range a ray launched at |theta| = ``th`` gets
+    with nlegs - 1 bounces, for :func:`_fan_cut`. A leg (the stretch between the source, a
+    bounce and the receiver) whose ray never turns level is monotone in depth: it spans at most
+    ``v_first`` (the first: from the source to the surface or the floor it heads for), ``hmax``
+    (the deepest water) or ``v_last`` (the last: from a boundary to the receiver) in depth, so
+    at most that over tan(psi) in range, psi its flattest angle (:func:`_flattest`). A surface
+    bounce keeps |phi|; a bottom bounce off a floor tilted at most ``tilt`` turns it by at
+    most 2 tilt."""
+    gdrift = cmax * grad / (cmin * cmin)
+    total = 0.0
+    phi = th
+    for k in range(nlegs):
+        v = hmax
+        if k == 0:
+            v = v_first
+        elif k == nlegs - 1:
+            v = v_last
+        # cos phi / c at the leg's start: the source's c on the first leg, at least c_min later
+        psi = _flattest(phi, cmax / (c_src if k == 0 else cmin), gdrift, v)
+        if psi <= 0.0:
+            return math.inf
+        total += v / math.tan(psi)
+        phi = psi - 2.0 * tilt
+    return total
+
+
+@_jit
+def _fan_cut(rr, zz, cc, bb, ff, floor, zs, zr, R, H, maxb, wmax):
+    """(w_down, w_up): the w = tan(theta) R / H beyond which no ray launched downwards (theta >
+    0), or upwards, reaches the receiver's range with at most ``maxb`` bounces (inf: no such
+    bound below ``wmax``): the smallest |theta| whose :func:`_reach` falls short of R
+    (bisection; _reach falls as |theta| grows), from the section's own extremes: its deepest
+    water (each interval's deeper end plus half its width times the steepest tilt), steepest
+    floor tilt (the tangent angles of its arcs or segments, which turn monotonically along
+    each), sound speed range (c is linear in each triangle: extremes at the nodes) and largest
+    horizontal gradient (each triangle's is its horizontal edge's)."""
+    J, K = cc.shape
+    if not floor or J < 2 or R <= 0.0:
+        return math.inf, math.inf
+    tilt = 0.0
+    for j in range(J):
+        tilt = max(tilt, abs(ff[j, FS_LEFT]), abs(ff[j, FS_RIGHT]), abs(ff[j, FS_JA]))
+    if tilt >= 0.25 * math.pi:
+        return math.inf, math.inf
+    hmax = max(zs, zr)
+    for j in range(J - 1):
+        hmax = max(hmax, max(bb[j], bb[j + 1]) + 0.5 * (rr[j + 1] - rr[j]) * math.tan(tilt))
+    cmin, cmax, grad = math.inf, 0.0, 0.0
+    for j in range(J):
+        for k in range(K):
+            cmin = min(cmin, cc[j, k])
+            cmax = max(cmax, cc[j, k])
+            if j + 1 < J and rr[j + 1] > rr[j]:
+                grad = max(grad, abs(cc[j + 1, k] - cc[j, k]) / (rr[j + 1] - rr[j]))
+    if not cmin > 0.0:
+        return math.inf, math.inf
+    c_src = max(_speed_src(rr, zz, cc, zs, R), cmin)
+    nlegs = maxb + 1
+    v_last = max(zr, hmax - zr)
+    out = np.full(2, math.inf)
+    for side in range(2):
+        # the first leg heads for the floor (downwards) or the surface; without bounces it
+        # ends at the receiver
+        v_first = hmax - zs if side == 0 else zs
+        if nlegs == 1:
+            v_first = abs(zr - zs)
+        hi = math.atan(wmax * H / R)
+        if not _reach(hi, nlegs, v_first, v_last, hmax, c_src, cmin, cmax, grad, tilt) < R:
+            continue
+        lo = 0.0
+        for _ in range(48):
+            m = 0.5 * (lo + hi)
+            if _reach(m, nlegs, v_first, v_last, hmax, c_src, cmin, cmax, grad, tilt) < R:
+                hi = m
+            else:
+                lo = m
+        out[side] = math.tan(hi) * R / H
+    return out[0], out[1]
+
+
+@_jit
 def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
     """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces: a fan of
     ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of a
-    waveguide of depth H lie about 2 apart in w) with samples next to the angles of rays that
-    turn at a depth node of the source's profile, refined as the module docstring says, and
-    Newton's iteration in every bracket. Returns the number of arrival rows written to ``out``."""
+    waveguide of depth H lie about 2 apart in w), each side stopped at its first angle past
+    those that can reach R within ``maxb`` bounces (:func:`_fan_cut`), with samples next to the
+    angles of rays that turn at a depth node of the source's profile, refined as the module
+    docstring says, and Newton's iteration in every bracket. Returns the number of arrival rows
+    written to ``out``."""
     dummy = np.empty((1, 3))
     ev = np.empty(2)
     noev = np.empty(0)  # walks that need no event predictions
@@ -322,13 +441,34 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
             extra[ne] = lo + (hi - lo) / 3.0
             extra[ne + 1] = lo + 2.0 * (hi - lo) / 3.0
             ne += 2
-    th = np.empty(nfan + cusp.size + ne)
+    # the fan stops at its first sample past the launch angles that can reach R within maxb
+    # bounces (_fan_cut: steeper rays, the dearest walks, hold no eigenray)
+    w_down, w_up = _fan_cut(rr, zz, cc, bb, ff, floor, zs, zr, R, H, maxb, wmax)
+    i0, i1 = 0, nfan - 1
+    th_lo, th_hi = -math.inf, math.inf  # no sample outside them (a cut side) but the fan's last
     for i in range(nfan):
         w = -wmax + 2.0 * wmax * (i + 0.5) / nfan
-        th[i] = math.atan(w * H / R)
-    th[nfan : nfan + cusp.size] = cusp
-    th[nfan + cusp.size :] = extra[:ne]
-    th = np.sort(th)
+        if w < -w_up:
+            i0 = i
+            th_lo = math.atan(w * H / R)
+        elif w > w_down:
+            i1 = i
+            th_hi = math.atan(w * H / R)
+            break
+    th = np.empty(i1 - i0 + 1 + cusp.size + ne)
+    m = 0
+    for i in range(i0, i1 + 1):
+        th[m] = math.atan((-wmax + 2.0 * wmax * (i + 0.5) / nfan) * H / R)
+        m += 1
+    for x in cusp:
+        if th_lo < x < th_hi:
+            th[m] = x
+            m += 1
+    for x in extra[:ne]:
+        if th_lo < x < th_hi:
+            th[m] = x
+            m += 1
+    th = np.sort(th[:m])
     nth = th.size
     smp = np.empty((nth, NS))
     for i in range(nth):

@@ -334,3 +334,54 @@ def test_bellhop_seamount() -> None:
         FluidBottom(),
     )
     assert _bellhop_check(env, [0.0, 0.0, 1500.0], [15000.0, 0.0, 1800.0], 3)[0] >= 3
+
+
+def _fan_cut_links(name: str) -> tuple[Environment, np.ndarray, np.ndarray, int]:
+    """Links for the fan-cut check: 30 across the shelf-break sample (2 bounces), or 6 over
+    the curved-floor cases' seamount and canyon (3 bounces)."""
+    if name == "shelfbreak":
+        from aquasim_py.channel.data import shelfbreak
+
+        env = shelfbreak()
+        rng = np.random.default_rng(11)
+        p = np.c_[rng.uniform(-1500.0, 1500.0, (60, 2)), np.zeros(60)]
+        p[:, 2] = rng.uniform(5.0, np.maximum(env.depth(p[:, 0], p[:, 1]) - 10.0, 6.0))
+        return env, p[:30], p[30:], 2
+    import curved_cases as cc
+
+    case = {c.name: c for c in cc.cases()}[name]
+    src, dst = zip(*cc.links(case, 6, seed=3))
+    return case.env, np.array(src), np.array(dst), cc.MAX_BOUNCES
+
+
+@pytest.mark.parametrize("name", ["shelfbreak", "seamount", "canyon"])
+def test_no_ray_past_the_fan_cut_reaches_the_receiver(name: str) -> None:
+    """The search's fan stops past the launch angles whose rays can reach the receiver's range
+    within the bounce limit (_fan_cut, a bound from the section's depth, floor tilt and sound
+    speed range): a brute-force scan of the walk, 400 rays beyond the cut on each side of each
+    link, finds none that reaches it within the limit; and the cut is below the fan's edge on
+    most shelf-break links (else the check would be empty)."""
+    from aquasim_py.channel import _rangedep_search_jit as jit
+    from aquasim_py.channel._rangedep_jit import S_REACHED
+
+    env, src, dst, mb = _fan_cut_links(name)
+    sec = rangedep.sections(env, src, dst)
+    starts, ends, r, z, c, fz, fs, floor, zs, zr, R = rangedep._kernel_args(env, sec)
+    bpar = np.array(env.bottom.params, dtype=float)
+    wmax = (2.0 * (mb + 1) + 1.0) * 1.5  # the fan's edge (rangedep.solve)
+    cut = 0
+    dummy, noev = np.empty((1, 3)), np.empty(0)
+    for link in range(src.shape[0]):
+        a, b = starts[link], ends[link]
+        args = (r[a:b], z, c[a:b], fz[a:b], fs[a:b], floor)
+        w_down, w_up = jit._fan_cut(*args, zs[link], zr[link], R[link], sec.H[link], mb, wmax)
+        for sign, wc in ((1.0, w_down), (-1.0, w_up)):
+            if not wc < wmax:
+                continue
+            cut += 1
+            for w in np.linspace(wc, wmax, 400):
+                th = sign * math.atan(w * sec.H[link] / R[link])
+                res = jit.trace(*args, zs[link], th, R[link], mb, bpar, False, dummy, noev)
+                assert res[0] != S_REACHED, (link, sign, w, wc)
+    if name == "shelfbreak":
+        assert cut >= 30  # of 60 link sides
