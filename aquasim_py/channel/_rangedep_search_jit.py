@@ -300,6 +300,12 @@ def _cusp_angles(rr, zz, cc, bb, zs):
 
 
 @_jit
+def _fan_w(i, wmax, nfan):
+    """w = tan(theta) R / H of the fan's sample i: the middles of nfan equal cells of [-wmax, wmax]."""
+    return -wmax + 2.0 * wmax * (i + 0.5) / nfan
+
+
+@_jit
 def _flattest(phi, ratio, gdrift, v):
     """A lower bound (rad, <= 0: none) on the flattest angle of a leg that starts at angle
     ``phi`` (its cosine at most ``ratio`` cos phi there, by c's range) and spans ``v`` in depth,
@@ -445,26 +451,23 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
     # bounces (_fan_cut: steeper rays, the dearest walks, hold no eigenray)
     w_down, w_up = _fan_cut(rr, zz, cc, bb, ff, floor, zs, zr, R, H, maxb, wmax)
     i0, i1 = 0, nfan - 1
-    th_lo, th_hi = -math.inf, math.inf  # no sample outside them (a cut side) but the fan's last
+    cut_lo = cut_hi = False
     for i in range(nfan):
-        w = -wmax + 2.0 * wmax * (i + 0.5) / nfan
+        w = _fan_w(i, wmax, nfan)
         if w < -w_up:
-            i0 = i
-            th_lo = math.atan(w * H / R)
+            i0, cut_lo = i, True
         elif w > w_down:
-            i1 = i
-            th_hi = math.atan(w * H / R)
+            i1, cut_hi = i, True
             break
-    th = np.empty(i1 - i0 + 1 + cusp.size + ne)
-    m = 0
-    for i in range(i0, i1 + 1):
-        th[m] = math.atan((-wmax + 2.0 * wmax * (i + 0.5) / nfan) * H / R)
-        m += 1
-    for x in cusp:
-        if th_lo < x < th_hi:
-            th[m] = x
-            m += 1
-    for x in extra[:ne]:
+    nf = i1 - i0 + 1
+    th = np.empty(nf + cusp.size + ne)
+    for m in range(nf):
+        th[m] = math.atan(_fan_w(i0 + m, wmax, nfan) * H / R)
+    # the cusp and fold-band samples, none past a cut side's last fan sample
+    th_lo = th[0] if cut_lo else -math.inf
+    th_hi = th[nf - 1] if cut_hi else math.inf
+    m = nf
+    for x in np.concatenate((cusp, extra[:ne])):
         if th_lo < x < th_hi:
             th[m] = x
             m += 1
