@@ -44,7 +44,7 @@ these shortcuts (a predicted change pursued to 1e-9 rad in every interval, every
 split to ``_FOLD_RAD``, every extremum located to 1e-13 rad), on 1 030 shelf-break links (2
 bounces): 10 of 9 841 eigenrays are not found, all within 3.6e-6 rad of their family's edge and
 none a link's first arrival, the others' delays within 1e-11 s, for half the walks; the corner
-rule adds a pair 2.3e-5 rad apart that both lacked (their rule below ``_FOLD_RAD`` was the same),
+rule adds a pair 2.3e-5 rad apart that both lack (their rule below ``_FOLD_RAD`` is the same),
 at no measurable cost (docs/channel.md).
 """
 
