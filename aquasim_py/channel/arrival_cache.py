@@ -153,6 +153,7 @@ class CacheStats:
     misses: int = 0  #: searched
     uncacheable: int = 0  #: searches after which the Taylor tier refused a link (unstable or not smooth)
     not_expanded: int = 0  #: searches not expanded: the link moved too far per request for it to pay
+    reversed: int = 0  #: of the follows, those from the reverse link's solution (``n_nodes``)
 
     @property
     def hit_rate(self) -> float:
@@ -181,6 +182,7 @@ class ArrivalCache:
     max_arrivals: int = 24
     follow_m: float = 1.0
     follow_back: bool = False
+    n_nodes: int = 0
     stats: CacheStats = field(default_factory=CacheStats)
     # per-slot arrays (_grow); the last solution's fields in _tab
     _s0: NDArray[np.float64] = field(init=False, repr=False)
@@ -208,6 +210,8 @@ class ArrivalCache:
             raise ValueError(f"ArrivalCache: tol_s must be >= 0, got {self.tol_s!r}")
         if not self.follow_m >= 0.0:
             raise ValueError(f"ArrivalCache: follow_m must be >= 0, got {self.follow_m!r}")
+        if int(self.n_nodes) < 0 or (self.n_nodes and int(self.n_nodes) ** 2 > int(self.n_links)):
+            raise ValueError(f"ArrivalCache: n_nodes must be >= 0 with n_nodes^2 <= n_links, got {self.n_nodes!r}")
         self._slot: dict[int, int] = {}
         self._cap = 0
         self._grow(64)
@@ -247,6 +251,11 @@ class ArrivalCache:
         if rest.size:
             done = self._follow(slots[rest], s[rest], d[rest])
             self.stats.follows += int(done.sum())
+            rest = rest[~done]
+        if rest.size and self.n_nodes > 0:
+            done = self._follow_reverse(ids[rest], slots[rest], s[rest], d[rest])
+            self.stats.follows += int(done.sum())
+            self.stats.reversed += int(done.sum())
             rest = rest[~done]
         if rest.size:
             self.stats.misses += int(rest.size)
@@ -378,6 +387,48 @@ class ArrivalCache:
             self._store(slots[good], _links_of(got, ok))
             self._sl[slots[good]], self._dl[slots[good]] = s[good], d[good]
             self._radius[slots[good]] = 0.0  # the Taylor reference no longer matches the tables
+        done[good] = True
+        return done
+
+    def _follow_reverse(
+        self, ids: NDArray[np.int64], slots: NDArray[np.int64], s: NDArray, d: NDArray
+    ) -> NDArray[np.bool_]:
+        """Serve by following the reverse link's last solution travelled backwards where both
+        ends are within follow_m of where the reverse was last searched (its receiver there this
+        link's source); True where done. The link's following centre becomes that search's ends."""
+        n = int(self.n_nodes)
+        rev = (ids % n) * n + ids // n
+        rslot = np.array([self._slot.get(i, -1) for i in rev.tolist()], np.int64)
+        done = np.zeros(ids.size, bool)
+        known = np.flatnonzero(rslot >= 0)
+        if not known.size:
+            return done
+        rs = rslot[known]
+        r2 = self.follow_m**2
+        es = s[known] - self._da[rs]
+        ed = d[known] - self._sa[rs]
+        with np.errstate(invalid="ignore"):
+            near = ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
+        near &= (self._n[rs] > 0) & self._fits[rs]
+        idx = known[near]
+        if not idx.size:
+            return done
+        got, ok = _arrivals.follow(
+            self.env,
+            _arrivals.reversed_arrivals(self._last(rslot[idx])),
+            s[idx],
+            d[idx],
+            max_bounces=self.max_bounces,
+            frequency_khz=self.frequency_khz,
+            spreading=self.spreading,
+        )
+        good = idx[ok]
+        if good.size:
+            sub, rsub = slots[good], rslot[good]
+            self._store(sub, _links_of(got, ok))
+            self._sa[sub], self._da[sub] = self._da[rsub], self._sa[rsub]
+            self._sl[sub], self._dl[sub] = s[good], d[good]
+            self._radius[sub] = 0.0  # no Taylor reference of this link's own
         done[good] = True
         return done
 

@@ -124,6 +124,7 @@ class ArrivalLinkModel(LinkModel):
             frequency_khz=c.frequency_khz,
             spreading="ray",
             follow_m=FOLLOW_M,
+            n_nodes=n,
         )
 
     # -- the hooks of LinkModel.links ---------------------------------------------------------------

@@ -263,3 +263,64 @@ def test_section_structure_changes_are_not_served() -> None:
     exact = arrivals(env, s, d_after, max_bounces=2)
     if sorted(got.bounce_code) == sorted(exact.bounce_code):
         np.testing.assert_allclose(np.sort(got.delay), np.sort(exact.delay), rtol=0, atol=1e-9)
+
+
+def test_reversed_arrivals_are_the_other_ends_search() -> None:
+    """A link searched from its other end and travelled backwards (reversed_arrivals) lists the
+    search's eigenrays: the same bounce sequences, launch angles the search's to 1e-6 rad (the
+    two sections sample the field from opposite ends), equal lengths and end speeds swapped."""
+    from aquasim_py.channel.arrivals import reversed_arrivals
+
+    env = _front_env()
+    s, d = _links(np.random.default_rng(8), 12)
+    fwd = arrivals(env, s, d, max_bounces=2)
+    back = reversed_arrivals(arrivals(env, d, s, max_bounces=2))
+    assert fwd.delay.size == back.delay.size > 0
+    for i in range(12):
+        g = slice(fwd.offsets[i], fwd.offsets[i + 1])
+        b = slice(back.offsets[i], back.offsets[i + 1])
+        og, ob = np.lexsort((fwd.delay[g], fwd.bounce_code[g])), np.lexsort((back.delay[b], back.bounce_code[b]))
+        np.testing.assert_array_equal(fwd.bounce_code[g][og], back.bounce_code[b][ob])
+        np.testing.assert_allclose(fwd.launch_angle[g][og], back.launch_angle[b][ob], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(fwd.arrival_angle[g][og], back.arrival_angle[b][ob], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(fwd.source_speed[g][og], back.source_speed[b][ob], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(fwd.dz_dlaunch[g][og], back.dz_dlaunch[b][ob], rtol=1e-3)
+        np.testing.assert_allclose(fwd.delay[g][og], back.delay[b][ob], rtol=0, atol=1e-9)
+
+
+def test_reverse_links_are_followed_from_the_other_direction() -> None:
+    """With n_nodes, a link whose reverse was searched within follow_m of both ends is followed
+    from the reverse's eigenrays (no search): the arrivals equal a new search's (sequences,
+    delays to 1e-9 s) wherever it finds the same set; beyond follow_m the link is searched."""
+    env = _front_env()
+    rng = np.random.default_rng(9)
+    n_nodes = 8
+    pos = np.c_[rng.uniform(0, 6000, n_nodes), rng.uniform(-2000, 2000, n_nodes), rng.uniform(5, 140, n_nodes)]
+    src, dst = np.triu_indices(n_nodes, 1)
+    cache = ArrivalCache(env, n_nodes * n_nodes, max_bounces=2, tol_s=0.0, n_nodes=n_nodes)
+    cache.get(src * n_nodes + dst, pos[src], pos[dst])  # one direction searched
+    assert cache.stats.misses == src.size
+    moved = pos + rng.normal(scale=0.3, size=pos.shape)
+    got = cache.get(dst * n_nodes + src, moved[dst], moved[src])  # the other, ends moved < 1 m
+    assert cache.stats.reversed == cache.stats.follows >= src.size // 2
+    assert cache.stats.follows + cache.stats.misses == 2 * src.size
+    exact = arrivals(env, moved[dst], moved[src], max_bounces=2)
+    same = 0
+    for i in range(src.size):
+        g = slice(got.offsets[i], got.offsets[i + 1])
+        e = slice(exact.offsets[i], exact.offsets[i + 1])
+        if sorted(got.bounce_code[g]) != sorted(exact.bounce_code[e]):
+            continue
+        same += 1
+        np.testing.assert_allclose(np.sort(got.delay[g]), np.sort(exact.delay[e]), rtol=0, atol=1e-9)
+    assert same >= src.size - 2
+    # the reverse's search is the centre: 3 m away, searched
+    m0 = cache.stats.misses
+    far = moved + np.array([3.0, 0.0, 0.0])
+    other = ArrivalCache(env, n_nodes * n_nodes, max_bounces=2, tol_s=0.0, n_nodes=n_nodes)
+    other.get(src * n_nodes + dst, pos[src], pos[dst])
+    other.get(dst * n_nodes + src, far[dst], far[src])
+    assert other.stats.reversed == 0 and other.stats.misses == 2 * src.size
+    assert cache.stats.misses == m0
+    with pytest.raises(ValueError, match="n_nodes"):
+        ArrivalCache(env, 10, n_nodes=4)
