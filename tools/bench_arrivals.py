@@ -9,12 +9,14 @@ Timed, after a warm-up (numba compilation) on other links:
 
 1. ``solve``: every link solved once by the exact search (aquasim_py.channel.arrivals);
 2. ``cache``, for each of ``--modes``: ``channel`` (the channel's cache: no Taylor tier, every
-   delay exact, links followed within 1 m of their last search), ``channel_10m`` (the same,
-   followed within 10 m: fewer searches, more arrival sets that differ), ``taylor`` (the Taylor tier,
-   1e-7 s bound, one-leg following), ``taylor_back`` (the same with ``follow_back``): filled once
-   (every link searched, and expanded for the Taylor tier), then for each of ``--speeds`` (m/s)
-   from a copy of it: the nodes drift (each in its own fixed direction) and every link is
-   evaluated every ``--step`` s for ``--steps`` steps: the rate, the shares of the tiers, and on
+   delay exact, links followed within 1 m of their last search or of their reverse's),
+   ``channel_reverse`` (the same, the links src < dst evaluated half a step before the others,
+   which then meet their reverse's search half a step old), ``channel_10m`` (followed within 10
+   m: fewer searches, more arrival sets that differ), ``taylor`` (the Taylor tier, 1e-7 s bound,
+   one-leg following), ``taylor_back`` (the same with ``follow_back``): filled once (every link
+   searched, and expanded for the Taylor tier), then for each of ``--speeds`` (m/s) from a copy
+   of it: the nodes drift (each in its own fixed direction) and every link is evaluated every
+   ``--step`` s for ``--steps`` steps: the rate, the shares of the tiers, and on
    ``--check`` links per step (the Taylor modes: links its tier served) the served delays against
    the exact eigenrays (the Taylor tier: the same eigenrays carried to the new ends in moves of 1
    cm, and the error's ratio to the bound; the channel: a new search's, eigenray by eigenray) and
@@ -93,17 +95,27 @@ def bellhop_floor(sec, q: int) -> tuple[np.ndarray, np.ndarray, bool]:
     return rq, sec.floor_at(q, rq), True
 
 
-def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
+def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves: bool = False) -> None:
     """Every link every ``args.step`` s for ``args.steps`` steps, the nodes drifting at ``vel``
-    (m/s) from ``pos`` through the filled ``cache``; the results under ``key``."""
+    (m/s) from ``pos`` through the filled ``cache``; the results under ``key``. ``halves``: the
+    links src < dst half a step before the others (each direction then meets its reverse's
+    search half a step old: the reverse-following tier); the check samples the others."""
     from aquasim_py.channel.arrivals import arrivals
 
     mb = args.max_bounces
     evals, t_drift = 0, 0.0
     worst, worst_ratio, checked, sets_differ, compared = 0.0, 0.0, 0, 0, 0
     st = cache.stats
-    hits0, fol0, mis0, lazy0 = st.hits, st.follows, st.misses, st.not_expanded
+    hits0, fol0, mis0, lazy0, rev0 = st.hits, st.follows, st.misses, st.not_expanded, st.reversed
+    early = si_all < di_all if halves else np.zeros(ids_all.size, bool)
+    si, di, ids = si_all[~early], di_all[~early], ids_all[~early]
     for k in range(1, args.steps + 1):
+        if halves:
+            p = pos + vel * ((k - 0.5) * args.step)
+            t0 = time.perf_counter()
+            cache.get(ids_all[early], p[si_all[early]], p[di_all[early]])
+            t_drift += time.perf_counter() - t0
+            evals += int(early.sum())
         p = pos + vel * (k * args.step)
         bound = cache.bound(ids, p[si], p[di])
         served = np.flatnonzero(np.isfinite(bound))
@@ -157,6 +169,7 @@ def drift(env, cache, pos, vel, si, di, ids, args, res, key) -> None:
         "taylor_share": (st.hits - hits0) / total,
         "follow_share": (st.follows - fol0) / total,
         "search_share": (st.misses - mis0) / total,
+        "reverse_follow_share": (st.reversed - rev0) / total,
         "searches_not_expanded": st.not_expanded - lazy0,
         "checked_links": checked,
         "worst_served_error_s": worst,
@@ -233,6 +246,7 @@ def main() -> None:
     # mode -> (Taylor bound s, following radius m, follow_back)
     configs = {
         "channel": (0.0, FOLLOW_M, False),
+        "channel_reverse": (0.0, FOLLOW_M, False),
         "channel_10m": (0.0, 10.0, False),
         "taylor": (1e-7, 1.0, False),
         "taylor_back": (1e-7, 1.0, True),
@@ -258,9 +272,11 @@ def main() -> None:
         for speed in args.speeds:
             copied = copy.deepcopy(filled[tol])
             copied.follow_m, copied.follow_back = follow_m, back
+            copied.n_nodes = n if mode.startswith("channel") else 0  # the channel numbers its links so
             tag = f"{mode}_drift_{speed:g}_"
             print(mode, end=" ")
-            drift(env, copied, pos, heading * speed, si, di, ids, args, res, tag)
+            halves = mode == "channel_reverse"
+            drift(env, copied, pos, heading * speed, si, di, ids, args, res, tag, halves)
 
     try:
         import bellhop_ref  # type: ignore[import-not-found]

@@ -218,19 +218,16 @@ def follow(
 def reversed_arrivals(arr: Arrivals) -> Arrivals:
     """The arrivals ``arr`` seen from each link's other end: the same rays travelled backwards
     (launch and arrival angles swapped and negated, the end speeds swapped, the bounce sequence
-    reversed, the ray-tube width at the other end by the reciprocity of the ray propagator,
-    :func:`.rangedep.reversed_rows`)."""
+    reversed, the ray-tube width at the other end by :func:`.rangedep.reciprocal_width`)."""
     th0, thr = arr.launch_angle, arr.arrival_angle
     cs, cr = arr.source_speed, arr.receiver_speed
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dz = arr.dz_dlaunch * cs * np.cos(thr) / (cr * np.cos(th0))
     return replace(
         arr,
         launch_angle=-thr,
         arrival_angle=-th0,
         source_speed=cr,
         receiver_speed=cs,
-        dz_dlaunch=dz,
+        dz_dlaunch=rangedep.reciprocal_width(arr.dz_dlaunch, th0, thr, cs, cr),
         bounce_code=rangedep.reversed_code(arr.bounce_code, arr.surface_bounces + arr.bottom_bounces),
     )
 

@@ -524,11 +524,22 @@ def reversed_code(code: NDArray[np.int64], bounces: NDArray[np.int64]) -> NDArra
     return np.where(code < 0, -1, out)
 
 
+def reciprocal_width(
+    dz_dth: FloatArray, th_s: FloatArray, th_r: FloatArray, c_s: FloatArray, c_r: FloatArray
+) -> FloatArray:
+    """The ray-tube width (m/rad) at the source of rays travelled backwards from the receiver,
+    from theirs at the receiver ``dz_dth`` = dz_R / dth_S, launch and arrival angles th_s, th_r
+    (rad) and end speeds c_s, c_r (m/s): by the reciprocity of the ray propagator, dz_S / dth_R
+    = dz_R / dth_S c_S cos th_R / (c_R cos th_S)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: FloatArray = dz_dth * c_s * np.cos(th_r) / (c_r * np.cos(th_s))
+    return out
+
+
 def reversed_rows(rows: FloatArray) -> FloatArray:
     """Eigenray rows (..., NF) of links seen from the other end: the same rays travelled
     backwards (launch and arrival angles swapped and negated, the end speeds swapped, the bounce
-    sequence reversed, the ray-tube width d z / d theta at the other end by the reciprocity of
-    the ray propagator: dz_S / dth_R = dz_R / dth_S c_S cos th_R / (c_R cos th_S))."""
+    sequence reversed, the ray-tube width at the other end by :func:`reciprocal_width`)."""
     from . import _rangedep_search_jit as jit
 
     out = rows.copy()
@@ -536,8 +547,7 @@ def reversed_rows(rows: FloatArray) -> FloatArray:
     cs, cr = rows[..., jit.F_CS], rows[..., jit.F_CR]
     out[..., jit.F_THETA0], out[..., jit.F_THETAR] = -thr, -th0
     out[..., jit.F_CS], out[..., jit.F_CR] = cr, cs
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out[..., jit.F_DZDTH] = rows[..., jit.F_DZDTH] * cs * np.cos(thr) / (cr * np.cos(th0))
+    out[..., jit.F_DZDTH] = reciprocal_width(rows[..., jit.F_DZDTH], th0, thr, cs, cr)
     code = rows[..., jit.F_CODE]
     known = np.isfinite(code)
     nb = np.where(known, rows[..., jit.F_NS] + rows[..., jit.F_NB], 0).astype(np.int64)

@@ -245,3 +245,35 @@ def test_reception_carries_the_stamp_only() -> None:
     assert rec.packet.payload == {"from": 0}  # what the sender put in, nothing more
     # the stamp is the surface reflection's (the clocks are ideal by default)
     np.testing.assert_allclose(rec.rx_local - rec.packet.tx_local, _surface_image_time(SRC, DST), rtol=0, atol=1e-9)
+
+
+def test_links_followed_from_their_reverse_keep_the_stamps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The channel numbers its links so that the cache follows a link from its reverse's search
+    (nodes transmitting 0.4 s apart, drifting 0.5 m/s): some links are served so, and the packets
+    equal those of the cache without that tier (the same events; stamps to 1e-9 s, the search's
+    own accuracy)."""
+    from aquasim_py.channel import arrival_cache
+
+    caches: list[arrival_cache.ArrivalCache] = []
+    made = arrival_cache.ArrivalCache.__post_init__
+
+    def keep(self: arrival_cache.ArrivalCache) -> None:
+        made(self)
+        caches.append(self)
+
+    monkeypatch.setattr(arrival_cache.ArrivalCache, "__post_init__", keep)
+    a = _network(4).trace.frames()["packets"]
+    assert sum(c.stats.reversed for c in caches) >= 5
+    caches.clear()
+
+    def plain(self: arrival_cache.ArrivalCache) -> None:
+        self.n_nodes = 0
+        keep(self)
+
+    monkeypatch.setattr(arrival_cache.ArrivalCache, "__post_init__", plain)
+    b = _network(4).trace.frames()["packets"]
+    assert sum(c.stats.reversed for c in caches) == 0
+    assert (a.event == "rx").sum() > 20
+    assert a[["event", "reason", "node", "src", "uid"]].equals(b[["event", "reason", "node", "src", "uid"]])
+    for col in ("time", "tof"):
+        np.testing.assert_allclose(a[col].to_numpy(float), b[col].to_numpy(float), rtol=0, atol=1e-9)
