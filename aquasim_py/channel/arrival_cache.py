@@ -249,14 +249,17 @@ class ArrivalCache:
         # the Taylor tier serves from the reference solution, the others from the last one
         fresh = np.zeros(ids.size, bool)
         if rest.size:
-            done = self._follow(slots[rest], s[rest], d[rest])
+            done, close = self._follow(slots[rest], s[rest], d[rest])
             self.stats.follows += int(done.sum())
+            # from the reverse only links not near their own search: where following that failed,
+            # the arrival set is changing (a path about to vanish, a fold), and is searched
+            far = rest[~close]
             rest = rest[~done]
-        if rest.size and self.n_nodes > 0:
-            done = self._follow_reverse(ids[rest], slots[rest], s[rest], d[rest])
-            self.stats.follows += int(done.sum())
-            self.stats.reversed += int(done.sum())
-            rest = rest[~done]
+            if far.size and self.n_nodes > 0:
+                back = far[self._follow_reverse(ids[far], slots[far], s[far], d[far])]
+                self.stats.follows += int(back.size)
+                self.stats.reversed += int(back.size)
+                rest = np.setdiff1d(rest, back, assume_unique=True)
         if rest.size:
             self.stats.misses += int(rest.size)
             self._fill(slots[rest], s[rest], d[rest])
@@ -358,19 +361,18 @@ class ArrivalCache:
         return self._serve(slots, self._tab["delay"][slots], np.ones(slots.size, bool))
 
     # ----------------------------------------------------------------- tiers
-    def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> NDArray[np.bool_]:
-        """Serve by following where the ends are within follow_m of the last search; True where
-        done (the last solution then holds the followed arrivals)."""
+    def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Serve by following where the ends are within follow_m of the last search: (done (the
+        last solution then holds the followed arrivals), close (the ends within follow_m))."""
         r2 = self.follow_m**2
         es = s - self._sa[slots]
         ed = d - self._da[slots]
         with np.errstate(invalid="ignore"):
-            near = (es * es).sum(axis=1) <= r2
-            near &= ((ed * ed).sum(axis=1) <= r2) & (self._n[slots] > 0) & self._fits[slots]
-        idx = np.flatnonzero(near)
+            close = ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
+        idx = np.flatnonzero(close & (self._n[slots] > 0) & self._fits[slots])
         done = np.zeros(slots.size, bool)
         if not idx.size:
-            return done
+            return done, close
         sub = slots[idx]
         got, ok = _arrivals.follow(
             self.env,
@@ -388,7 +390,7 @@ class ArrivalCache:
             self._sl[slots[good]], self._dl[slots[good]] = s[good], d[good]
             self._radius[slots[good]] = 0.0  # the Taylor reference no longer matches the tables
         done[good] = True
-        return done
+        return done, close
 
     def _follow_reverse(
         self, ids: NDArray[np.int64], slots: NDArray[np.int64], s: NDArray, d: NDArray
