@@ -268,7 +268,8 @@ def test_section_structure_changes_are_not_served() -> None:
 def test_reversed_arrivals_are_the_other_ends_search() -> None:
     """A link searched from its other end and travelled backwards (reversed_arrivals) lists the
     search's eigenrays: the same bounce sequences, launch angles the search's to 1e-6 rad (the
-    two sections sample the field from opposite ends), equal lengths and end speeds swapped."""
+    two sections sample the field from opposite ends), end speeds swapped, ray-tube widths by
+    reciprocity to 1e-3 and delays to 1e-9 s."""
     from aquasim_py.channel.arrivals import reversed_arrivals
 
     env = _front_env()
@@ -291,7 +292,8 @@ def test_reversed_arrivals_are_the_other_ends_search() -> None:
 def test_reverse_links_are_followed_from_the_other_direction() -> None:
     """With n_nodes, a link whose reverse was searched within follow_m of both ends is followed
     from the reverse's eigenrays (no search): the arrivals equal a new search's (sequences,
-    delays to 1e-9 s) wherever it finds the same set; beyond follow_m the link is searched."""
+    delays to 1e-9 s) wherever it finds the same set; beyond follow_m the link is searched, and
+    so is a link within follow_m of its own search whose following fails."""
     env = _front_env()
     rng = np.random.default_rng(9)
     n_nodes = 8
