@@ -250,16 +250,15 @@ class ArrivalCache:
         fresh = np.zeros(ids.size, bool)
         if rest.size:
             done, close = self._follow(slots[rest], s[rest], d[rest])
-            self.stats.follows += int(done.sum())
             # from the reverse only links not near their own search: where following that failed,
             # the arrival set is changing (a path about to vanish, a fold), and is searched
-            far = rest[~close]
-            rest = rest[~done]
+            far = np.flatnonzero(~close)
             if far.size and self.n_nodes > 0:
-                back = far[self._follow_reverse(ids[far], slots[far], s[far], d[far])]
-                self.stats.follows += int(back.size)
-                self.stats.reversed += int(back.size)
-                rest = np.setdiff1d(rest, back, assume_unique=True)
+                r = rest[far]
+                done[far] = self._follow_reverse(ids[r], slots[r], s[r], d[r])
+                self.stats.reversed += int(done[far].sum())
+            self.stats.follows += int(done.sum())
+            rest = rest[~done]
         if rest.size:
             self.stats.misses += int(rest.size)
             self._fill(slots[rest], s[rest], d[rest])
@@ -361,35 +360,49 @@ class ArrivalCache:
         return self._serve(slots, self._tab["delay"][slots], np.ones(slots.size, bool))
 
     # ----------------------------------------------------------------- tiers
-    def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
-        """Serve by following where the ends are within follow_m of the last search: (done (the
-        last solution then holds the followed arrivals), close (the ends within follow_m))."""
+    def _within(self, s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> NDArray[np.bool_]:
+        """Whether both ends (s, d) are within follow_m of (sa, da) (False where those are NaN)."""
         r2 = self.follow_m**2
-        es = s - self._sa[slots]
-        ed = d - self._da[slots]
+        es, ed = s - sa, d - da
         with np.errstate(invalid="ignore"):
-            close = ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
-        idx = np.flatnonzero(close & (self._n[slots] > 0) & self._fits[slots])
-        done = np.zeros(slots.size, bool)
-        if not idx.size:
-            return done, close
-        sub = slots[idx]
+            return ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
+
+    def _followable(self, slots: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Whether the slots' last solutions can be followed: some arrival, all of them kept."""
+        return (self._n[slots] > 0) & self._fits[slots]
+
+    def _follow_from(
+        self, slots: NDArray[np.int64], prev: Arrivals, s: NDArray, d: NDArray, src_from: NDArray | None = None
+    ) -> NDArray[np.bool_]:
+        """Follow ``prev`` (one link per slot) to (s, d) and keep it as the slots' last solution
+        where every arrival was followed (True there)."""
         got, ok = _arrivals.follow(
             self.env,
-            self._last(sub),
-            s[idx],
-            d[idx],
+            prev,
+            s,
+            d,
             max_bounces=self.max_bounces,
             frequency_khz=self.frequency_khz,
             spreading=self.spreading,
-            src_from=self._sl[sub] if self.follow_back else None,
+            src_from=src_from,
         )
-        good = idx[ok]
-        if good.size:
-            self._store(slots[good], _links_of(got, ok))
-            self._sl[slots[good]], self._dl[slots[good]] = s[good], d[good]
-            self._radius[slots[good]] = 0.0  # the Taylor reference no longer matches the tables
-        done[good] = True
+        if ok.any():
+            sub = slots[ok]
+            self._store(sub, _links_of(got, ok))
+            self._sl[sub], self._dl[sub] = s[ok], d[ok]
+            self._radius[sub] = 0.0  # the Taylor reference no longer matches the tables
+        return ok
+
+    def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Serve by following where the ends are within follow_m of the last search: (done (the
+        last solution then holds the followed arrivals), close (the ends within follow_m))."""
+        close = self._within(s, d, self._sa[slots], self._da[slots])
+        idx = np.flatnonzero(close & self._followable(slots))
+        done = np.zeros(slots.size, bool)
+        if idx.size:
+            sub = slots[idx]
+            src_from = self._sl[sub] if self.follow_back else None
+            done[idx] = self._follow_from(sub, self._last(sub), s[idx], d[idx], src_from)
         return done, close
 
     def _follow_reverse(
@@ -403,35 +416,13 @@ class ArrivalCache:
         rslot = np.array([self._slot.get(i, -1) for i in rev.tolist()], np.int64)
         done = np.zeros(ids.size, bool)
         known = np.flatnonzero(rslot >= 0)
-        if not known.size:
-            return done
         rs = rslot[known]
-        r2 = self.follow_m**2
-        es = s[known] - self._da[rs]
-        ed = d[known] - self._sa[rs]
-        with np.errstate(invalid="ignore"):
-            near = ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
-        near &= (self._n[rs] > 0) & self._fits[rs]
-        idx = known[near]
-        if not idx.size:
-            return done
-        got, ok = _arrivals.follow(
-            self.env,
-            _arrivals.reversed_arrivals(self._last(rslot[idx])),
-            s[idx],
-            d[idx],
-            max_bounces=self.max_bounces,
-            frequency_khz=self.frequency_khz,
-            spreading=self.spreading,
-        )
-        good = idx[ok]
-        if good.size:
-            sub, rsub = slots[good], rslot[good]
-            self._store(sub, _links_of(got, ok))
+        idx = known[self._within(s[known], d[known], self._da[rs], self._sa[rs]) & self._followable(rs)]
+        if idx.size:
+            prev = _arrivals.reversed_arrivals(self._last(rslot[idx]))
+            done[idx] = self._follow_from(slots[idx], prev, s[idx], d[idx])
+            sub, rsub = slots[idx[done[idx]]], rslot[idx[done[idx]]]
             self._sa[sub], self._da[sub] = self._da[rsub], self._sa[rsub]
-            self._sl[sub], self._dl[sub] = s[good], d[good]
-            self._radius[sub] = 0.0  # no Taylor reference of this link's own
-        done[good] = True
         return done
 
     def _solve(self, s: NDArray, d: NDArray) -> Arrivals:
