@@ -20,7 +20,8 @@ Timed, after a warm-up (numba compilation) on other links:
    ``--check`` links per step (the Taylor modes: links its tier served) the served delays against
    the exact eigenrays (the Taylor tier: the same eigenrays carried to the new ends in moves of 1
    cm, and the error's ratio to the bound; the channel: a new search's, eigenray by eigenray) and
-   whether the arrival set equals a new search's;
+   whether the arrival set equals a new search's (in total, and by the tier that served the
+   link: ``ArrivalCache.served_by``);
 3. ``bellhop``: BELLHOP (pelagic, arrivals run, ``--beams`` beams, its default step) on
    ``--bellhop-links`` of the same links, one run per link (each link of the network has its own
    section: no two receivers of a source share a vertical plane; the range-dependent sound speed
@@ -100,10 +101,12 @@ def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves:
     (m/s) from ``pos`` through the filled ``cache``; the results under ``key``. ``halves``: the
     links src < dst half a step before the others (each direction then meets its reverse's
     search half a step old: the reverse-following tier); the check samples the others."""
+    from aquasim_py.channel.arrival_cache import TIERS
     from aquasim_py.channel.arrivals import arrivals
 
     mb = args.max_bounces
     evals, t_drift = 0, 0.0
+    by_tier = np.zeros((len(TIERS), 2), np.int64)  # (sets that differ, compared) by serving tier
     worst, worst_ratio, checked, sets_differ, compared = 0.0, 0.0, 0, 0, 0
     st = cache.stats
     hits0, fol0, mis0, lazy0, rev0 = st.hits, st.follows, st.misses, st.not_expanded, st.reversed
@@ -130,6 +133,7 @@ def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves:
         evals += ids.size
         if not sample.size:
             continue
+        tier = cache.served_by[sample]
         # served delays against the same eigenrays carried exactly to the new ends (the error
         # the bound is about), and the arrival sets against a new search
         new = arrivals(env, p[si[sample]], p[di[sample]], max_bounces=mb)
@@ -142,6 +146,7 @@ def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves:
                 compared += 1
                 differ = sorted(got.bounce_code[g]) != sorted(new.bounce_code[e])
                 sets_differ += int(differ)
+                by_tier[tier[q]] += (int(differ), 1)
                 for i in range(g.start, g.stop):
                     same = np.flatnonzero(new.bounce_code[e] == got.bounce_code[i])
                     if same.size:
@@ -156,7 +161,9 @@ def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves:
             f = slice(fol.offsets[q], fol.offsets[q + 1])
             e = slice(new.offsets[q], new.offsets[q + 1])
             compared += 1
-            sets_differ += int(sorted(got.bounce_code[g]) != sorted(new.bounce_code[e]))
+            differ = sorted(got.bounce_code[g]) != sorted(new.bounce_code[e])
+            sets_differ += int(differ)
+            by_tier[tier[q]] += (int(differ), 1)
             if not ok[q] or g.stop == g.start:
                 continue
             og = np.lexsort((got.launch_angle[g], got.bounce_code[g]))
@@ -175,6 +182,9 @@ def drift(env, cache, pos, vel, si_all, di_all, ids_all, args, res, key, halves:
         "worst_served_error_s": worst,
         "worst_error_over_bound": worst_ratio,
         "sets_differ_from_search": f"{sets_differ} of {compared}",
+        # by what served the link: the Taylor tier, unmoved, followed, followed from the reverse,
+        # searched (a search of the same ends again: the solver's own determinism)
+        "sets_differ_by_tier": ", ".join(f"{t} {k} of {m}" for t, (k, m) in zip(TIERS, by_tier) if m),
     }
     for name, v in out.items():
         res[key + name] = v

@@ -93,7 +93,7 @@ from . import rangedep
 from .arrivals import Arrivals
 from .environment import Environment
 
-__all__ = ["ArrivalCache", "CacheStats"]
+__all__ = ["TIERS", "ArrivalCache", "CacheStats"]
 
 _IU = np.triu_indices(6)
 _IU_WEIGHT = np.where(_IU[0] == _IU[1], 0.5, 1.0)  # 1/2 delta' H delta from the upper triangle
@@ -124,7 +124,8 @@ _INT_FIELDS = ("surface_bounces", "bottom_bounces", "path_class", "bounce_code")
 
 
 def _slot_arrays(A: int) -> tuple[tuple[str, tuple[int, ...], float, type], ...]:
-    """(attribute, shape per slot, fill, dtype) of the per-slot arrays besides the tables."""
+    """(attribute, shape per slot, fill, dtype) of the per-slot arrays besides the tables; A the
+    Taylor tables' width (0 without the Taylor tier)."""
     return (
         ("_s0", (3,), np.nan, float),  # Taylor reference ends
         ("_d0", (3,), np.nan, float),
@@ -141,9 +142,12 @@ def _slot_arrays(A: int) -> tuple[tuple[str, tuple[int, ...], float, type], ...]
         ("_g", (A, 6), 0.0, float),  # their gradients, s/m
         ("_H", (A, 21), 0.0, float),  # their Hessians (upper triangle, row by row), s/m^2
         ("_n", (), 0, np.int64),  # arrivals of the last solution
-        # False where the last solution had more arrivals than a slot holds (never followed)
-        ("_fits", (), False, bool),
     )
+
+
+#: what served a link (:attr:`ArrivalCache.served_by`, an index into this)
+TIERS = ("taylor", "same", "follow", "reverse", "search")
+_TAYLOR, _SAME, _FOLLOW, _REVERSE, _SEARCH = range(len(TIERS))
 
 
 @dataclass
@@ -171,7 +175,10 @@ class ArrivalCache:
     following a moved source loses an eigenray, follow the link again in two legs
     (:func:`.rangedep.follow_ends`) instead of searching it: far more links followed, but a
     failing one-leg follow often marks a changing arrival set, and without it the modem's stamp
-    differs from a new search's more often (docs/channel.md, ``tools/follow_radius.py``)."""
+    differs from a new search's more often (docs/channel.md, ``tools/follow_radius.py``).
+    max_arrivals: the per-link tables' initial width; they widen to the most arrivals a link has.
+    After each :meth:`get`, ``served_by`` holds, per requested link, the index in :data:`TIERS` of
+    what served it."""
 
     env: Environment
     n_links: int
@@ -184,7 +191,8 @@ class ArrivalCache:
     follow_back: bool = False
     n_nodes: int = 0
     stats: CacheStats = field(default_factory=CacheStats)
-    # per-slot arrays (_grow); the last solution's fields in _tab
+    served_by: NDArray[np.int8] = field(init=False, repr=False)
+    # per-slot arrays (_resize); the last solution's fields in _tab
     _s0: NDArray[np.float64] = field(init=False, repr=False)
     _d0: NDArray[np.float64] = field(init=False, repr=False)
     _sa: NDArray[np.float64] = field(init=False, repr=False)
@@ -200,7 +208,6 @@ class ArrivalCache:
     _g: NDArray[np.float64] = field(init=False, repr=False)
     _H: NDArray[np.float64] = field(init=False, repr=False)
     _n: NDArray[np.int64] = field(init=False, repr=False)
-    _fits: NDArray[np.bool_] = field(init=False, repr=False)
     _tab: dict[str, NDArray] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -213,8 +220,9 @@ class ArrivalCache:
         if int(self.n_nodes) < 0 or (self.n_nodes and int(self.n_nodes) ** 2 > int(self.n_links)):
             raise ValueError(f"ArrivalCache: n_nodes must be >= 0 with n_nodes^2 <= n_links, got {self.n_nodes!r}")
         self._slot: dict[int, int] = {}
-        self._cap = 0
-        self._grow(64)
+        self._cap, self._width = 0, 0
+        self._resize(64, int(self.max_arrivals))
+        self.served_by = np.zeros(0, np.int8)
 
     # ----------------------------------------------------------------- public
     def get(self, links: ArrayLike, src: ArrayLike, dst: ArrayLike) -> Arrivals:
@@ -230,44 +238,50 @@ class ArrivalCache:
         if np.unique(ids).size != ids.size:
             raise ValueError("ArrivalCache.get: a link id appears twice in one call")
         slots = self._slots(ids)
-        ds = s - self._s0[slots]
-        dd = d - self._d0[slots]
-        delta = np.concatenate([ds, dd], axis=1)
-        with np.errstate(invalid="ignore"):
-            hit = np.linalg.norm(delta, axis=1) <= self._radius[slots]
-        delay = self._t0[slots] + np.einsum("naj,nj->na", self._g[slots], delta)
+        hit = np.zeros(ids.size, bool)
+        if self.tol_s > 0.0:
+            delta = np.concatenate([s - self._s0[slots], d - self._d0[slots]], axis=1)
+            with np.errstate(invalid="ignore"):
+                hit = np.linalg.norm(delta, axis=1) <= self._radius[slots]
         if hit.any():  # only while the section keeps the reference's structure, to second order
             h = np.flatnonzero(hit)
             hit[h] = rangedep.sections(self.env, s[h], d[h]).structure == self._struct[slots[h]]
             h = h[hit[h]]
-            quad = delta[h][:, _IU[0]] * delta[h][:, _IU[1]] * _IU_WEIGHT
-            delay[h] += np.einsum("naq,nq->na", self._H[slots[h]], quad)
+            dh = delta[h]
+            quad = dh[:, _IU[0]] * dh[:, _IU[1]] * _IU_WEIGHT
+            taylor = self._t0[slots[h]] + np.einsum("naj,nj->na", self._g[slots[h]], dh)
+            taylor += np.einsum("naq,nq->na", self._H[slots[h]], quad)
         # the very positions of the last solution (a link between moored nodes): as it is
         same = np.all(s == self._sl[slots], axis=1) & np.all(d == self._dl[slots], axis=1) & ~hit
         self.stats.hits += int(hit.sum()) + int(same.sum())
+        tier = np.where(hit, _TAYLOR, _SAME).astype(np.int8)
         rest = np.flatnonzero(~(hit | same))
-        # the Taylor tier serves from the reference solution, the others from the last one
-        fresh = np.zeros(ids.size, bool)
         if rest.size:
             done, close = self._follow(slots[rest], s[rest], d[rest])
+            tier[rest[done]] = _FOLLOW
             # from the reverse only links not near their own search: where following that failed,
             # the arrival set is changing (a path about to vanish, a fold), and is searched
             far = np.flatnonzero(~close)
             if far.size and self.n_nodes > 0:
                 r = rest[far]
                 done[far] = self._follow_reverse(ids[r], slots[r], s[r], d[r])
+                tier[r[done[far]]] = _REVERSE
                 self.stats.reversed += int(done[far].sum())
             self.stats.follows += int(done.sum())
             rest = rest[~done]
         if rest.size:
             self.stats.misses += int(rest.size)
+            tier[rest] = _SEARCH
             self._fill(slots[rest], s[rest], d[rest])
-        fresh[~(hit | same)] = True
-        fresh |= same
-        delay[fresh] = self._tab["delay"][slots[fresh]]
+        # the Taylor tier serves from the reference solution, the others from the last one (the
+        # tables may have widened since the Taylor delays were computed)
+        delay = self._tab["delay"][slots]
+        if hit.any():
+            delay[h, : taylor.shape[1]] = taylor
         if self.tol_s > 0.0:  # only the expansion's cost rule reads it
             self._xq[slots] = np.concatenate([s, d], axis=1)
-        return self._serve(slots, delay, fresh)
+        self.served_by = tier
+        return self._serve(slots, delay)
 
     def bound(self, links: ArrayLike, src: ArrayLike, dst: ArrayLike) -> NDArray[np.float64]:
         """The error bound (s) the Taylor tier would give for serving these positions (inf:
@@ -308,56 +322,55 @@ class ArrivalCache:
         return np.array([self._radius[self._slot[i]] if i in self._slot else 0.0 for i in ids.tolist()])
 
     # ----------------------------------------------------------------- storage
-    def _grow(self, cap: int) -> None:
-        """Room for ``cap`` slots (the arrays keep their rows)."""
-        old, A = self._cap, int(self.max_arrivals)
+    def _resize(self, cap: int, width: int) -> None:
+        """Room for ``cap`` slots of ``width`` arrivals each (the arrays keep their contents; the
+        Taylor tables only with the Taylor tier on)."""
+        old = self._cap
 
         def grown(a: NDArray | None, shape: tuple[int, ...], fill: float, dtype: type = float) -> NDArray:
             out: NDArray = np.full((cap, *shape), fill, dtype=dtype)
             if a is not None:
-                out[:old] = a[:old]
+                out[(slice(0, old), *(slice(0, k) for k in a.shape[1:]))] = a[:old]
             return out
 
-        for name, shape, fill, dtype in _slot_arrays(A):
+        for name, shape, fill, dtype in _slot_arrays(width if self.tol_s > 0.0 else 0):
             setattr(self, name, grown(getattr(self, name, None), shape, fill, dtype))
         tab = getattr(self, "_tab", {})
-        self._tab = {f: grown(tab.get(f), (A,), np.nan) for f in _FLOAT_FIELDS}
-        self._tab.update({f: grown(tab.get(f), (A,), -1, np.int64) for f in _INT_FIELDS})
-        self._cap = cap
+        self._tab = {f: grown(tab.get(f), (width,), np.nan) for f in _FLOAT_FIELDS}
+        self._tab.update({f: grown(tab.get(f), (width,), -1, np.int64) for f in _INT_FIELDS})
+        self._cap, self._width = cap, width
 
     def _slots(self, ids: NDArray[np.int64]) -> NDArray[np.int64]:
         """The slot of each link id, new ones assigned (a dict lookup per link)."""
         slot = self._slot
         out = [slot.setdefault(i, len(slot)) for i in ids.tolist()]
         if len(slot) > self._cap:
-            self._grow(max(2 * self._cap, len(slot)))
+            self._resize(max(2 * self._cap, len(slot)), self._width)
         return np.asarray(out, np.int64)
 
-    def _store(self, slots: NDArray[np.int64], arr: Arrivals) -> NDArray[np.bool_]:
-        """Keep ``arr`` (one link per slot) as the slots' last solution; False where it holds
-        more arrivals than a slot does (the first ``max_arrivals`` are kept, and such a link is
-        searched at every request)."""
-        n, A = slots.size, int(self.max_arrivals)
+    def _store(self, slots: NDArray[np.int64], arr: Arrivals) -> None:
+        """Keep ``arr`` (one link per slot) as the slots' last solution (the tables widened to
+        hold its most arrivals)."""
+        n = slots.size
         cnt = np.diff(arr.offsets)
+        if cnt.size and int(cnt.max()) > self._width:
+            self._resize(self._cap, int(cnt.max()))
+        A = self._width
         rows = np.repeat(np.arange(n), cnt)
         col = np.arange(arr.delay.size) - arr.offsets[:-1][rows]
-        keep = col < A
         for f in _FLOAT_FIELDS:
             t = np.full((n, A), np.nan)
-            t[rows[keep], col[keep]] = getattr(arr, f)[keep]
+            t[rows, col] = getattr(arr, f)
             self._tab[f][slots] = t
         for f in _INT_FIELDS:
             t = np.full((n, A), -1, np.int64)
-            t[rows[keep], col[keep]] = getattr(arr, f)[keep]
+            t[rows, col] = getattr(arr, f)
             self._tab[f][slots] = t
-        fits = cnt <= A
-        self._n[slots] = np.minimum(cnt, A)
-        self._fits[slots] = fits
-        return fits
+        self._n[slots] = cnt
 
     def _last(self, slots: NDArray[np.int64]) -> Arrivals:
         """The slots' last solutions as an Arrivals (one link per slot)."""
-        return self._serve(slots, self._tab["delay"][slots], np.ones(slots.size, bool))
+        return self._serve(slots, self._tab["delay"][slots])
 
     # ----------------------------------------------------------------- tiers
     def _within(self, s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> NDArray[np.bool_]:
@@ -368,8 +381,8 @@ class ArrivalCache:
             return ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
 
     def _followable(self, slots: NDArray[np.int64]) -> NDArray[np.bool_]:
-        """Whether the slots' last solutions can be followed: some arrival, all of them kept."""
-        return (self._n[slots] > 0) & self._fits[slots]
+        """Whether the slots' last solutions can be followed: some arrival."""
+        return self._n[slots] > 0
 
     def _follow_from(
         self, slots: NDArray[np.int64], prev: Arrivals, s: NDArray, d: NDArray, src_from: NDArray | None = None
@@ -442,13 +455,13 @@ class ArrivalCache:
         self._sa[slots], self._da[slots] = sa, da
         self._sl[slots], self._dl[slots] = s, d
         self._s0[slots], self._d0[slots] = s, d
-        self._t0[slots] = self._tab["delay"][slots]
-        self._g[slots] = 0.0
-        self._H[slots] = 0.0
         self._coef[slots] = np.inf
         self._radius[slots] = 0.0
         if self.tol_s <= 0.0:
             return
+        self._t0[slots] = self._tab["delay"][slots]
+        self._g[slots] = 0.0
+        self._H[slots] = 0.0
         sec = rangedep.sections(self.env, s, d)
         self._struct[slots] = sec.structure
         # a link refused within 2 h of here is not expanded again (its stencil would most likely
@@ -468,7 +481,6 @@ class ArrivalCache:
         sub = slots[todo]
         u = np.stack([sec.ux[todo], sec.uy[todo], np.zeros(sub.size)], axis=1)
         coef, g, H = self._expansion(sub, s[todo], d[todo], u)
-        coef[~self._fits[sub]] = np.inf
         self._coef[sub], self._g[sub], self._H[sub] = coef, g, H
         self._radius[sub] = _radius(coef, self.tol_s, _STENCIL_M)
         refused = ~(self._radius[sub] > 0.0)
@@ -483,7 +495,7 @@ class ArrivalCache:
         inf where the link is not served (module docstring)."""
         from . import _rangedep_search_jit as jit
 
-        n, A = slots.size, int(self.max_arrivals)
+        n, A = slots.size, self._width
         tab = self._tab
         h = _STENCIL_M
         cnt = self._n[slots]
@@ -630,12 +642,12 @@ class ArrivalCache:
         coef[~serve] = np.inf
         return coef, np.nan_to_num(g), np.nan_to_num(H_world[:, :, _IU[0], _IU[1]])
 
-    def _serve(self, slots: NDArray[np.int64], delay: NDArray, fresh: NDArray[np.bool_]) -> Arrivals:
-        """Arrivals of ``slots`` from their tables, with delays ``delay`` (n, A) (Taylor rows:
-        the reference's order; ``fresh`` rows: the last solution's)."""
+    def _serve(self, slots: NDArray[np.int64], delay: NDArray) -> Arrivals:
+        """Arrivals of ``slots`` from their tables, with delays ``delay`` (n, width) (in the
+        tables' order; re-sorted here)."""
         n = slots.size
         cnt = self._n[slots]
-        mask = np.arange(self.max_arrivals)[None, :] < cnt[:, None]
+        mask = np.arange(self._width)[None, :] < cnt[:, None]
         offsets = np.zeros(n + 1, np.int64)
         offsets[1:] = np.cumsum(cnt)
         # first-order moves keep the order except where two delays cross: re-sort per link

@@ -339,3 +339,42 @@ def test_reverse_links_are_followed_from_the_other_direction() -> None:
     assert both.stats.reversed == 0 and both.stats.misses > 2 * src.size  # some searched again
     with pytest.raises(ValueError, match="n_nodes"):
         ArrivalCache(env, 10, n_nodes=4)
+
+
+@pytest.mark.parametrize("tol_s", [0.0, 1e-7])
+def test_links_with_more_arrivals_than_the_initial_width_are_kept_whole(tol_s: float) -> None:
+    """Tables 2 arrivals wide at first: every link is served whole (the exact search's arrivals)
+    and then followed like any other, not searched at every request; ``served_by`` names the
+    tier of each link."""
+    from aquasim_py.channel.arrival_cache import TIERS
+
+    env = _front_env()
+    rng = np.random.default_rng(11)
+    n = 12
+    s, d = _links(rng, n)
+    ids = np.arange(n)
+    cache = ArrivalCache(env, n, max_bounces=2, tol_s=tol_s, max_arrivals=2)
+    got = cache.get(ids, s, d)
+    exact = arrivals(env, s, d, max_bounces=2)
+    counts = np.diff(exact.offsets)
+    assert (counts > 2).sum() >= n // 2  # the case in point
+    np.testing.assert_array_equal(np.diff(got.offsets), counts)
+    np.testing.assert_array_equal(got.delay, exact.delay)
+    np.testing.assert_array_equal(got.bounce_code, exact.bounce_code)
+    assert [TIERS[t] for t in cache.served_by] == ["search"] * n
+    # unmoved: served as they are; the receivers moved 0.7 m (beyond the Taylor tier's 0.5 m,
+    # within following's 1 m): followed, the same arrivals as a new search's
+    cache.get(ids, s, d)
+    assert set(cache.served_by.tolist()) <= {TIERS.index("same"), TIERS.index("taylor")}
+    d2 = d + np.array([0.0, 0.4, 0.5])
+    got = cache.get(ids, s, d2)
+    tiers = np.array([TIERS[t] for t in cache.served_by])
+    assert set(tiers) <= {"follow", "search"} and cache.stats.misses == n + (tiers == "search").sum()
+    exact = arrivals(env, s, d2, max_bounces=2)
+    for i in np.flatnonzero(tiers == "follow"):
+        g = slice(got.offsets[i], got.offsets[i + 1])
+        e = slice(exact.offsets[i], exact.offsets[i + 1])
+        if sorted(got.bounce_code[g]) == sorted(exact.bounce_code[e]):
+            np.testing.assert_allclose(np.sort(got.delay[g]), np.sort(exact.delay[e]), rtol=0, atol=1e-9)
+    wide = np.flatnonzero((counts > 2) & (tiers == "follow"))
+    assert wide.size >= n // 3
