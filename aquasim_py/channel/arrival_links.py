@@ -22,9 +22,10 @@ order of the answer are the link model's; what differs is the arrival of each li
    than 1e-10 s. The first iterate starts from the straight-line time at the mean of the two
    end speeds (its error, ~1e-3 of the delay, moves a drifting receiver by a millimetre); the
    second is a Newton step from it, the slope grad T . v - 1 from the stamped eigenray's
-   slowness vector at the receiver (Fermat) and the receiver's velocity at t0, which leaves an
-   error of second order in the first one's (one request of the link fewer than plain
-   iteration, which contracts by |v_rx| / c ~ 1e-3 per step); each later iterate is plain. Every
+   slowness vector at the receiver (Fermat) and the receiver's velocity at the first iterate's
+   instant (a forward difference of its trajectory over 1 ms), which leaves an error of second
+   order in the first one's (one request of the link fewer than plain iteration, which
+   contracts by |v_rx| / c ~ 1e-3 per step); each later iterate is plain. Every
    iterate after the first follows the eigenrays found there (:mod:`.arrival_cache`, exact), and
    the answer is the iterate that moved by less than the tolerance, as in plain iteration. A
    stamp that keeps jumping between two arrivals (a receiver exactly where one crosses the
@@ -71,6 +72,10 @@ ARRIVAL_FIELDS = ("n_arrivals", "delay_spread", "first_tof", "direct_tof")
 FOLLOW_M = 1.0
 _LABELS = tuple(ArrivalClass(i).label for i in range(len(ArrivalClass)))
 _DIRECT = (int(ArrivalClass.DIRECT), int(ArrivalClass.REFRACTED))
+#: the step (s) of the receiver velocity's forward difference for the Newton step: its error
+#: (the step times half the acceleration, ~1e-8 m/s in an ocean current) and the positions'
+#: rounding over it (~1e-10 m/s at kilometres) both leave the slope right to 1e-11
+_DT_V_S = 1e-3
 
 
 class ArrivalPath(NamedTuple):
@@ -162,7 +167,9 @@ class ArrivalLinkModel(LinkModel):
         src: int = -1,
     ) -> tuple[NDArray[np.float64], list[ArrivalPath], NDArray[np.float64]]:
         """Stamp delays (s; NaN: none), arrival records and SNR (dB) of the links from ``src``
-        (at ``p_src``, true time t0) to the candidates ``cand`` (at ``p_rx`` at t0)."""
+        (at ``p_src``, true time t0) to the candidates ``cand`` (at ``p_rx`` at t0). ``v_rx``
+        (their velocities at t0) is not needed: the Newton step takes each receiver's velocity
+        at its first iterate's instant."""
         net = self._net
         cache = self._cache
         assert cache is not None  # made by _new_layout
@@ -186,8 +193,12 @@ class ArrivalLinkModel(LinkModel):
         if active.size:
             # then one Newton step on T(p_rx(t0 + g)) - g, its slope grad T . v - 1 with the
             # stamped eigenray's slowness vector at the receiver (Fermat) and the receiver's
-            # velocity at t0: the next iterate is then usually within the tolerance
-            v = v_rx[active] if v_rx is not None else self._velocities(cand[active], t0)
+            # velocity at the first iterate's instant (a forward difference of its trajectory
+            # over _DT_V_S): the next iterate is then usually within the tolerance. (Its velocity
+            # at t0 instead leaves the step 1e-10 s or more off on most links of a drifting
+            # network: the slope must be right to 1e-7 when the first iterate is 1e-3 s off.)
+            ta = t0 + guess[active] + _DT_V_S
+            v = (net.positions_at(cand[active], ta) - p[active]) / _DT_V_S
             slope = np.einsum("ij,ij->i", _stamp_slowness(arr, rec[7][active], p_src, p[active]), v)
             guess[active] += (time[active] - guess[active]) / (1.0 - slope)
         for _ in range(MAX_ITER):

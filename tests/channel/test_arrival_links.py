@@ -135,6 +135,38 @@ def test_moving_receiver_against_brentq() -> None:
         assert abs(r.tof - _surface_image_time(SRC, DST + v * t0)) > 1e-4
 
 
+def test_turning_receiver_converges_after_the_newton_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A receiver 2 km from the source, clear of the seamount, turning on a circle (2 m/s, 0.02
+    rad/s: 0.04 m/s^2): the stamp equals brentq's on the direct path's closed-form time to
+    1e-9 s, and the Newton step from the first iterate (~2e-3 s off) lands within the fixed
+    point's 1e-10 s: two requests of the link per transmission. Its slope takes the velocity at
+    the first iterate's instant; the velocity at t0 would leave the step off by about |a| T / c
+    times the first iterate's error, 6e-8 s here (a third request)."""
+    from aquasim_py.channel import arrival_cache
+    from aquasim_py.mobility import CoordinatedTurn
+
+    requests: list[int] = []
+    get = arrival_cache.ArrivalCache.get
+
+    def counted(self: arrival_cache.ArrivalCache, links, src, dst):  # type: ignore[no-untyped-def]
+        requests.append(int(np.size(links)))
+        return get(self, links, src, dst)
+
+    monkeypatch.setattr(arrival_cache.ArrivalCache, "get", counted)
+    mob = CoordinatedTurn([[2000.0, 0.0, 500.0]], BOX, speed=2.0, turn_rate=0.02, heading=0.3)
+    p = _run(SEAMOUNT, ChannelConfig(collision="none", max_range_m=8000.0), SRC, {"mobility": mob}, 30.0)
+    tx = p[p.event == "tx"].sort_values("uid")
+    rx = p[p.event == "rx"].sort_values("uid")
+    assert len(rx) == 2 and requests == [1, 1, 1, 1]  # two transmissions, two requests each
+    for t0, (_, r) in zip(tx.time, rx.iterrows()):
+
+        def fixed_point(ta: float) -> float:
+            return ta - t0 - float(np.linalg.norm(mob.position_at([0], ta)[0] - SRC)) / C
+
+        t_arr = brentq(fixed_point, t0, t0 + 10.0, xtol=1e-13, rtol=1e-15)
+        assert abs(r.time - t_arr) < 1e-9 and r.path == "direct"
+
+
 def _network(seed: int) -> Simulation:
     env = SHELF
     sim = Simulation(
