@@ -74,7 +74,10 @@ def run(
     # in both (else it pairs them otherwise, silently)
     if irregular and not (np.all(np.diff(zr_k) > 0.0) and np.all(np.diff(R_k) > 0.0)):
         raise ValueError("bellhop_ref.run: several receivers must have increasing depths and ranges")
-    keep = z < zmax
+    # depth nodes at the floor to rounding are left to the last line (at zmax): BELLHOP ends the
+    # profile at the first depth within rounding of zmax, and would read the next line as the
+    # bottom's options
+    keep = z < zmax - 1e-6
     zz = np.concatenate([z[keep], [zmax]])
     c2 = np.atleast_2d(np.asarray(c, float))  # (profiles, depths): one profile, or one per column r
 

@@ -302,6 +302,23 @@ def _bellhop_check(env: Environment, src, dst, max_bounces: int) -> tuple[int, f
 
 
 @needs_bellhop
+def test_bellhop_reference_takes_a_floor_at_a_depth_node_to_rounding() -> None:
+    """The reference's input where the deepest floor lies a rounding above a depth node of the
+    field (100 + 1.4e-14 m against a node at 100 m, as a section of the shelf-break sample gave):
+    BELLHOP ends the profile at the node, so the reference writes it once, at the floor; the
+    direct path's delay is then the constant-speed one within BELLHOP's float32 output."""
+    z = np.array([0.0, 50.0, 100.0])
+    floor = np.full(2, 100.0 + 1.4e-14)
+    b = bellhop_ref.run(
+        np.array([0.0, 1000.0]), floor, z, np.full(3, 1500.0), 30.0, 50.0, (1650.0, 1.9, 0.8), beams=201
+    )
+    direct = (b.surface == 0) & (b.bottom == 0)
+    assert direct.any()
+    t = np.hypot(1000.0, 20.0) / 1500.0
+    assert np.min(np.abs(b.delay[direct] - t)) <= 1e-5
+
+
+@needs_bellhop
 def test_bellhop_asa_wedge() -> None:
     """The ASA benchmark wedge (200 m at the source, 2.86 deg slope, fluid bottom 1700 m/s,
     1.5 g/cm3, 0.5 dB/wavelength; isovelocity 1500 m/s)."""
