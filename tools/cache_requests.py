@@ -1,0 +1,82 @@
+"""Why a range-dependent run's links are searched: the channel's arrival-cache requests over a
+run, by what served them (``ArrivalCache.served_by``), and how far each link's ends had moved
+from where it was last searched.
+
+Runs a scenario (default ``scenarios/shelfbreak_network.toml``, its first ``--duration`` s) with
+the channel's cache instrumented: each request of a link is classed by the distance of its
+farther end from the link's last search (no search yet: "first"; within the cache's
+``follow_m``: "near"; beyond: "far", with how many of those lie within 2, 5 and 10 m) and by the
+tier that served it (same, follow, reverse, search). ``--follow-m`` sets the channel's follow
+radius for the run (an experiment: the channel's own is ``arrival_links.FOLLOW_M``).
+
+    python tools/cache_requests.py                       # the figures of docs/performance.md
+    python tools/cache_requests.py --duration 120 --follow-m 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("scenario", nargs="?", default=str(ROOT / "scenarios" / "shelfbreak_network.toml"))
+    ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60)")
+    ap.add_argument("--follow-m", type=float, default=None, help="the channel's follow radius for this run (m)")
+    args = ap.parse_args()
+
+    from aquasim_py import run_scenario
+    from aquasim_py.channel import arrival_cache, arrival_links
+
+    if args.follow_m is not None:
+        arrival_links.FOLLOW_M = args.follow_m
+    counts: Counter[str] = Counter()
+    get = arrival_cache.ArrivalCache.get
+
+    def counted(self: arrival_cache.ArrivalCache, links, src, dst):
+        ids = np.asarray(links, np.int64).ravel()
+        s, d = np.asarray(src, float).reshape(-1, 3), np.asarray(dst, float).reshape(-1, 3)
+        slots = np.array([self._slot.get(i, -1) for i in ids.tolist()], np.int64)
+        known = slots >= 0
+        moved = np.full(ids.size, np.nan)  # the farther end's distance from the last search (m)
+        k = slots[known]
+        moved[known] = np.maximum(
+            np.linalg.norm(s[known] - self._sa[k], axis=1), np.linalg.norm(d[known] - self._da[k], axis=1)
+        )
+        out = get(self, links, src, dst)
+        tier = np.array(arrival_cache.TIERS)[self.served_by]
+        with np.errstate(invalid="ignore"):
+            cls = np.where(np.isnan(moved), "first", np.where(moved <= self.follow_m, "near", "far"))
+            for lim in (2.0, 5.0, 10.0):
+                counts[f"far, within {lim:g} m"] += int(((cls == "far") & (moved <= lim)).sum())
+        for c, t in zip(cls.tolist(), tier.tolist()):
+            counts[f"{c}: {t}"] += 1
+        counts["requests"] += ids.size
+        return out
+
+    arrival_cache.ArrivalCache.get = counted  # type: ignore[method-assign]
+    t0 = time.process_time()
+    run_scenario(args.scenario, overrides={"simulation.duration_s": args.duration}, progress=False)
+    cpu = time.process_time() - t0
+    print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {arrival_links.FOLLOW_M:g} m")
+    print(f"  CPU {cpu:.1f} s (instrumented)")
+    print(f"  {'requests':32s} {counts['requests']}")
+    for cls in ("first", "near", "far"):
+        for t in arrival_cache.TIERS:
+            if counts[f"{cls}: {t}"]:
+                print(f"  {cls + ': ' + t:32s} {counts[f'{cls}: {t}']}")
+    for lim in (2, 5, 10):
+        print(f"  {f'far, within {lim} m':32s} {counts[f'far, within {lim} m']}")
+    searched = sum(v for key, v in counts.items() if key.endswith(": search"))
+    print(f"  {'searched':32s} {searched}")
+
+
+if __name__ == "__main__":
+    main()
