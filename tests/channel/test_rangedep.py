@@ -305,8 +305,9 @@ def _bellhop_check(env: Environment, src, dst, max_bounces: int) -> tuple[int, f
 def test_bellhop_reference_takes_a_floor_at_a_depth_node_to_rounding() -> None:
     """The reference's input where the deepest floor lies a rounding above a depth node of the
     field (100 + 1.4e-14 m against a node at 100 m, as a section of the shelf-break sample gave):
-    BELLHOP ends the profile at the node, so the reference writes it once, at the floor; the
-    direct path's delay is then the constant-speed one within BELLHOP's float32 output."""
+    BELLHOP ends the profile at the node, so the reference writes it once, at the floor. BELLHOP
+    then runs, and its direct arrival's delay is the constant-speed one within its stated
+    accuracy of about 1e-4 s (6.6e-6 s measured at 201 beams)."""
     z = np.array([0.0, 50.0, 100.0])
     floor = np.full(2, 100.0 + 1.4e-14)
     b = bellhop_ref.run(
@@ -315,7 +316,7 @@ def test_bellhop_reference_takes_a_floor_at_a_depth_node_to_rounding() -> None:
     direct = (b.surface == 0) & (b.bottom == 0)
     assert direct.any()
     t = np.hypot(1000.0, 20.0) / 1500.0
-    assert np.min(np.abs(b.delay[direct] - t)) <= 1e-5
+    assert np.min(np.abs(b.delay[direct] - t)) <= 1e-4
 
 
 @needs_bellhop
