@@ -303,7 +303,7 @@ def _bellhop_check(env: Environment, src, dst, max_bounces: int) -> tuple[int, f
 
 @needs_bellhop
 def test_bellhop_reference_takes_a_floor_at_a_depth_node_to_rounding() -> None:
-    """The reference's input where the deepest floor lies a rounding above a depth node of the
+    """The reference's input where the deepest floor lies a rounding below a depth node of the
     field (100 + 1.4e-14 m against a node at 100 m, as a section of the shelf-break sample gave):
     BELLHOP ends the profile at the node, so the reference writes it once, at the floor. BELLHOP
     then runs, and its direct arrival's delay is the constant-speed one within its stated
