@@ -170,7 +170,8 @@ class CacheStats:
 class ArrivalCache:
     """Arrivals of links ``0 .. n_links-1`` (the caller's ids, e.g. src * n_nodes + dst).
 
-    tol_s: the Taylor tier's error bound (s); 0 turns it off (every request exact). follow_m:
+    tol_s: the Taylor tier's error bound (s); 0 turns it off (every request exact), fixed at
+    construction (the Taylor tables are allocated only when it is > 0). follow_m:
     the following tier's radius (m) around the last search; 0 turns it off. follow_back: where
     following a moved source loses an eigenray, follow the link again in two legs
     (:func:`.rangedep.follow_ends`) instead of searching it: far more links followed, but a
