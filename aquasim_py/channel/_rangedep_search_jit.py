@@ -1,6 +1,7 @@
 """Compiled eigenray search of the range-dependent solver (numba): the per-link fan and its
-refinement, the safeguarded Newton iteration inside a family (:func:`search`, :func:`search_links`)
-and the following of known eigenrays to moved end points (:func:`follow_links`). The ray walk they
+refinement, the safeguarded Newton iteration inside a family (:func:`search`, :func:`search_links`),
+the following of known eigenrays to moved end points (:func:`follow_links`) and the check of the
+folds a search saw in the making (:func:`watch_links`). The ray walk they
 call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the public API.
 
 The search of one link works on the depth miss f(theta) = z(theta, R) - z_R of the ray launched
@@ -65,6 +66,14 @@ _MAX_LEVELS = 60
 _STACK = 160
 _MAXIT = 60
 _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
+# a watched fold (search()'s docstring): an extremum of a family's miss nearer zero than this is
+# checked again by the following tier; about 3x the median change of the miss at a fixed launch
+# angle when both ends move 1 m (0.73 m on 1 500 shelf-break links of the 100-node network; the
+# tail, rays grazing the slope, reaches 90 m and is not covered)
+WATCH_M = 2.0
+WATCH_ROWS = 16  # watched intervals per link (more: the link cannot be watched, it is searched)
+W_A, W_B, W_CODE, W_SIGN = range(4)
+NW = 4
 # a sample: angle, miss, code, d miss / d angle, predicted event offsets above and below, bounces
 # (-1: lost)
 S_TH, S_F, S_CODE, S_Q, S_EVP, S_EVM, S_NB = range(7)
@@ -420,14 +429,22 @@ def _fan_cut(rr, zz, cc, bb, ff, floor, zs, zr, R, H, maxb, wmax):
 
 
 @_jit
-def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out):
+def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out, watch):
     """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces: a fan of
     ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of a
     waveguide of depth H lie about 2 apart in w), each side stopped at its first angle past
     those that can reach R within ``maxb`` bounces (:func:`_fan_cut`), with samples next to the
     angles of rays that turn at a depth node of the source's profile, refined as the module
-    docstring says, and Newton's iteration in every bracket. Returns the number of arrival rows
-    written to ``out``."""
+    docstring says, and Newton's iteration in every bracket. Returns (the number of arrival rows
+    written to ``out``, the number of watched intervals, written to ``watch`` as far as it has
+    rows).
+
+    Watched: an interval of one family whose miss has one extremum inside (end slopes of
+    opposite signs) and keeps the ends' sign there, but comes within ``WATCH_M`` of zero (the
+    extremum's miss where it was located, else the bound of :func:`_out_of_reach`): a small move
+    of an end may carry that extremum through zero, where two eigenrays are born (a fold), which
+    following the link's known eigenrays cannot see. Its rows (a, b, family, sign of the ends'
+    miss) are what :func:`watch_links` checks again at moved ends."""
     dummy = np.empty((1, 3))
     ev = np.empty(2)
     noev = np.empty(0)  # walks that need no event predictions
@@ -486,6 +503,7 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
     lev = np.zeros(_STACK, np.int64)
     mid = np.empty(NS)
     mid2 = np.empty(NS)
+    nw = 0
     for i in range(nth - 1):
         stack[0, :NS] = smp[i]
         stack[0, NS:] = smp[i + 1]
@@ -535,6 +553,10 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 # one sign, the cubic turning) always do
                 one = (qa > 0.0) != (qb > 0.0)
                 far = (fa > 0.0) == (fb > 0.0) and _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), w)
+                if turns and one and far:
+                    margin = min(abs(fa), abs(fb)) - 2.0 * max(abs(qa), abs(qb)) * w
+                    if margin < WATCH_M:
+                        nw = _watch_row(watch, nw, a, b, ca, fa)
                 turns = turns and not (one and far)
                 split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
                 # end slopes of one sign that differ from the secant by more than 2x (or a cubic
@@ -555,6 +577,8 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                             rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, fa, A[S_Q], b, fb, B[S_Q], ca, dummy,
                             noev,
                         )  # fmt: skip
+                        if cx == ca and (fx > 0.0) == (fa > 0.0) and abs(fx) < WATCH_M:
+                            nw = _watch_row(watch, nw, a, b, ca, fa)
                         if cx == ca and (fx > 0.0) != (fa > 0.0) and nbr + 2 <= nbmax:
                             br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, x, fx
                             br[nbr + 1, 0], br[nbr + 1, 1], br[nbr + 1, 2], br[nbr + 1, 3] = x, fx, b, fb
@@ -611,7 +635,17 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                     break
             if not dup:
                 n += 1
-    return n
+    return n, nw
+
+
+@_jit
+def _watch_row(watch, nw, a, b, code, f):
+    """Write the watched interval [a, b] of family ``code`` (its ends' miss of the sign of ``f``)
+    to ``watch`` if it has room; returns the count of watched intervals, this one included."""
+    if nw < watch.shape[0]:
+        watch[nw, W_A], watch[nw, W_B], watch[nw, W_CODE] = a, b, code
+        watch[nw, W_SIGN] = 1.0 if f > 0.0 else -1.0
+    return nw + 1
 
 
 @_jit
@@ -620,15 +654,18 @@ def search_links(
 ):
     """:func:`search` for every link l: its section rows starts[l]:ends[l] of rr_all (J,),
     cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped). Returns (rows (L, cap, NF),
-    counts (L,))."""
+    counts (L,), watched intervals (L, WATCH_ROWS, NW) (NaN past the count), their counts (L,)
+    (above WATCH_ROWS: more than it holds))."""
     L = zs.size
     out = np.full((L, cap, NF), np.nan)
     cnt = np.zeros(L, np.int64)
+    watch = np.full((L, WATCH_ROWS, NW), np.nan)
+    nwatch = np.zeros(L, np.int64)
     for l in range(L):
         o0, o1 = starts[l], ends[l]
         if o1 - o0 < 2:
             continue
-        cnt[l] = search(
+        cnt[l], nwatch[l] = search(
             rr_all[o0:o1],
             zz,
             cc_all[o0:o1],
@@ -645,8 +682,9 @@ def search_links(
             H[l],
             ztol,
             out[l],
+            watch[l],
         )
-    return out, cnt
+    return out, cnt, watch, nwatch
 
 
 @_jit
@@ -778,3 +816,47 @@ def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr
             _write_row(rr, zz, cc, zs[l], zr[l], R[l], a, res, out[l], q)
             ok_all[l, q] = True
     return out, ok_all
+
+
+@_jit
+def watch_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, watch, nwatch):
+    """Whether each link's watched intervals (:func:`search`: ``watch`` (L, WATCH_ROWS, NW),
+    counts ``nwatch``) still hold no eigenray at the link's (moved) ends: both ends of each in
+    its family with the miss of the watched sign and the end slopes of opposite signs (the
+    extremum still inside), and the miss kept off zero there (:func:`_out_of_reach` of the
+    ends, else :func:`_extremum` locates the extremum). False where a check fails (a fold may
+    have put two eigenrays there: the link is to be searched) or the link had more watched
+    intervals than rows. Two walks per interval, a few more where the extremum is sought."""
+    L = zs.size
+    clear = np.ones(L, np.bool_)
+    dummy = np.empty((1, 3))
+    noev = np.empty(0)
+    for l in range(L):
+        if nwatch[l] == 0:
+            continue
+        o0, o1 = starts[l], ends[l]
+        if nwatch[l] > watch.shape[1] or o1 - o0 < 2:
+            clear[l] = False
+            continue
+        rr, cc, bb, ff = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1], ff_all[o0:o1]
+        for k in range(nwatch[l]):
+            a, b = watch[l, k, W_A], watch[l, k, W_B]
+            code, positive = int(watch[l, k, W_CODE]), watch[l, k, W_SIGN] > 0.0
+            fa, ca, qa = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy, noev)
+            fb, cb, qb = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy, noev)
+            ok = (
+                ca == code
+                and cb == code
+                and (fa > 0.0) == positive
+                and (fb > 0.0) == positive
+                and (qa > 0.0) != (qb > 0.0)
+            )
+            if ok and not _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), b - a):
+                _x, fx, cx = _extremum(
+                    rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], maxb, bpar, a, fa, qa, b, fb, qb, code, dummy, noev
+                )  # fmt: skip
+                ok = cx == code and (fx > 0.0) == positive
+            if not ok:
+                clear[l] = False
+                break
+    return clear

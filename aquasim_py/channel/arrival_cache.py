@@ -18,7 +18,10 @@ is served, cheapest first, by
    levels and angles; with ``follow_back``, a moved source's move backwards from the receiver
    where following it forwards loses an eigenray, :func:`.rangedep.follow_ends`), unless one
    cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
-   followed onto a sibling of its bounce sequence (a fold);
+   followed onto a sibling of its bounce sequence (a fold), or a fold in the making may have
+   brought two new eigenrays: the last search's watched intervals (:func:`.rangedep.watch`:
+   stretches of a family where the depth miss came within 2 m of zero at an extremum without
+   reaching it) are checked again at (s, d) first, and a link where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
 
 A search is expanded (the stencil below, which costs about as much as following the link 13
@@ -73,8 +76,12 @@ vertex, where the delay's gradient jumps; a curved floor's arc junctions, where 
 within 2 h, more where the stencil shows the point moving faster than the ends, as it does at
 low grazing angles), is never served by Taylor; searched again within 2 h of where it was refused, it is not
 expanded again (the stencil would most likely be refused again, and costs twice the search). A
-link without arrivals is served as such within the region. Neither tier detects a path that appears (a new eigenray) inside its region; how often
-that changes the modem's stamp is measured by ``python tools/follow_radius.py`` (docs/channel.md).
+link without arrivals is served as such within the region. The Taylor tier does not detect a
+path that appears (a new eigenray) inside its region, nor the following tier one that appears
+other than at a watched fold (one that enters a family across its edge, or at an extremum
+farther than 2 m from zero: rays grazing a steep flank, whose miss moves tens of metres for a
+metre's move); how often that changes the modem's stamp is measured by ``python
+tools/follow_radius.py`` (docs/channel.md).
 
 Levels and angles served by Taylor are the reference's (they vary on scales of metres, not of
 the delay's 1e-7 s). Vectorized: links are integer ids, each given a slot in growing arrays;
@@ -90,6 +97,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import arrivals as _arrivals
 from . import rangedep
+from ._rangedep_search_jit import NW, WATCH_ROWS
 from .arrivals import Arrivals
 from .environment import Environment
 
@@ -142,6 +150,12 @@ def _slot_arrays(A: int) -> tuple[tuple[str, tuple[int, ...], float, type], ...]
         ("_g", (A, 6), 0.0, float),  # their gradients, s/m
         ("_H", (A, 21), 0.0, float),  # their Hessians (upper triangle, row by row), s/m^2
         ("_n", (), 0, np.int64),  # arrivals of the last solution
+        # the last search's watched intervals (rangedep.watch): where a fold may bring two new
+        # eigenrays; their count; whether they are the reverse link's (searched from this
+        # link's receiver: the following tier then reached the link from its reverse)
+        ("_watch", (WATCH_ROWS, NW), np.nan, float),
+        ("_nwatch", (), 0, np.int64),
+        ("_wrev", (), False, np.bool_),
     )
 
 
@@ -209,6 +223,9 @@ class ArrivalCache:
     _g: NDArray[np.float64] = field(init=False, repr=False)
     _H: NDArray[np.float64] = field(init=False, repr=False)
     _n: NDArray[np.int64] = field(init=False, repr=False)
+    _watch: NDArray[np.float64] = field(init=False, repr=False)
+    _nwatch: NDArray[np.int64] = field(init=False, repr=False)
+    _wrev: NDArray[np.bool_] = field(init=False, repr=False)
     _tab: dict[str, NDArray] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -385,12 +402,38 @@ class ArrivalCache:
         """Whether the slots' last solutions can be followed: some arrival."""
         return self._n[slots] > 0
 
+    def _clear(self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool) -> NDArray[np.bool_]:
+        """Whether the watched intervals of ``wslots`` (the last searches' folds in the making)
+        still hold no eigenray for links with ends (s, d): the slots' own links (``flip`` False)
+        or their reverses (True), each watch checked in the direction it was searched."""
+        clear = np.ones(wslots.size, bool)
+        w = np.flatnonzero(self._nwatch[wslots] > 0)
+        if w.size:
+            ws = wslots[w]
+            back = self._wrev[ws] != flip
+            src, dst = np.where(back[:, None], d[w], s[w]), np.where(back[:, None], s[w], d[w])
+            clear[w] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws])
+        return clear
+
     def _follow_from(
-        self, slots: NDArray[np.int64], prev: Arrivals, s: NDArray, d: NDArray, src_from: NDArray | None = None
+        self,
+        slots: NDArray[np.int64],
+        prev: Arrivals,
+        s: NDArray,
+        d: NDArray,
+        src_from: NDArray | None = None,
+        wslots: NDArray[np.int64] | None = None,
     ) -> NDArray[np.bool_]:
         """Follow ``prev`` (one link per slot) to (s, d) and keep it as the slots' last solution
-        where every arrival was followed (True there)."""
-        got, ok = _arrivals.follow(
+        where every arrival was followed and no watched interval (of the slots, or of the
+        reverse links' ``wslots``) may hold new eigenrays (True there)."""
+        clear = self._clear(slots, s, d, False) if wslots is None else self._clear(wslots, s, d, True)
+        if not clear.any():
+            return clear
+        if not clear.all():
+            prev, s, d = _links_of(prev, clear), s[clear], d[clear]
+            src_from = None if src_from is None else src_from[clear]
+        got, ok_clear = _arrivals.follow(
             self.env,
             prev,
             s,
@@ -400,10 +443,12 @@ class ArrivalCache:
             spreading=self.spreading,
             src_from=src_from,
         )
+        ok = np.zeros(clear.size, bool)
+        ok[clear] = ok_clear
         if ok.any():
             sub = slots[ok]
-            self._store(sub, _links_of(got, ok))
-            self._sl[sub], self._dl[sub] = s[ok], d[ok]
+            self._store(sub, _links_of(got, ok_clear))
+            self._sl[sub], self._dl[sub] = s[ok_clear], d[ok_clear]
             self._radius[sub] = 0.0  # the Taylor reference no longer matches the tables
         return ok
 
@@ -434,20 +479,25 @@ class ArrivalCache:
         idx = known[self._within(s[known], d[known], self._da[rs], self._sa[rs]) & self._followable(rs)]
         if idx.size:
             prev = _arrivals.reversed_arrivals(self._last(rslot[idx]))
-            done[idx] = self._follow_from(slots[idx], prev, s[idx], d[idx])
+            done[idx] = self._follow_from(slots[idx], prev, s[idx], d[idx], wslots=rslot[idx])
             sub, rsub = slots[idx[done[idx]]], rslot[idx[done[idx]]]
             self._sa[sub], self._da[sub] = self._da[rsub], self._sa[rsub]
+            # the reverse's watch, now the link's, in the reverse's direction
+            self._watch[sub], self._nwatch[sub], self._wrev[sub] = (
+                self._watch[rsub],
+                self._nwatch[rsub],
+                ~self._wrev[rsub],
+            )
         return done
-
-    def _solve(self, s: NDArray, d: NDArray) -> Arrivals:
-        return _arrivals.arrivals(
-            self.env, s, d, max_bounces=self.max_bounces, frequency_khz=self.frequency_khz, spreading=self.spreading
-        )
 
     def _fill(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> None:
         """Search the links of ``slots`` at (s, d): their new reference (and, with the Taylor
-        tier on, its gradients and bound)."""
-        self._store(slots, self._solve(s, d))
+        tier on, its gradients and bound) and watched intervals."""
+        arr, watch, nwatch = _arrivals.watched_arrivals(
+            self.env, s, d, max_bounces=self.max_bounces, frequency_khz=self.frequency_khz, spreading=self.spreading
+        )
+        self._store(slots, arr)
+        self._watch[slots], self._nwatch[slots], self._wrev[slots] = watch, nwatch, False
         self._reference(slots, s, d, s, d)
 
     def _reference(self, slots: NDArray[np.int64], s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> None:

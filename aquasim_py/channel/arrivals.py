@@ -162,11 +162,25 @@ def arrivals(
     """Every eigenray from ``src`` to ``dst`` ((..., 3), m; broadcast) with at most
     ``max_bounces`` surface + bottom bounces, in increasing delay per link (see the module
     docstring for the level). Links with an end outside the water have none."""
+    return watched_arrivals(env, src, dst, max_bounces=max_bounces, frequency_khz=frequency_khz, spreading=spreading)[0]
+
+
+def watched_arrivals(
+    env: Environment,
+    src: ArrayLike,
+    dst: ArrayLike,
+    *,
+    max_bounces: int = 2,
+    frequency_khz: float = 10.0,
+    spreading: str | float = "ray",
+) -> tuple[Arrivals, FloatArray, NDArray[np.int64]]:
+    """:func:`arrivals`, and each link's watched intervals and their counts (flattened links:
+    (n, WATCH_ROWS, NW), (n,); :func:`.rangedep.watch`), for a cache that follows the links."""
     shape = np.broadcast_shapes(np.shape(src)[:-1], np.shape(dst)[:-1])
     sec = rangedep.sections(env, src, dst)
-    rows, cnt = rangedep.solve(env, sec, max_bounces)
+    rows, cnt, watch, nwatch = rangedep.solve(env, sec, max_bounces)
     used = np.arange(rows.shape[1])[None, :] < cnt[:, None]
-    return _assemble(sec, rows, used, shape, frequency_khz, spreading)
+    return _assemble(sec, rows, used, shape, frequency_khz, spreading), watch, nwatch
 
 
 def follow(

@@ -413,8 +413,12 @@ def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
     ]
 
 
-def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray, NDArray[np.int64]]:
-    """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the sections."""
+def solve(
+    env: Environment, sec: Sections, max_bounces: int
+) -> tuple[FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
+    """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the
+    sections; their watched intervals (n, WATCH_ROWS, NW) and counts (n,) (where a small move
+    may bring a fold's two eigenrays: :func:`watch`)."""
     from . import _rangedep_search_jit as jit
 
     mb = int(max_bounces)
@@ -425,10 +429,44 @@ def solve(env: Environment, sec: Sections, max_bounces: int) -> tuple[FloatArray
     nfan = np.ceil(2.0 * wmax / _FAN_DW).astype(np.int64)
     starts, ends, r, z, c, fz, fs, floor, zs, zr, R = _kernel_args(env, sec)
     bpar = np.array(env.bottom.params, dtype=float)
-    rows, cnt = jit.search_links(
+    return jit.search_links(
         starts, ends, r, z, c, fz, fs, floor, zs, zr, R, mb, bpar, wmax, nfan, sec.H, _ZTOL_M, _MAX_ARRIVALS
     )
-    return rows, cnt
+
+
+def watch(
+    env: Environment,
+    src: ArrayLike,
+    dst: ArrayLike,
+    max_bounces: int,
+    intervals: FloatArray,
+    counts: NDArray[np.int64],
+) -> NDArray[np.bool_]:
+    """Whether the watched intervals of each link (``intervals`` (n, WATCH_ROWS, NW), ``counts``
+    (n,), as :func:`solve` gave them where the link was searched) still hold no eigenray with
+    its ends at ``src`` -> ``dst`` (n, 3): False where a fold may have brought two (the link is
+    to be searched again) or the link had more watched intervals than rows."""
+    from . import _rangedep_search_jit as jit
+
+    sec = sections(env, src, dst)
+    starts, ends, r, z, c, fz, fs, floor, zs, zr, R = _kernel_args(env, sec)
+    return jit.watch_links(
+        starts,
+        ends,
+        r,
+        z,
+        c,
+        fz,
+        fs,
+        floor,
+        zs,
+        zr,
+        R,
+        int(max_bounces),
+        np.array(env.bottom.params, dtype=float),
+        np.ascontiguousarray(intervals, dtype=float),
+        np.ascontiguousarray(counts, dtype=np.int64),
+    )
 
 
 def trace_rays(

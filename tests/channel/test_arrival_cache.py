@@ -378,3 +378,56 @@ def test_links_with_more_arrivals_than_the_initial_width_are_kept_whole(tol_s: f
             np.testing.assert_allclose(np.sort(got.delay[g]), np.sort(exact.delay[e]), rtol=0, atol=1e-9)
     wide = np.flatnonzero((counts > 2) & (tiers == "follow"))
     assert wide.size >= n // 3
+
+
+# a shelf-break link (the bundled sample) whose receiver sits where a fold of the direct family is
+# in the making: with both ends moved 0.3 m, two more direct eigenrays (4.6 us after the first,
+# as strong) appear, away from the six it had (found on the 40-node network of
+# tools/bench_arrivals.py, seed 1, the first drift step at 0.3 m/s)
+_FOLD_LINK = (
+    ([-564.506, 1019.645, 73.757], [-44.427, 437.163, 78.167]),
+    ([-564.267, 1019.463, 73.77], [-44.675, 436.993, 78.168]),
+)
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_a_fold_born_within_the_follow_radius_is_searched(reverse: bool) -> None:
+    """Following the link's known eigenrays cannot see the two born at a fold; the search's
+    watched interval there fails its check at the moved ends, so the link is searched and its
+    arrival set is the new search's, the two new direct eigenrays included. So too where the
+    link is reached from its reverse, whose watch is checked in the direction it was searched."""
+    from aquasim_py.channel.arrival_cache import TIERS
+    from aquasim_py.channel.data import shelfbreak
+
+    env = shelfbreak()
+    (s0, d0), (s1, d1) = (np.array(p)[None] for p in _FOLD_LINK[0]), (np.array(p)[None] for p in _FOLD_LINK[1])
+    old = arrivals(env, s0, d0, max_bounces=2)
+    new = arrivals(env, s1, d1, max_bounces=2)
+    assert (new.bounce_code == 0).sum() == (old.bounce_code == 0).sum() + 2
+    cache = ArrivalCache(env, 4, max_bounces=2, tol_s=0.0, n_nodes=2)
+    if reverse:  # link 1 -> 0 searched, then 0 -> 1 requested (ids src * 2 + dst)
+        cache.get([2], d0, s0)
+    else:
+        cache.get([1], s0, d0)
+    got = cache.get([1], s1, d1)
+    assert TIERS[cache.served_by[0]] == "search"
+    assert sorted(got.bounce_code) == sorted(new.bounce_code)
+    np.testing.assert_allclose(np.sort(got.delay), np.sort(new.delay), rtol=0, atol=1e-9)
+
+
+def test_watched_intervals_hold_at_the_ends_they_were_searched_at() -> None:
+    """Checked at the very ends of their search, the watched intervals of every link are clear
+    (the check repeats the search's own test there), but for links with more than the rows hold;
+    and links whose search watched nothing are clear wherever they are."""
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel._rangedep_search_jit import WATCH_ROWS
+
+    env = _front_env()
+    rng = np.random.default_rng(5)
+    s, d = _links(rng, 60)
+    _rows, _cnt, watch, nwatch = rangedep.solve(env, rangedep.sections(env, s, d), 2)
+    assert (nwatch > 0).sum() >= 5  # else the check would be empty
+    clear = rangedep.watch(env, s, d, 2, watch, nwatch)
+    np.testing.assert_array_equal(clear, nwatch <= WATCH_ROWS)
+    none = nwatch == 0
+    assert rangedep.watch(env, s[none] + 7.0, d[none] - 3.0, 2, watch[none], nwatch[none]).all()
