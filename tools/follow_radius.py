@@ -14,8 +14,11 @@ following missed (a path appeared within r), "search later" = following kept one
 missed (the search is not exhaustive either, docs/channel.md), and how many links' arrival
 sets differ: where following lacks an eigenray the new search has (a path appeared within r,
 or one the search at the old ends missed), and where the new search lacks one following has.
+``--watch``: a link counts as followed only where its search's watched intervals also hold at
+the moved ends (:func:`aquasim_py.channel.rangedep.watch`, as the cache's following tier checks
+them: a fold in the making), its cost counted with following's.
 
-    python tools/follow_radius.py --seeds 4 --nodes 20 [--back]
+    python tools/follow_radius.py --seeds 4 --nodes 20 [--back] [--watch]
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 def main() -> None:
     from bench_arrivals import network, pairs  # tools/, beside this script
 
-    from aquasim_py.channel.arrivals import arrivals, first_detectable, follow
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel.arrivals import arrivals, first_detectable, follow, watched_arrivals
     from aquasim_py.channel.data import shelfbreak
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -42,6 +46,7 @@ def main() -> None:
     ap.add_argument("--nodes", type=int, default=20)
     ap.add_argument("--radii", default="0.1,0.3,1,3,10")
     ap.add_argument("--back", action="store_true", help="follow a moved source backwards where forwards fails")
+    ap.add_argument("--watch", action="store_true", help="followed only where the search's watched folds hold")
     args = ap.parse_args()
     radii = [float(v) for v in args.radii.split(",")]
     env = shelfbreak()
@@ -54,7 +59,7 @@ def main() -> None:
         pos = network(env, args.nodes, rng)
         si, di, _ids = pairs(args.nodes)
         s, d = pos[si], pos[di]
-        base = arrivals(env, s, d, max_bounces=2)
+        base, watch, nwatch = watched_arrivals(env, s, d, max_bounces=2)
         for r in radii:
             u = rng.normal(size=s.shape)
             v = rng.normal(size=s.shape)
@@ -64,6 +69,8 @@ def main() -> None:
                 p[:, 2] = np.clip(p[:, 2], 1.0, env.depth(p[:, 0], p[:, 1]) - 1.0)
             t0 = time.perf_counter()
             fol, ok = follow(env, base, s2, d2, max_bounces=2, src_from=s if args.back else None)
+            if args.watch:
+                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch)
             t_follow += time.perf_counter() - t0
             n_follow += s.shape[0]
             t0 = time.perf_counter()

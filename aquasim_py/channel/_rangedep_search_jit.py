@@ -241,7 +241,9 @@ def _extremum(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, lo, flo, qlo, hi
     (q(lo), q(hi) of opposite signs), reaches the other sign there: regula falsi (Illinois) on q
     towards the extremum, to 1e-13 rad, or stopped once the miss cannot reach the other sign in
     the bracket (:func:`_out_of_reach` of its ends). (A miss of the other sign is followed to the extremum: the fold's two roots are
-    bracketed on either side of it.) Returns (angle, miss, code there)."""
+    bracketed on either side of it.) Returns (angle, miss, code there, margin): the margin a
+    lower bound on |miss| over the last bracket (that test's, where it stopped the search; else
+    the last miss's |f|), for a miss that kept its sign."""
     x, fx, cx = lo, math.nan, code
     positive = flo > 0.0
     fl, fh, ql, qh = abs(flo), abs(fhi), qlo, qhi  # at the ends (Illinois halves the slopes it steps with)
@@ -270,10 +272,10 @@ def _extremum(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, lo, flo, qlo, hi
             break
         # no root in [lo, hi]: none of the other sign yet, and the misses cannot reach it there
         if math.isnan(xo) and _out_of_reach(min(fl, fh), max(abs(ql), abs(qh)), hi - lo):
-            break
+            return x, fx, cx, min(fl, fh) - 2.0 * max(abs(ql), abs(qh)) * (hi - lo)
     if cx == code and (fx > 0.0) == positive and not math.isnan(xo):
-        return xo, fo, code
-    return x, fx, cx
+        return xo, fo, code, 0.0
+    return x, fx, cx, abs(fx)
 
 
 @_jit
@@ -440,8 +442,9 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
     rows).
 
     Watched: an interval of one family whose miss has one extremum inside (end slopes of
-    opposite signs) and keeps the ends' sign there, but comes within ``WATCH_M`` of zero (the
-    extremum's miss where it was located, else the bound of :func:`_out_of_reach`): a small move
+    opposite signs) and keeps the ends' sign there, but may come within ``WATCH_M`` of zero
+    (the bound of :func:`_out_of_reach` on the interval, or on the last bracket of
+    :func:`_extremum` where it sought the extremum, else the extremum's miss): a small move
     of an end may carry that extremum through zero, where two eigenrays are born (a fold), which
     following the link's known eigenrays cannot see. Its rows (a, b, family, sign of the ends'
     miss) are what :func:`watch_links` checks again at moved ends."""
@@ -573,11 +576,11 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                             nbr += 1
                     elif turns and (A[S_Q] > 0.0) != (B[S_Q] > 0.0):
                         # one extremum inside: two roots if its miss has the other sign
-                        x, fx, cx = _extremum(
+                        x, fx, cx, margin = _extremum(
                             rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, fa, A[S_Q], b, fb, B[S_Q], ca, dummy,
                             noev,
                         )  # fmt: skip
-                        if cx == ca and (fx > 0.0) == (fa > 0.0) and abs(fx) < WATCH_M:
+                        if cx == ca and (fx > 0.0) == (fa > 0.0) and margin < WATCH_M:
                             nw = _watch_row(watch, nw, a, b, ca, fa)
                         if cx == ca and (fx > 0.0) != (fa > 0.0) and nbr + 2 <= nbmax:
                             br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, x, fx
@@ -852,7 +855,7 @@ def watch_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr,
                 and (qa > 0.0) != (qb > 0.0)
             )
             if ok and not _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), b - a):
-                _x, fx, cx = _extremum(
+                _x, fx, cx, _margin = _extremum(
                     rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], maxb, bpar, a, fa, qa, b, fb, qb, code, dummy, noev
                 )  # fmt: skip
                 ok = cx == code and (fx > 0.0) == positive
