@@ -74,6 +74,7 @@ WATCH_M = 2.0
 WATCH_ROWS = 16  # watched intervals per link (more: the link cannot be watched, it is searched)
 W_A, W_B, W_CODE, W_SIGN = range(4)
 NW = 4
+_WATCH_STEPS = 16  # doubling steps that seek an extremum that left its watched interval
 # a sample: angle, miss, code, d miss / d angle, predicted event offsets above and below, bounces
 # (-1: lost)
 S_TH, S_F, S_CODE, S_Q, S_EVP, S_EVM, S_NB = range(7)
@@ -822,14 +823,22 @@ def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr
 
 
 @_jit
-def watch_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, watch, nwatch):
+def watch_links(
+    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, watch, nwatch, theta0, code0
+):
     """Whether each link's watched intervals (:func:`search`: ``watch`` (L, WATCH_ROWS, NW),
     counts ``nwatch``) still hold no eigenray at the link's (moved) ends: both ends of each in
-    its family with the miss of the watched sign and the end slopes of opposite signs (the
-    extremum still inside), and the miss kept off zero there (:func:`_out_of_reach` of the
-    ends, else :func:`_extremum` locates the extremum). False where a check fails (a fold may
-    have put two eigenrays there: the link is to be searched) or the link had more watched
-    intervals than rows. Two walks per interval, a few more where the extremum is sought."""
+    its family with the miss of the watched sign; the extremum between end slopes of opposite
+    signs (where it left the interval, it is sought downhill in up to ``_WATCH_STEPS`` doubling
+    steps, each in the family with that sign); and the miss kept off zero there
+    (:func:`_out_of_reach` of the bracket's ends, else :func:`_extremum` locates the extremum).
+    False where a check fails (a fold may have put two eigenrays there: the link is to be
+    searched) or the link had more watched intervals than rows. A miss of the other sign that
+    the link's known eigenrays explain (launch angles ``theta0`` (L, Q), families ``code0``,
+    NaN / -1 past each link's own) passes: one end of an interval across one of them, or the
+    downhill search stopped by one (the miss is monotone from the interval to it, so the
+    extremum watched there is gone). Two walks per interval, more where the extremum moved or
+    is sought."""
     L = zs.size
     clear = np.ones(L, np.bool_)
     dummy = np.empty((1, 3))
@@ -847,13 +856,41 @@ def watch_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr,
             code, positive = int(watch[l, k, W_CODE]), watch[l, k, W_SIGN] > 0.0
             fa, ca, qa = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy, noev)
             fb, cb, qb = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy, noev)
-            ok = (
-                ca == code
-                and cb == code
-                and (fa > 0.0) == positive
-                and (fb > 0.0) == positive
-                and (qa > 0.0) != (qb > 0.0)
-            )
+            if ca != code or cb != code:
+                clear[l] = False
+                break
+            flips = int((fa > 0.0) != positive) + int((fb > 0.0) != positive)
+            if flips == 1 and _known_between(theta0[l], code0[l], code, a, b) == 1:
+                continue  # a known eigenray moved into the interval
+            ok = flips == 0
+            if ok and (qa > 0.0) == (qb > 0.0):
+                # the extremum left the interval as the ends moved: sought downhill (the miss
+                # nearer zero that way) in doubling steps until the slope turns, every walk in
+                # the family with the watched sign
+                down = (qa > 0.0) == positive  # the miss nears zero towards smaller angles
+                e, fe, qe = (a, fa, qa) if down else (b, fb, qb)
+                step, found, gone = b - a, False, False
+                for _ in range(_WATCH_STEPS):
+                    x = e - step if down else e + step
+                    fx, cx, qx = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], x, maxb, bpar, dummy, noev)
+                    if cx == code and (fx > 0.0) != positive and _known_between(theta0[l], code0[l], code, x, e) > 0:
+                        found = gone = True  # downhill to a known eigenray: no extremum before it
+                        break
+                    if cx != code or (fx > 0.0) != positive or not math.isfinite(qx):
+                        break
+                    if (qx > 0.0) != (qe > 0.0):
+                        found = True
+                        break
+                    e, fe, qe = x, fx, qx
+                    step *= 2.0
+                ok = found
+                if gone:
+                    continue
+                if found:  # the new bracket of the extremum
+                    if down:
+                        a, fa, qa, b, fb, qb = x, fx, qx, e, fe, qe
+                    else:
+                        a, fa, qa, b, fb, qb = e, fe, qe, x, fx, qx
             if ok and not _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), b - a):
                 _x, fx, cx, _margin = _extremum(
                     rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], maxb, bpar, a, fa, qa, b, fb, qb, code, dummy, noev
@@ -863,3 +900,14 @@ def watch_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr,
                 clear[l] = False
                 break
     return clear
+
+
+@_jit
+def _known_between(theta, code, family, x, y):
+    """How many of the angles ``theta`` of family ``family`` (in ``code``) lie between x and y."""
+    lo, hi = min(x, y), max(x, y)
+    k = 0
+    for i in range(theta.shape[0]):
+        if code[i] == family and lo <= theta[i] <= hi:
+            k += 1
+    return k

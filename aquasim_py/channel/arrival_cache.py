@@ -402,17 +402,30 @@ class ArrivalCache:
         """Whether the slots' last solutions can be followed: some arrival."""
         return self._n[slots] > 0
 
-    def _clear(self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool) -> NDArray[np.bool_]:
+    def _clear(
+        self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool, known: Arrivals
+    ) -> NDArray[np.bool_]:
         """Whether the watched intervals of ``wslots`` (the last searches' folds in the making)
-        still hold no eigenray for links with ends (s, d): the slots' own links (``flip`` False)
-        or their reverses (True), each watch checked in the direction it was searched."""
+        still hold no eigenray but the ``known`` ones (one link per slot, followed there) for
+        links with ends (s, d): the slots' own links (``flip`` False) or their reverses (True),
+        each watch checked in the direction it was searched."""
         clear = np.ones(wslots.size, bool)
         w = np.flatnonzero(self._nwatch[wslots] > 0)
-        if w.size:
-            ws = wslots[w]
-            back = self._wrev[ws] != flip
-            src, dst = np.where(back[:, None], d[w], s[w]), np.where(back[:, None], s[w], d[w])
-            clear[w] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws])
+        if not w.size:
+            return clear
+        ws = wslots[w]
+        back = self._wrev[ws] != flip
+        src, dst = np.where(back[:, None], d[w], s[w]), np.where(back[:, None], s[w], d[w])
+        mine = _links_of(known, np.isin(np.arange(wslots.size), w))
+        rev = _arrivals.reversed_arrivals(mine)  # the known eigenrays as seen from the other end
+        theta = np.where(back[mine.link], rev.launch_angle, mine.launch_angle)
+        code = np.where(back[mine.link], rev.bounce_code, mine.bounce_code)
+        cnt = np.diff(mine.offsets)
+        col = np.arange(theta.size) - mine.offsets[:-1][mine.link]
+        th = np.full((w.size, max(int(cnt.max(initial=0)), 1)), np.nan)
+        cd = np.full(th.shape, -1, np.int64)
+        th[mine.link, col], cd[mine.link, col] = theta, code
+        clear[w] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd)
         return clear
 
     def _follow_from(
@@ -427,13 +440,7 @@ class ArrivalCache:
         """Follow ``prev`` (one link per slot) to (s, d) and keep it as the slots' last solution
         where every arrival was followed and no watched interval (of the slots, or of the
         reverse links' ``wslots``) may hold new eigenrays (True there)."""
-        clear = self._clear(slots, s, d, False) if wslots is None else self._clear(wslots, s, d, True)
-        if not clear.any():
-            return clear
-        if not clear.all():
-            prev, s, d = _links_of(prev, clear), s[clear], d[clear]
-            src_from = None if src_from is None else src_from[clear]
-        got, ok_clear = _arrivals.follow(
+        got, ok = _arrivals.follow(
             self.env,
             prev,
             s,
@@ -443,13 +450,17 @@ class ArrivalCache:
             spreading=self.spreading,
             src_from=src_from,
         )
-        ok = np.zeros(clear.size, bool)
-        ok[clear] = ok_clear
         if ok.any():
-            sub = slots[ok]
-            self._store(sub, _links_of(got, ok_clear))
-            self._sl[sub], self._dl[sub] = s[ok_clear], d[ok_clear]
-            self._radius[sub] = 0.0  # the Taylor reference no longer matches the tables
+            idx = np.flatnonzero(ok)
+            fol = _links_of(got, ok)
+            wsub = slots[idx] if wslots is None else wslots[idx]
+            clear = self._clear(wsub, s[idx], d[idx], wslots is not None, fol)
+            ok[idx[~clear]] = False
+            if ok.any():
+                sub = slots[ok]
+                self._store(sub, _links_of(fol, clear))
+                self._sl[sub], self._dl[sub] = s[ok], d[ok]
+                self._radius[sub] = 0.0  # the Taylor reference no longer matches the tables
         return ok
 
     def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:

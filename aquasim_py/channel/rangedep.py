@@ -65,6 +65,7 @@ __all__ = [
     "solve",
     "trace_rays",
     "track",
+    "watch",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -441,11 +442,15 @@ def watch(
     max_bounces: int,
     intervals: FloatArray,
     counts: NDArray[np.int64],
+    theta0: FloatArray | None = None,
+    code: NDArray[np.int64] | None = None,
 ) -> NDArray[np.bool_]:
     """Whether the watched intervals of each link (``intervals`` (n, WATCH_ROWS, NW), ``counts``
     (n,), as :func:`solve` gave them where the link was searched) still hold no eigenray with
-    its ends at ``src`` -> ``dst`` (n, 3): False where a fold may have brought two (the link is
-    to be searched again) or the link had more watched intervals than rows."""
+    its ends at ``src`` -> ``dst`` (n, 3) but the link's known ones there (launch angles
+    ``theta0`` (n, Q) rad and bounce sequences ``code`` (n, Q), NaN / -1 padded; none if not
+    given): False where a fold may have brought two (the link is to be searched again) or the
+    link had more watched intervals than rows."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
@@ -466,6 +471,8 @@ def watch(
         np.array(env.bottom.params, dtype=float),
         np.ascontiguousarray(intervals, dtype=float),
         np.ascontiguousarray(counts, dtype=np.int64),
+        np.full((sec.zs.size, 0), np.nan) if theta0 is None else np.ascontiguousarray(theta0, dtype=float),
+        np.full((sec.zs.size, 0), -1, np.int64) if code is None else np.ascontiguousarray(code, dtype=np.int64),
     )
 
 
