@@ -20,8 +20,9 @@ is served, cheapest first, by
    cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
    followed onto a sibling of its bounce sequence (a fold), or a fold in the making may have
    brought two new eigenrays: the last search's watched intervals (:func:`.rangedep.watch`:
-   stretches of a family where the depth miss came within 2 m of zero at an extremum without
-   reaching it) are checked again at (s, d) first, and a link where one fails is searched;
+   stretches of a family where the depth miss may have come within 2 m of zero at an extremum
+   without reaching it) are checked again at (s, d) with the followed eigenrays, and a link
+   where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
 
 A search is expanded (the stencil below, which costs about as much as following the link 13
