@@ -15,8 +15,8 @@ missed (the search is not exhaustive either, docs/channel.md), and how many link
 sets differ: where following lacks an eigenray the new search has (a path appeared within r,
 or one the search at the old ends missed), and where the new search lacks one following has.
 ``--watch``: a link counts as followed only where its search's watched intervals also hold at
-the moved ends (:func:`aquasim_py.channel.rangedep.watch`, as the cache's following tier checks
-them: a fold in the making), its cost counted with following's.
+the moved ends with the followed eigenrays (:func:`aquasim_py.channel.rangedep.watch`, as the
+cache's following tier checks them: a fold in the making), its cost counted with following's.
 
     python tools/follow_radius.py --seeds 4 --nodes 20 [--back] [--watch]
 """
@@ -69,8 +69,13 @@ def main() -> None:
                 p[:, 2] = np.clip(p[:, 2], 1.0, env.depth(p[:, 0], p[:, 1]) - 1.0)
             t0 = time.perf_counter()
             fol, ok = follow(env, base, s2, d2, max_bounces=2, src_from=s if args.back else None)
-            if args.watch:
-                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch)
+            if args.watch:  # with the followed eigenrays, as the cache checks them
+                cnt = np.diff(fol.offsets)
+                col = np.arange(fol.delay.size) - fol.offsets[:-1][fol.link]
+                th = np.full((s.shape[0], max(int(cnt.max(initial=0)), 1)), np.nan)
+                cd = np.full(th.shape, -1, np.int64)
+                th[fol.link, col], cd[fol.link, col] = fol.launch_angle, fol.bounce_code
+                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch, th, cd)
             t_follow += time.perf_counter() - t0
             n_follow += s.shape[0]
             t0 = time.perf_counter()
