@@ -38,7 +38,7 @@ def main() -> None:
     from bench_arrivals import network, pairs  # tools/, beside this script
 
     from aquasim_py.channel import rangedep
-    from aquasim_py.channel.arrivals import arrivals, first_detectable, follow, watched_arrivals
+    from aquasim_py.channel.arrivals import arrivals, first_detectable, follow, launch_table, watched_arrivals
     from aquasim_py.channel.data import shelfbreak
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -70,12 +70,7 @@ def main() -> None:
             t0 = time.perf_counter()
             fol, ok = follow(env, base, s2, d2, max_bounces=2, src_from=s if args.back else None)
             if args.watch:  # with the followed eigenrays, as the cache checks them
-                cnt = np.diff(fol.offsets)
-                col = np.arange(fol.delay.size) - fol.offsets[:-1][fol.link]
-                th = np.full((s.shape[0], max(int(cnt.max(initial=0)), 1)), np.nan)
-                cd = np.full(th.shape, -1, np.int64)
-                th[fol.link, col], cd[fol.link, col] = fol.launch_angle, fol.bounce_code
-                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch, th, cd)
+                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch, *launch_table(fol))
             t_follow += time.perf_counter() - t0
             n_follow += s.shape[0]
             t0 = time.perf_counter()

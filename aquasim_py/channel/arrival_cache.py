@@ -411,22 +411,19 @@ class ArrivalCache:
         links with ends (s, d): the slots' own links (``flip`` False) or their reverses (True),
         each watch checked in the direction it was searched."""
         clear = np.ones(wslots.size, bool)
-        w = np.flatnonzero(self._nwatch[wslots] > 0)
-        if not w.size:
+        has = self._nwatch[wslots] > 0
+        if not has.any():
             return clear
-        ws = wslots[w]
+        ws = wslots[has]
         back = self._wrev[ws] != flip
-        src, dst = np.where(back[:, None], d[w], s[w]), np.where(back[:, None], s[w], d[w])
-        mine = _links_of(known, np.isin(np.arange(wslots.size), w))
-        rev = _arrivals.reversed_arrivals(mine)  # the known eigenrays as seen from the other end
-        theta = np.where(back[mine.link], rev.launch_angle, mine.launch_angle)
-        code = np.where(back[mine.link], rev.bounce_code, mine.bounce_code)
-        cnt = np.diff(mine.offsets)
-        col = np.arange(theta.size) - mine.offsets[:-1][mine.link]
-        th = np.full((w.size, max(int(cnt.max(initial=0)), 1)), np.nan)
-        cd = np.full(th.shape, -1, np.int64)
-        th[mine.link, col], cd[mine.link, col] = theta, code
-        clear[w] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd)
+        src, dst = np.where(back[:, None], d[has], s[has]), np.where(back[:, None], s[has], d[has])
+        mine = _links_of(known, has)
+        th, cd = _arrivals.launch_table(mine)
+        if back.any():  # those links' eigenrays as seen from the other end, where it was searched
+            rth, rcd = _arrivals.launch_table(_arrivals.reversed_arrivals(_links_of(mine, back)))
+            th[back], cd[back] = np.nan, -1
+            th[back, : rth.shape[1]], cd[back, : rcd.shape[1]] = rth, rcd
+        clear[has] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd)
         return clear
 
     def _follow_from(

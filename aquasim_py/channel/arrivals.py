@@ -210,14 +210,7 @@ def follow(
     n = prev.offsets.size - 1
     s = np.asarray(src, dtype=float).reshape(n, 3)
     d = np.asarray(dst, dtype=float).reshape(n, 3)
-    cnt = np.diff(prev.offsets)
-    q = int(cnt.max(initial=0))
-    rows_of = np.repeat(np.arange(n), cnt)
-    col = np.arange(prev.delay.size) - prev.offsets[:-1][rows_of]
-    theta = np.full((n, max(q, 1)), np.nan)
-    code = np.full((n, max(q, 1)), -1, np.int64)
-    theta[rows_of, col] = prev.launch_angle
-    code[rows_of, col] = prev.bounce_code
+    theta, code = launch_table(prev)
     used = code >= 0
     # without src_from no source counts as moved: one leg
     s0 = s if src_from is None else np.asarray(src_from, dtype=float).reshape(n, 3)
@@ -227,6 +220,22 @@ def follow(
     whole = np.all(ok | ~used, axis=1)
     out = _assemble(sec, rows, used & whole[:, None], (n,), frequency_khz, spreading)
     return out, whole
+
+
+def launch_table(arr: Arrivals) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Each link's launch angles (rad) and bounce sequences as (n, Q) tables, Q the most
+    arrivals of a link (at least 1), padded with NaN and -1: the form :func:`.rangedep.follow`
+    and :func:`.rangedep.watch` take."""
+    n = arr.offsets.size - 1
+    cnt = np.diff(arr.offsets)
+    q = max(int(cnt.max(initial=0)), 1)
+    rows_of = np.repeat(np.arange(n), cnt)
+    col = np.arange(arr.delay.size) - arr.offsets[:-1][rows_of]
+    theta = np.full((n, q), np.nan)
+    code = np.full((n, q), -1, np.int64)
+    theta[rows_of, col] = arr.launch_angle
+    code[rows_of, col] = arr.bounce_code
+    return theta, code
 
 
 def reversed_arrivals(arr: Arrivals) -> Arrivals:
