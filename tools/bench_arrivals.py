@@ -9,12 +9,14 @@ Timed, after a warm-up (numba compilation) on other links:
 
 1. ``solve``: every link solved once by the exact search (aquasim_py.channel.arrivals);
 2. ``cache``, for each of ``--modes``: ``channel`` (the channel's cache: no Taylor tier, every
-   delay exact, links followed within 1 m of their last search or of their reverse's),
-   ``channel_reverse`` (the same, the links src < dst evaluated half a step before the others,
-   which then meet their reverse's search half a step old), ``channel_10m`` (followed within 10
-   m: fewer searches, more arrival sets that differ), ``taylor`` (the Taylor tier, 1e-7 s bound,
-   one-leg following), ``taylor_back`` (the same with ``follow_back``): filled once (every link
-   searched, and expanded for the Taylor tier), then for each of ``--speeds`` (m/s) from a copy
+   delay exact, links followed within the channel's default radius (``[channel]
+   follow_radius_m``, 1 m) of their last search or of their reverse's), ``channel_reverse`` (the same, the links src < dst
+   evaluated half a step before the others, which then meet their reverse's search half a step
+   old), ``channel_<R>m`` (e.g. ``channel_1m``, ``channel_10m``: followed within R m, the
+   search's watched intervals scaled to the radius), ``taylor`` (the Taylor tier, 1e-7 s bound, one-leg
+   following within 1 m), ``taylor_back`` (the same with ``follow_back``): filled once per
+   Taylor bound and radius (every link searched, and expanded for the Taylor tier), then for
+   each of ``--speeds`` (m/s) from a copy
    of it: the nodes drift (each in its own fixed direction) and every link is evaluated every
    ``--step`` s for ``--steps`` steps: the rate, the shares of the tiers, and on
    ``--check`` links per step (the Taylor modes: links its tier served) the served delays against
@@ -42,6 +44,7 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -247,22 +250,30 @@ def main() -> None:
     heading = rng.normal(size=(n, 3))
     heading[:, 2] *= 0.1
     heading /= np.linalg.norm(heading, axis=1, keepdims=True)
-    from aquasim_py.channel.arrival_links import FOLLOW_M
+    from aquasim_py.channel.config import ChannelConfig
+
+    radius_m = ChannelConfig().follow_radius_m
 
     # mode -> (Taylor bound s, following radius m, follow_back)
     configs = {
-        "channel": (0.0, FOLLOW_M, False),
-        "channel_reverse": (0.0, FOLLOW_M, False),
-        "channel_10m": (0.0, 10.0, False),
+        "channel": (0.0, radius_m, False),
+        "channel_reverse": (0.0, radius_m, False),
         "taylor": (1e-7, 1.0, False),
         "taylor_back": (1e-7, 1.0, True),
     }
     modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-    filled: dict[float, ArrivalCache] = {}
+    for mode in modes:  # channel_<R>m: the channel's cache with another radius
+        radius = re.fullmatch(r"channel_(\d+(?:\.\d+)?)m", mode)
+        if radius:
+            configs[mode] = (0.0, float(radius.group(1)), False)
+        elif mode not in configs:
+            sys.exit(f"bench_arrivals.py: --modes: unknown mode {mode!r}")
+    filled: dict[tuple[float, float], ArrivalCache] = {}
     for mode in modes:
         tol, follow_m, back = configs[mode]
-        if tol not in filled:
-            cache = ArrivalCache(env, n * n, max_bounces=mb, tol_s=tol)
+        if (tol, follow_m) not in filled:
+            # the radius sets how far the search watches folds (rangedep.solve's watch_m)
+            cache = ArrivalCache(env, n * n, max_bounces=mb, tol_s=tol, follow_m=follow_m)
             # the cold fill: every link searched (and with the Taylor tier, its expansion made)
             t0 = time.perf_counter()
             cache.get(ids, pos[si], pos[di])
@@ -273,11 +284,11 @@ def main() -> None:
                 res["cache_fill_uncacheable_links"] = cache.stats.uncacheable
                 res["cache_fill_taylor_links"] = int((cache.radius(ids) > 0).sum())
             show(*[k for k in res if k.startswith(tag)])
-            filled[tol] = cache
+            filled[tol, follow_m] = cache
         res["step_s"], res["drift_steps"] = args.step, args.steps
         for speed in args.speeds:
-            copied = copy.deepcopy(filled[tol])
-            copied.follow_m, copied.follow_back = follow_m, back
+            copied = copy.deepcopy(filled[tol, follow_m])
+            copied.follow_back = back
             copied.n_nodes = n if mode.startswith("channel") else 0  # the channel numbers its links so
             tag = f"{mode}_drift_{speed:g}_"
             print(mode, end=" ")

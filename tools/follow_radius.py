@@ -16,7 +16,9 @@ sets differ: where following lacks an eigenray the new search has (a path appear
 or one the search at the old ends missed), and where the new search lacks one following has.
 ``--watch``: a link counts as followed only where its search's watched intervals also hold at
 the moved ends with the followed eigenrays (:func:`aquasim_py.channel.rangedep.watch`, as the
-cache's following tier checks them: a fold in the making), its cost counted with following's.
+cache's following tier checks them: a fold in the making, the intervals whose margin is below
+WATCH_M_PER_M times the move, at least 1 m, as a cache of that radius does), its cost counted
+with following's.
 
     python tools/follow_radius.py --seeds 4 --nodes 20 [--back] [--watch]
 """
@@ -38,6 +40,7 @@ def main() -> None:
     from bench_arrivals import network, pairs  # tools/, beside this script
 
     from aquasim_py.channel import rangedep
+    from aquasim_py.channel._rangedep_search_jit import WATCH_M_PER_M
     from aquasim_py.channel.arrivals import arrivals, first_detectable, follow, launch_table, watched_arrivals
     from aquasim_py.channel.data import shelfbreak
 
@@ -59,8 +62,13 @@ def main() -> None:
         pos = network(env, args.nodes, rng)
         si, di, _ids = pairs(args.nodes)
         s, d = pos[si], pos[di]
-        base, watch, nwatch = watched_arrivals(env, s, d, max_bounces=2)
+        watched = {}  # the search's watched intervals per radius, as a cache of that radius keeps them
         for r in radii:
+            wm = WATCH_M_PER_M * max(r, 1.0)
+            if wm not in watched:
+                base, w_rows, w_counts = watched_arrivals(env, s, d, max_bounces=2, watch_m=wm)
+                watched[wm] = (w_rows, w_counts)
+            watch, nwatch = watched[wm]
             u = rng.normal(size=s.shape)
             v = rng.normal(size=s.shape)
             s2 = s + u / np.linalg.norm(u, axis=1, keepdims=True) * r
@@ -70,7 +78,7 @@ def main() -> None:
             t0 = time.perf_counter()
             fol, ok = follow(env, base, s2, d2, max_bounces=2, src_from=s if args.back else None)
             if args.watch:  # with the followed eigenrays, as the cache checks them
-                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch, *launch_table(fol))
+                ok &= rangedep.watch(env, s2, d2, 2, watch, nwatch, *launch_table(fol), reach=wm)
             t_follow += time.perf_counter() - t0
             n_follow += s.shape[0]
             t0 = time.perf_counter()

@@ -66,14 +66,18 @@ _MAX_LEVELS = 60
 _STACK = 160
 _MAXIT = 60
 _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
-# a watched fold (search()'s docstring): an extremum of a family's miss nearer zero than this is
-# checked again by the following tier; about 3x the median change of the miss at a fixed launch
-# angle when both ends move 1 m (0.73 m on 1 500 shelf-break links of the 100-node network; the
-# tail, rays grazing the slope, reaches 90 m and is not covered)
-WATCH_M = 2.0
+# a watched fold (search()'s docstring): an extremum of a family's miss whose lower bound (its
+# margin, m) is below WATCH_M_PER_M times the farther end's move since the search (at least 1 m)
+# is checked again by the following tier; 2 m is about 3x the median change of the miss at a fixed
+# launch angle when both ends move 1 m (0.73 m on 1 500 shelf-break links of the 100-node
+# network; the tail, rays grazing the slope, reaches 90 m and is not covered), and the change is
+# taken as growing in proportion to the move beyond 1 m (first order). A search keeps the
+# intervals whose margin is below its ``watch_m``: WATCH_M_PER_M times the follow radius (at
+# least 1 m)
+WATCH_M_PER_M = 2.0
 WATCH_ROWS = 16  # watched intervals per link (more: the link cannot be watched, it is searched)
-W_A, W_B, W_CODE, W_SIGN = range(4)
-NW = 4
+W_A, W_B, W_CODE, W_SIGN, W_MARGIN = range(5)
+NW = 5
 _WATCH_STEPS = 16  # doubling steps that seek an extremum that left its watched interval
 # a sample: angle, miss, code, d miss / d angle, predicted event offsets above and below, bounces
 # (-1: lost)
@@ -432,7 +436,7 @@ def _fan_cut(rr, zz, cc, bb, ff, floor, zs, zr, R, H, maxb, wmax):
 
 
 @_jit
-def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, out, watch):
+def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, watch_m, out, watch):
     """Every eigenray from (0, zs) to (R, zr) with at most ``maxb`` boundary bounces: a fan of
     ``nfan`` launch angles uniform in w = tan(theta) R / H over [-wmax, wmax] (the families of a
     waveguide of depth H lie about 2 apart in w), each side stopped at its first angle past
@@ -443,12 +447,12 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
     rows).
 
     Watched: an interval of one family whose miss has one extremum inside (end slopes of
-    opposite signs) and keeps the ends' sign there, but may come within ``WATCH_M`` of zero
-    (the bound of :func:`_out_of_reach` on the interval, or on the last bracket of
+    opposite signs) and keeps the ends' sign there, but may come within ``watch_m`` (m) of zero
+    (its margin: the bound of :func:`_out_of_reach` on the interval, or on the last bracket of
     :func:`_extremum` where it sought the extremum, else the extremum's miss): a small move
     of an end may carry that extremum through zero, where two eigenrays are born (a fold), which
     following the link's known eigenrays cannot see. Its rows (a, b, family, sign of the ends'
-    miss) are what :func:`watch_links` checks again at moved ends."""
+    miss, margin) are what :func:`watch_links` checks again at moved ends."""
     dummy = np.empty((1, 3))
     ev = np.empty(2)
     noev = np.empty(0)  # walks that need no event predictions
@@ -559,8 +563,8 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 far = (fa > 0.0) == (fb > 0.0) and _out_of_reach(min(abs(fa), abs(fb)), max(abs(qa), abs(qb)), w)
                 if turns and one and far:
                     margin = min(abs(fa), abs(fb)) - 2.0 * max(abs(qa), abs(qb)) * w
-                    if margin < WATCH_M:
-                        nw = _watch_row(watch, nw, a, b, ca, fa)
+                    if margin < watch_m:
+                        nw = _watch_row(watch, nw, a, b, ca, fa, margin)
                 turns = turns and not (one and far)
                 split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
                 # end slopes of one sign that differ from the secant by more than 2x (or a cubic
@@ -581,8 +585,8 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                             rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, a, fa, A[S_Q], b, fb, B[S_Q], ca, dummy,
                             noev,
                         )  # fmt: skip
-                        if cx == ca and (fx > 0.0) == (fa > 0.0) and margin < WATCH_M:
-                            nw = _watch_row(watch, nw, a, b, ca, fa)
+                        if cx == ca and (fx > 0.0) == (fa > 0.0) and margin < watch_m:
+                            nw = _watch_row(watch, nw, a, b, ca, fa, margin)
                         if cx == ca and (fx > 0.0) != (fa > 0.0) and nbr + 2 <= nbmax:
                             br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, x, fx
                             br[nbr + 1, 0], br[nbr + 1, 1], br[nbr + 1, 2], br[nbr + 1, 3] = x, fx, b, fb
@@ -643,21 +647,24 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
 
 
 @_jit
-def _watch_row(watch, nw, a, b, code, f):
-    """Write the watched interval [a, b] of family ``code`` (its ends' miss of the sign of ``f``)
-    to ``watch`` if it has room; returns the count of watched intervals, this one included."""
+def _watch_row(watch, nw, a, b, code, f, margin):
+    """Write the watched interval [a, b] of family ``code`` (its ends' miss of the sign of ``f``,
+    at least ``margin`` (m) off zero inside) to ``watch`` if it has room; returns the count of
+    watched intervals, this one included."""
     if nw < watch.shape[0]:
         watch[nw, W_A], watch[nw, W_B], watch[nw, W_CODE] = a, b, code
         watch[nw, W_SIGN] = 1.0 if f > 0.0 else -1.0
+        watch[nw, W_MARGIN] = margin
     return nw + 1
 
 
 @_jit
 def search_links(
-    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, cap
+    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol, watch_m, cap
 ):
     """:func:`search` for every link l: its section rows starts[l]:ends[l] of rr_all (J,),
-    cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped). Returns (rows (L, cap, NF),
+    cc_all (J, K), bb_all (J,) (fewer than 2 rows: skipped), keeping the watched intervals
+    whose margin is below ``watch_m`` (m). Returns (rows (L, cap, NF),
     counts (L,), watched intervals (L, WATCH_ROWS, NW) (NaN past the count), their counts (L,)
     (above WATCH_ROWS: more than it holds))."""
     L = zs.size
@@ -685,6 +692,7 @@ def search_links(
             nfan[l],
             H[l],
             ztol,
+            watch_m,
             out[l],
             watch[l],
         )
@@ -824,10 +832,12 @@ def follow_links(starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr
 
 @_jit
 def watch_links(
-    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, watch, nwatch, theta0, code0
+    starts, ends, rr_all, zz, cc_all, bb_all, ff_all, floor, zs, zr, R, maxb, bpar, watch, nwatch, reach, theta0, code0
 ):
     """Whether each link's watched intervals (:func:`search`: ``watch`` (L, WATCH_ROWS, NW),
-    counts ``nwatch``) still hold no eigenray at the link's (moved) ends: both ends of each in
+    counts ``nwatch``) whose margin is below the link's ``reach`` (m; how far the miss at a fixed
+    launch angle may have moved since the search) still hold no eigenray at the link's (moved)
+    ends: both ends of each in
     its family with the miss of the watched sign; the extremum between end slopes of opposite
     signs (where it left the interval, it is sought downhill in up to ``_WATCH_STEPS`` doubling
     steps, each in the family with that sign); and the miss kept off zero there
@@ -852,6 +862,8 @@ def watch_links(
             continue
         rr, cc, bb, ff = rr_all[o0:o1], cc_all[o0:o1], bb_all[o0:o1], ff_all[o0:o1]
         for k in range(nwatch[l]):
+            if watch[l, k, W_MARGIN] >= reach[l]:
+                continue  # the miss cannot have moved that far: no fold yet
             a, b = watch[l, k, W_A], watch[l, k, W_B]
             code, positive = int(watch[l, k, W_CODE]), watch[l, k, W_SIGN] > 0.0
             fa, ca, qa = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy, noev)

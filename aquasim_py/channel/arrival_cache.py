@@ -20,9 +20,10 @@ is served, cheapest first, by
    cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
    followed onto a sibling of its bounce sequence (a fold), or a fold in the making may have
    brought two new eigenrays: the last search's watched intervals (:func:`.rangedep.watch`:
-   stretches of a family where the depth miss may have come within 2 m of zero at an extremum
-   without reaching it) are checked again at (s, d) with the followed eigenrays, and a link
-   where one fails is searched;
+   stretches of a family where a lower bound on the depth miss at an extremum, its margin, was
+   below 2 m per metre of ``follow_m``, at least 2 m) whose margin the miss may have crossed
+   since the search (2 m per metre the farther end moved, at least 2 m) are checked again at
+   (s, d) with the followed eigenrays, and a link where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
 
 A search is expanded (the stencil below, which costs about as much as following the link 13
@@ -98,7 +99,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import arrivals as _arrivals
 from . import rangedep
-from ._rangedep_search_jit import NW, WATCH_ROWS
+from ._rangedep_search_jit import NW, WATCH_M_PER_M, WATCH_ROWS
 from .arrivals import Arrivals
 from .environment import Environment
 
@@ -187,7 +188,8 @@ class ArrivalCache:
 
     tol_s: the Taylor tier's error bound (s); 0 turns it off (every request exact), fixed at
     construction (the Taylor tables are allocated only when it is > 0). follow_m:
-    the following tier's radius (m) around the last search; 0 turns it off. follow_back: where
+    the following tier's radius (m) around the last search; 0 turns it off (a search keeps the
+    watched intervals a move within it may need, ``WATCH_M_PER_M`` per metre). follow_back: where
     following a moved source loses an eigenray, follow the link again in two legs
     (:func:`.rangedep.follow_ends`) instead of searching it: far more links followed, but a
     failing one-leg follow often marks a changing arrival set, and without it the modem's stamp
@@ -392,24 +394,19 @@ class ArrivalCache:
         return self._serve(slots, self._tab["delay"][slots])
 
     # ----------------------------------------------------------------- tiers
-    def _within(self, s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> NDArray[np.bool_]:
-        """Whether both ends (s, d) are within follow_m of (sa, da) (False where those are NaN)."""
-        r2 = self.follow_m**2
-        es, ed = s - sa, d - da
-        with np.errstate(invalid="ignore"):
-            return ((es * es).sum(axis=1) <= r2) & ((ed * ed).sum(axis=1) <= r2)
-
     def _followable(self, slots: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Whether the slots' last solutions can be followed: some arrival."""
         return self._n[slots] > 0
 
     def _clear(
-        self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool, known: Arrivals
+        self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool, known: Arrivals, moved: NDArray
     ) -> NDArray[np.bool_]:
         """Whether the watched intervals of ``wslots`` (the last searches' folds in the making)
         still hold no eigenray but the ``known`` ones (one link per slot, followed there) for
         links with ends (s, d): the slots' own links (``flip`` False) or their reverses (True),
-        each watch checked in the direction it was searched."""
+        each watch checked in the direction it was searched, those intervals whose margin the
+        miss may have crossed with the farther end ``moved`` (m) from where it was searched
+        (``WATCH_M_PER_M`` per metre, at least 1 m)."""
         clear = np.ones(wslots.size, bool)
         has = self._nwatch[wslots] > 0
         if not has.any():
@@ -423,7 +420,10 @@ class ArrivalCache:
             rth, rcd = _arrivals.launch_table(_arrivals.reversed_arrivals(_links_of(mine, back)))
             th[back], cd[back] = np.nan, -1
             th[back, : rth.shape[1]], cd[back, : rcd.shape[1]] = rth, rcd
-        clear[has] = rangedep.watch(self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd)
+        reach = WATCH_M_PER_M * np.maximum(moved[has], 1.0)
+        clear[has] = rangedep.watch(
+            self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd, reach
+        )
         return clear
 
     def _follow_from(
@@ -432,12 +432,14 @@ class ArrivalCache:
         prev: Arrivals,
         s: NDArray,
         d: NDArray,
+        moved: NDArray,
         src_from: NDArray | None = None,
         wslots: NDArray[np.int64] | None = None,
     ) -> NDArray[np.bool_]:
         """Follow ``prev`` (one link per slot) to (s, d) and keep it as the slots' last solution
         where every arrival was followed and no watched interval (of the slots, or of the
-        reverse links' ``wslots``) may hold new eigenrays (True there)."""
+        reverse links' ``wslots``; ``moved``: the farther end's distance from where they were
+        searched, m) may hold new eigenrays (True there)."""
         got, ok = _arrivals.follow(
             self.env,
             prev,
@@ -452,7 +454,7 @@ class ArrivalCache:
             idx = np.flatnonzero(ok)
             fol = _links_of(got, ok)
             wsub = slots[idx] if wslots is None else wslots[idx]
-            clear = self._clear(wsub, s[idx], d[idx], wslots is not None, fol)
+            clear = self._clear(wsub, s[idx], d[idx], wslots is not None, fol, moved[idx])
             ok[idx[~clear]] = False
             if ok.any():
                 sub = slots[ok]
@@ -464,13 +466,15 @@ class ArrivalCache:
     def _follow(self, slots: NDArray[np.int64], s: NDArray, d: NDArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
         """Serve by following where the ends are within follow_m of the last search: (done (the
         last solution then holds the followed arrivals), close (the ends within follow_m))."""
-        close = self._within(s, d, self._sa[slots], self._da[slots])
+        with np.errstate(invalid="ignore"):
+            moved = _moved(s, d, self._sa[slots], self._da[slots])
+            close = moved <= self.follow_m
         idx = np.flatnonzero(close & self._followable(slots))
         done = np.zeros(slots.size, bool)
         if idx.size:
             sub = slots[idx]
             src_from = self._sl[sub] if self.follow_back else None
-            done[idx] = self._follow_from(sub, self._last(sub), s[idx], d[idx], src_from)
+            done[idx] = self._follow_from(sub, self._last(sub), s[idx], d[idx], moved[idx], src_from)
         return done, close
 
     def _follow_reverse(
@@ -485,10 +489,13 @@ class ArrivalCache:
         done = np.zeros(ids.size, bool)
         known = np.flatnonzero(rslot >= 0)
         rs = rslot[known]
-        idx = known[self._within(s[known], d[known], self._da[rs], self._sa[rs]) & self._followable(rs)]
+        with np.errstate(invalid="ignore"):
+            moved = _moved(s[known], d[known], self._da[rs], self._sa[rs])
+            near = (moved <= self.follow_m) & self._followable(rs)
+        idx = known[near]
         if idx.size:
             prev = _arrivals.reversed_arrivals(self._last(rslot[idx]))
-            done[idx] = self._follow_from(slots[idx], prev, s[idx], d[idx], wslots=rslot[idx])
+            done[idx] = self._follow_from(slots[idx], prev, s[idx], d[idx], moved[near], wslots=rslot[idx])
             sub, rsub = slots[idx[done[idx]]], rslot[idx[done[idx]]]
             self._sa[sub], self._da[sub] = self._da[rsub], self._sa[rsub]
             # the reverse's watch, now the link's, in the reverse's direction
@@ -503,7 +510,13 @@ class ArrivalCache:
         """Search the links of ``slots`` at (s, d): their new reference (and, with the Taylor
         tier on, its gradients and bound) and watched intervals."""
         arr, watch, nwatch = _arrivals.watched_arrivals(
-            self.env, s, d, max_bounces=self.max_bounces, frequency_khz=self.frequency_khz, spreading=self.spreading
+            self.env,
+            s,
+            d,
+            max_bounces=self.max_bounces,
+            frequency_khz=self.frequency_khz,
+            spreading=self.spreading,
+            watch_m=WATCH_M_PER_M * max(self.follow_m, 1.0),
         )
         self._store(slots, arr)
         self._watch[slots], self._nwatch[slots], self._wrev[slots] = watch, nwatch, False
@@ -729,6 +742,11 @@ class ArrivalCache:
             delay=take(delay),
             **fields,
         )
+
+
+def _moved(s: NDArray, d: NDArray, sa: NDArray, da: NDArray) -> NDArray:
+    """The farther end's distance (m) from (sa, da) of links with ends (s, d) (NaN where those are)."""
+    return np.sqrt(np.maximum(((s - sa) ** 2).sum(axis=1), ((d - da) ** 2).sum(axis=1)))
 
 
 def _bound(coef: NDArray, r: NDArray) -> NDArray:

@@ -33,10 +33,11 @@ order of the answer are the link model's; what differs is the arrival of each li
 
 The arrivals of each link are kept between transmissions in an :class:`~.arrival_cache.
 ArrivalCache` without its Taylor tier (every delay exact): a link whose ends are where they
-were last solved is served as it is (moored nodes), one whose ends moved less than 1 m since its
-last search is followed there (each eigenray from its launch angle, exact; a path that appears
-within that metre is not found, see the cache's docstring for how often that changes the stamp),
-others are searched again.
+were last solved is served as it is (moored nodes), one whose ends moved less than
+``follow_radius_m`` (default 1 m) since its last search is followed there (each eigenray from
+its launch angle, exact, with the fold check of the search's watched intervals; a path that
+enters a family across its edge within that radius is not found, see docs/channel.md for how
+often that changes the arrival set and the stamp), others are searched again.
 
 The ``packets`` table of a range-dependent run carries, after the schema's columns,
 :data:`ARRIVAL_FIELDS` (NaN on rows without a link: "tx", "range"): the number of arrivals of
@@ -68,8 +69,6 @@ __all__ = ["ARRIVAL_FIELDS", "ArrivalLinkModel", "ArrivalPath", "arrival_row_wri
 
 #: the packets table's columns after the schema's in a range-dependent run (see the module docstring)
 ARRIVAL_FIELDS = ("n_arrivals", "delay_spread", "first_tof", "direct_tof")
-#: the follow tier's radius (m): see :mod:`.arrival_cache` for the measurement behind it
-FOLLOW_M = 1.0
 _LABELS = tuple(ArrivalClass(i).label for i in range(len(ArrivalClass)))
 _DIRECT = (int(ArrivalClass.DIRECT), int(ArrivalClass.REFRACTED))
 #: the step (s) of the receiver velocity's forward difference for the Newton step: its error
@@ -128,7 +127,7 @@ class ArrivalLinkModel(LinkModel):
             tol_s=0.0,
             frequency_khz=c.frequency_khz,
             spreading="ray",
-            follow_m=FOLLOW_M,
+            follow_m=c.follow_radius_m,
             n_nodes=n,
         )
 

@@ -173,12 +173,14 @@ def watched_arrivals(
     max_bounces: int = 2,
     frequency_khz: float = 10.0,
     spreading: str | float = "ray",
+    watch_m: float | None = None,
 ) -> tuple[Arrivals, FloatArray, NDArray[np.int64]]:
-    """:func:`arrivals`, and each link's watched intervals and their counts (flattened links:
-    (n, WATCH_ROWS, NW), (n,); :func:`.rangedep.watch`), for a cache that follows the links."""
+    """:func:`arrivals`, and each link's watched intervals (margin below ``watch_m``, m) and
+    their counts (flattened links: (n, WATCH_ROWS, NW), (n,); :func:`.rangedep.solve`,
+    :func:`.rangedep.watch`), for a cache that follows the links."""
     shape = np.broadcast_shapes(np.shape(src)[:-1], np.shape(dst)[:-1])
     sec = rangedep.sections(env, src, dst)
-    rows, cnt, watch, nwatch = rangedep.solve(env, sec, max_bounces)
+    rows, cnt, watch, nwatch = rangedep.solve(env, sec, max_bounces, watch_m)
     used = np.arange(rows.shape[1])[None, :] < cnt[:, None]
     return _assemble(sec, rows, used, shape, frequency_khz, spreading), watch, nwatch
 

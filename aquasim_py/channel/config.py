@@ -56,6 +56,10 @@ class ChannelConfig:
         synchronizes on is one it can decode from). direct_only: an analysis switch, not a
         modem: a reception whose stamped arrival is not a direct or refracted one is lost
         ("indirect"), to measure what blocked and weak direct paths cost a protocol.
+        follow_radius_m: the arrival cache's following radius (m; :mod:`.arrival_links`): a
+        link's eigenrays are followed while each end stays within it of where the link was last
+        searched, then searched again; 0 searches at every request. Larger is faster on drifting
+        nodes and lacks more often a path that appeared since the search (docs/channel.md).
     snr_estimate_std_db: std (dB) of the Gaussian error of the receiver's SNR estimate, the
         ``Reception.snr_db`` a node gets (0 = the exact SNR); drawn by the kernel from the
         receiver's own ("node", id, "snr_estimate") stream. The ``packets`` trace and the drop
@@ -116,6 +120,7 @@ class ChannelConfig:
     max_bounces: int = 2
     detection_threshold_db: float | None = None
     direct_only: bool = False
+    follow_radius_m: float = 1.0
     reception: Literal["threshold", "sinr"] = "threshold"
     modulation: str = "bfsk"
     modulation_order: int = 2
@@ -150,6 +155,8 @@ class ChannelConfig:
             raise ValueError(f"ChannelConfig.snr_estimate_std_db must be >= 0, got {self.snr_estimate_std_db!r}")
         if not (isinstance(self.max_bounces, int) and 0 <= self.max_bounces <= 20):
             raise ValueError(f"ChannelConfig.max_bounces must be an integer in 0..20, got {self.max_bounces!r}")
+        if not (math.isfinite(self.follow_radius_m) and self.follow_radius_m >= 0.0):
+            raise ValueError(f"ChannelConfig.follow_radius_m must be >= 0 and finite, got {self.follow_radius_m!r}")
         if self.detection_threshold_db is not None and not math.isfinite(self.detection_threshold_db):
             raise ValueError(
                 f"ChannelConfig.detection_threshold_db must be finite, got {self.detection_threshold_db!r}"

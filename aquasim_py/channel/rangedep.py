@@ -415,23 +415,25 @@ def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
 
 
 def solve(
-    env: Environment, sec: Sections, max_bounces: int
+    env: Environment, sec: Sections, max_bounces: int, watch_m: float | None = None
 ) -> tuple[FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
     """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the
     sections; their watched intervals (n, WATCH_ROWS, NW) and counts (n,) (where a small move
-    may bring a fold's two eigenrays: :func:`watch`)."""
+    may bring a fold's two eigenrays: :func:`watch`): those whose margin is below ``watch_m``
+    (m; default ``WATCH_M_PER_M``, what a follow radius of 1 m needs)."""
     from . import _rangedep_search_jit as jit
 
     mb = int(max_bounces)
     if mb < 0:
         raise ValueError(f"max_bounces must be >= 0, got {max_bounces!r}")
+    wm = jit.WATCH_M_PER_M if watch_m is None else float(watch_m)
     n = sec.zs.size
     wmax = np.full(n, 2.0 * (mb + 1) + 1.0) * 1.5
     nfan = np.ceil(2.0 * wmax / _FAN_DW).astype(np.int64)
     starts, ends, r, z, c, fz, fs, floor, zs, zr, R = _kernel_args(env, sec)
     bpar = np.array(env.bottom.params, dtype=float)
     return jit.search_links(
-        starts, ends, r, z, c, fz, fs, floor, zs, zr, R, mb, bpar, wmax, nfan, sec.H, _ZTOL_M, _MAX_ARRIVALS
+        starts, ends, r, z, c, fz, fs, floor, zs, zr, R, mb, bpar, wmax, nfan, sec.H, _ZTOL_M, wm, _MAX_ARRIVALS
     )
 
 
@@ -444,13 +446,17 @@ def watch(
     counts: NDArray[np.int64],
     theta0: FloatArray | None = None,
     code: NDArray[np.int64] | None = None,
+    reach: ArrayLike | None = None,
 ) -> NDArray[np.bool_]:
     """Whether the watched intervals of each link (``intervals`` (n, WATCH_ROWS, NW), ``counts``
     (n,), as :func:`solve` gave them where the link was searched) still hold no eigenray with
     its ends at ``src`` -> ``dst`` (n, 3) but the link's known ones there (launch angles
     ``theta0`` (n, Q) rad and bounce sequences ``code`` (n, Q), NaN / -1 padded; none if not
     given): False where a fold may have brought two (the link is to be searched again) or the
-    link had more watched intervals than rows."""
+    link had more watched intervals than rows. ``reach`` (m, (n,) or scalar; default every
+    interval): only the intervals whose margin is below it are checked (how far the miss may
+    have moved since the search: ``WATCH_M_PER_M`` per metre the farther end moved, at least
+    1 m)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
@@ -471,6 +477,7 @@ def watch(
         np.array(env.bottom.params, dtype=float),
         np.ascontiguousarray(intervals, dtype=float),
         np.ascontiguousarray(counts, dtype=np.int64),
+        np.broadcast_to(np.inf if reach is None else np.asarray(reach, dtype=float), sec.zs.shape).copy(),
         np.full((sec.zs.size, 0), np.nan) if theta0 is None else np.ascontiguousarray(theta0, dtype=float),
         np.full((sec.zs.size, 0), -1, np.int64) if code is None else np.ascontiguousarray(code, dtype=np.int64),
     )

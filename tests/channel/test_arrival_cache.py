@@ -431,3 +431,44 @@ def test_watched_intervals_hold_at_the_ends_they_were_searched_at() -> None:
     np.testing.assert_array_equal(clear, nwatch <= WATCH_ROWS)
     none = nwatch == 0
     assert rangedep.watch(env, s[none] + 7.0, d[none] - 3.0, 2, watch[none], nwatch[none]).all()
+
+
+def test_intervals_beyond_the_reach_are_not_walked() -> None:
+    """Only the intervals whose margin is below the reach are checked: at ends moved 3 m down,
+    where some links' intervals fail, a reach below each link's every margin passes them all, and
+    the links whose failing intervals are all beyond the reach pass."""
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel._rangedep_search_jit import W_MARGIN, WATCH_ROWS
+
+    env = _front_env()
+    rng = np.random.default_rng(5)
+    s, d = _links(rng, 60)
+    _rows, _cnt, watch, nwatch = rangedep.solve(env, rangedep.sections(env, s, d), 2, 20.0)
+    fits = (nwatch > 0) & (nwatch <= WATCH_ROWS)
+    s, d, watch, nwatch = s[fits], d[fits], watch[fits], nwatch[fits]
+    moved = s + [0.0, 0.0, 3.0]
+    every = rangedep.watch(env, moved, d, 2, watch, nwatch)
+    assert (~every).sum() >= 3  # else nothing would tell the reach apart
+    lowest = np.nanmin(watch[..., W_MARGIN], axis=1)
+    assert rangedep.watch(env, moved, d, 2, watch, nwatch, reach=np.minimum(lowest, 0.0) - 1.0).all()
+    # each failing link checked one interval at a time: it fails only with a reach above the
+    # margin of an interval that fails on its own
+    for i in np.flatnonzero(~every)[:5]:
+        fails = []
+        for k in range(nwatch[i]):
+            one = watch[i : i + 1].copy()
+            one[0, [0, k]] = one[0, [k, 0]]
+            fails.append(not rangedep.watch(env, moved[i : i + 1], d[i : i + 1], 2, one, np.array([1]))[0])
+        worst = min(m for m, f in zip(watch[i, : nwatch[i], W_MARGIN], fails) if f)
+        assert rangedep.watch(env, moved[i : i + 1], d[i : i + 1], 2, watch[i : i + 1], nwatch[i : i + 1], reach=worst)[
+            0
+        ]
+        assert not rangedep.watch(
+            env,
+            moved[i : i + 1],
+            d[i : i + 1],
+            2,
+            watch[i : i + 1],
+            nwatch[i : i + 1],
+            reach=np.nextafter(worst, np.inf),
+        )[0]
