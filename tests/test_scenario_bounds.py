@@ -141,6 +141,7 @@ def test_resource_limits(capsys: pytest.CaptureFixture[str], base: Path, sets: l
             "nodes[1].mobility.velocity: a node speed of 1500 m/s is not below the slowest sound speed 1500 m/s "
             "(a node would outrun its own signals)",
         ),
+        (["channel.follow_radius_m=-1.0"], "channel.follow_radius_m: must be >= 0.0 (got -1.0)"),
     ],
 )
 def test_physically_impossible(capsys: pytest.CaptureFixture[str], base: Path, sets: list[str], expected: str) -> None:
@@ -163,6 +164,7 @@ def test_physically_impossible(capsys: pytest.CaptureFixture[str], base: Path, s
             "nodes[1].clock.skew_ppm: value 1e+06 is outside the plausible range [-1000, 1000]",
         ),
         (["environment.sound_speed.speed_mps=1300.0"], "environment.sound_speed.speed_mps: value 1300 is outside"),
+        (["channel.follow_radius_m=30.0"], "channel.follow_radius_m: value 30 is outside the plausible range [0, 10]"),
     ],
 )
 def test_implausible_values_warn(base: Path, sets: list[str], expected: str) -> None:

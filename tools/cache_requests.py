@@ -7,7 +7,7 @@ the channel's cache instrumented: each request of a link is classed by the dista
 farther end from the link's last search (no search yet: "first"; within the cache's
 ``follow_m``: "near"; beyond: "far", with how many of those lie within 2, 5 and 10 m) and by the
 tier that served it (same, follow, reverse, search). ``--follow-m`` sets the channel's follow
-radius for the run (an experiment: the channel's own is ``arrival_links.FOLLOW_M``).
+radius for the run (``[channel] follow_radius_m``; default the scenario's).
 
     python tools/cache_requests.py                       # the figures of docs/performance.md
     python tools/cache_requests.py --duration 120 --follow-m 10
@@ -33,14 +33,17 @@ def main() -> None:
     args = ap.parse_args()
 
     from aquasim_py import run_scenario
-    from aquasim_py.channel import arrival_cache, arrival_links
+    from aquasim_py.channel import arrival_cache
 
+    overrides: dict[str, float] = {"simulation.duration_s": args.duration}
     if args.follow_m is not None:
-        arrival_links.FOLLOW_M = args.follow_m
+        overrides["channel.follow_radius_m"] = args.follow_m
+    radius: list[float] = []
     counts: Counter[str] = Counter()
     get = arrival_cache.ArrivalCache.get
 
     def counted(self: arrival_cache.ArrivalCache, links, src, dst):
+        radius[:] = [self.follow_m]
         ids = np.asarray(links, np.int64).ravel()
         s, d = np.asarray(src, float).reshape(-1, 3), np.asarray(dst, float).reshape(-1, 3)
         slots = np.array([self._slot.get(i, -1) for i in ids.tolist()], np.int64)
@@ -63,9 +66,9 @@ def main() -> None:
 
     arrival_cache.ArrivalCache.get = counted  # type: ignore[method-assign]
     t0 = time.process_time()
-    run_scenario(args.scenario, overrides={"simulation.duration_s": args.duration}, progress=False)
+    run_scenario(args.scenario, overrides=overrides, progress=False)
     cpu = time.process_time() - t0
-    print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {arrival_links.FOLLOW_M:g} m")
+    print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {radius[0]:g} m")
     print(f"  CPU {cpu:.1f} s (instrumented)")
     print(f"  {'requests':32s} {counts['requests']}")
     for cls in ("first", "near", "far"):

@@ -230,6 +230,7 @@ def channel_config(sc: Scenario) -> Any:
         max_bounces=c.max_bounces,
         detection_threshold_db=c.detection_threshold_db,
         direct_only=c.direct_only,
+        follow_radius_m=c.follow_radius_m,
         reception=c.reception,
         modulation=c.modulation,
         modulation_order=c.modulation_order,

@@ -49,7 +49,7 @@ from aquasim_py.scenario.ocean_schema import (
 __all__ = ["ARRIVAL_KEYS", "centre_profile", "depth_profile", "local_frame", "make_environment", "range_dependent"]
 
 #: the ``[channel]`` keys of a range-dependent channel (aquasim_py.channel.arrival_links)
-ARRIVAL_KEYS = ("max_bounces", "detection_threshold_db", "direct_only")
+ARRIVAL_KEYS = ("max_bounces", "detection_threshold_db", "direct_only", "follow_radius_m")
 
 
 def range_dependent(sc: Any) -> bool:

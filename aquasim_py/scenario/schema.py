@@ -282,6 +282,11 @@ class ChannelSpec(Strict):
         False,
         description="analysis switch: receptions stamped on a reflected arrival are lost ('indirect'); not a modem",
     )
+    follow_radius_m: NonNegFloat = Field(
+        1.0,
+        description="a range-dependent channel follows a link's eigenrays while each end stays within this (m) "
+        "of where it was last searched; 0 = search at every request",
+    )
     # the physical layer, modem presets and energy (docs/network.md); left out of the resolved
     # scenario unless set (Scenario.to_dict), so a file without them resolves as before
     modem: str | None = Field(

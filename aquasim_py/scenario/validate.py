@@ -68,6 +68,7 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "skew_ppm": (-1000.0, 1000.0, "modem clocks drift by tens of ppm"),
     "node_speed_mps": (0.0, 20.0, "vehicles and currents stay below 20 m/s"),
     "modem_power_w": (0.0, 500.0, "acoustic modems draw at most a few hundred W"),
+    "follow_radius_m": (0.0, 10.0, "arrival sets measured up to 10 m; docs/channel.md"),
 }
 
 
@@ -169,6 +170,7 @@ def _check_channel(sc: Scenario, file: Path | None) -> None:
         )
     for k in given:
         _plausible(file, f"channel.{k}", float(getattr(c, k)), "modem_power_w")
+    _plausible(file, "channel.follow_radius_m", c.follow_radius_m, "follow_radius_m")
     for i, g in enumerate(sc.nodes):
         if g.battery is not None and not given:
             raise ScenarioError(

@@ -12,6 +12,7 @@ from scripted import planned
 from test_acoustic import Listener
 
 from aquasim_py.channel import ssp
+from aquasim_py.channel.arrival_cache import ArrivalCache
 from aquasim_py.channel.arrival_links import ARRIVAL_FIELDS
 from aquasim_py.channel.arrivals import arrivals
 from aquasim_py.channel.bathymetry import FluidBottom, GriddedBathymetry, Seamount
@@ -24,6 +25,7 @@ from aquasim_py.mobility import Box, ConstantVelocity
 from aquasim_py.radio import PACKET_FIELDS
 
 C = 1500.0
+_POST_INIT = ArrivalCache.__post_init__
 #: a constant speed over a flat 1000 m floor with a seamount whose crest (100 m) stands between
 #: two nodes at 500 m, 6 km apart: no direct path, the surface reflection passes over the crest
 SEAMOUNT = Environment(DepthProfile(ssp.Constant(C)), Seamount(1000.0, 900.0, 800.0, x0=3000.0), FluidBottom())
@@ -167,10 +169,14 @@ def test_turning_receiver_converges_after_the_newton_step(monkeypatch: pytest.Mo
         assert abs(r.time - t_arr) < 1e-9 and r.path == "direct"
 
 
-def _network(seed: int) -> Simulation:
+def _network(seed: int, **channel: float) -> Simulation:
     env = SHELF
     sim = Simulation(
-        seed, ssp=ssp.Constant(C), volume=BOX, channel=ChannelConfig(collision="destructive"), environment=env
+        seed,
+        ssp=ssp.Constant(C),
+        volume=BOX,
+        channel=ChannelConfig(collision="destructive", **channel),
+        environment=env,
     )
     rng = np.random.default_rng(seed)
     pos = np.c_[rng.uniform(-800, 800, 5), rng.uniform(-800, 800, 5), rng.uniform(5, 90, 5)]
@@ -279,33 +285,53 @@ def test_reception_carries_the_stamp_only() -> None:
     np.testing.assert_allclose(rec.rx_local - rec.packet.tx_local, _surface_image_time(SRC, DST), rtol=0, atol=1e-9)
 
 
+def _caches(monkeypatch: pytest.MonkeyPatch, **setting: int) -> list[ArrivalCache]:
+    """The arrival caches the channel makes from now on, each with ``setting`` applied first."""
+    made: list[ArrivalCache] = []
+
+    def keep(self: ArrivalCache) -> None:
+        for k, v in setting.items():
+            setattr(self, k, v)
+        _POST_INIT(self)
+        made.append(self)
+
+    monkeypatch.setattr(ArrivalCache, "__post_init__", keep)
+    return made
+
+
 def test_links_followed_from_their_reverse_keep_the_stamps(monkeypatch: pytest.MonkeyPatch) -> None:
     """The channel numbers its links so that the cache follows a link from its reverse's search
     (nodes transmitting 0.4 s apart, drifting 0.5 m/s): some links are served so, and the packets
     equal those of the cache without that tier (the same events; stamps to 1e-9 s, the search's
     own accuracy)."""
-    from aquasim_py.channel import arrival_cache
-
-    caches: list[arrival_cache.ArrivalCache] = []
-    made = arrival_cache.ArrivalCache.__post_init__
-
-    def keep(self: arrival_cache.ArrivalCache) -> None:
-        made(self)
-        caches.append(self)
-
-    monkeypatch.setattr(arrival_cache.ArrivalCache, "__post_init__", keep)
+    caches = _caches(monkeypatch)
     a = _network(4).trace.frames()["packets"]
     assert sum(c.stats.reversed for c in caches) >= 5
-    caches.clear()
-
-    def plain(self: arrival_cache.ArrivalCache) -> None:
-        self.n_nodes = 0
-        keep(self)
-
-    monkeypatch.setattr(arrival_cache.ArrivalCache, "__post_init__", plain)
+    caches = _caches(monkeypatch, n_nodes=0)  # without the reverse tier
     b = _network(4).trace.frames()["packets"]
     assert sum(c.stats.reversed for c in caches) == 0
     assert (a.event == "rx").sum() > 20
     assert a[["event", "reason", "node", "src", "uid"]].equals(b[["event", "reason", "node", "src", "uid"]])
     for col in ("time", "tof"):
         np.testing.assert_allclose(a[col].to_numpy(float), b[col].to_numpy(float), rtol=0, atol=1e-9)
+
+
+def test_follow_radius_sets_what_the_cache_follows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``follow_radius_m`` is the cache's following radius: 0 searches every moved link, 3 m
+    follows more of them than the default 1 m; the receptions are the same (nodes drifting 0.5 m/s,
+    1.5 m between a link's requests: no path appears there), stamps to 1e-9 s."""
+    runs, follows = {}, {}
+    for radius in (0.0, 1.0, 3.0):
+        caches = _caches(monkeypatch)
+        runs[radius] = _network(4, follow_radius_m=radius).trace.frames()["packets"]
+        assert {c.follow_m for c in caches} == {radius}
+        follows[radius] = sum(c.stats.follows for c in caches)
+    assert follows[0.0] == 0 < follows[1.0] < follows[3.0]
+    a = runs[0.0]
+    assert (a.event == "rx").sum() > 20
+    for b in (runs[1.0], runs[3.0]):
+        assert a[["event", "reason", "node", "src", "uid", "n_arrivals"]].equals(
+            b[["event", "reason", "node", "src", "uid", "n_arrivals"]]
+        )
+        for col in ("time", "tof"):
+            np.testing.assert_allclose(a[col].to_numpy(float), b[col].to_numpy(float), rtol=0, atol=1e-9)
