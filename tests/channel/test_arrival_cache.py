@@ -472,3 +472,22 @@ def test_intervals_beyond_the_reach_are_not_walked() -> None:
             nwatch[i : i + 1],
             reach=np.nextafter(worst, np.inf),
         )[0]
+
+
+def test_a_search_watches_the_intervals_below_its_watch_m() -> None:
+    """A search keeps the watched intervals whose margin is below ``watch_m``: at 2 m exactly
+    those of a search at 20 m with a margin below 2 m, in the same order, and more at 20 m."""
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel._rangedep_search_jit import W_MARGIN, WATCH_ROWS
+
+    env = _front_env()
+    s, d = _links(np.random.default_rng(5), 60)
+    sec = rangedep.sections(env, s, d)
+    _r, _c, near, n_near = rangedep.solve(env, sec, 2, 2.0)
+    _r, _c, wide, n_wide = rangedep.solve(env, sec, 2, 20.0)
+    fits = n_wide <= WATCH_ROWS
+    assert n_wide[fits].sum() > n_near[fits].sum() > 0
+    for i in np.flatnonzero(fits):
+        rows = wide[i, : n_wide[i]]
+        assert (rows[:, W_MARGIN] < 20.0).all()
+        np.testing.assert_array_equal(near[i, : n_near[i]], rows[rows[:, W_MARGIN] < 2.0])
