@@ -9,14 +9,14 @@ Timed, after a warm-up (numba compilation) on other links:
 
 1. ``solve``: every link solved once by the exact search (aquasim_py.channel.arrivals);
 2. ``cache``, for each of ``--modes``: ``channel`` (the channel's cache: no Taylor tier, every
-   delay exact, links followed within the channel's default radius (``[channel]
-   follow_radius_m``, 1 m) of their last search or of their reverse's), ``channel_reverse`` (the same, the links src < dst
-   evaluated half a step before the others, which then meet their reverse's search half a step
-   old), ``channel_<R>m`` (e.g. ``channel_1m``, ``channel_10m``: followed within R m, the
-   search's watched intervals scaled to the radius), ``taylor`` (the Taylor tier, 1e-7 s bound, one-leg
-   following within 1 m), ``taylor_back`` (the same with ``follow_back``): filled once per
-   Taylor bound and radius (every link searched, and expanded for the Taylor tier), then for
-   each of ``--speeds`` (m/s) from a copy
+   delay exact, links followed within the channel's default radius, ``[channel]
+   follow_radius_m`` = 1 m, of their last search or of their reverse's), ``channel_reverse``
+   (the same, the links src < dst evaluated half a step before the others, which then meet
+   their reverse's search half a step old), ``channel_<R>m`` (e.g. ``channel_1m``,
+   ``channel_10m``: followed within R m, the search's watched intervals scaled to the radius),
+   ``taylor`` (the Taylor tier, 1e-7 s bound, one-leg following within 1 m), ``taylor_back``
+   (the same with ``follow_back``): filled once per Taylor bound and radius (every link
+   searched, and expanded for the Taylor tier), then for each of ``--speeds`` (m/s) from a copy
    of it: the nodes drift (each in its own fixed direction) and every link is evaluated every
    ``--step`` s for ``--steps`` steps: the rate, the shares of the tiers, and on
    ``--check`` links per step (the Taylor modes: links its tier served) the served delays against

@@ -16,34 +16,55 @@ radius for the run (``[channel] follow_radius_m``; default the scenario's).
 from __future__ import annotations
 
 import argparse
+import functools
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def run_parser(doc: str, duration_s: float) -> argparse.ArgumentParser:
+    """The command line of a run with an instrumented arrival cache (this tool's, and
+    tools/followed_sets.py's): the scenario, ``--duration`` (default ``duration_s``) and
+    ``--follow-m``; ``doc`` is the tool's docstring."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
     ap.add_argument("scenario", nargs="?", default=str(ROOT / "scenarios" / "shelfbreak_network.toml"))
-    ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds (default 60)")
-    ap.add_argument("--follow-m", type=float, default=None, help="the channel's follow radius for this run (m)")
-    args = ap.parse_args()
+    ap.add_argument("--duration", type=float, default=duration_s, help=f"simulated seconds (default {duration_s:g})")
+    ap.add_argument("--follow-m", type=float, default=None, help="[channel] follow_radius_m for this run (m)")
+    return ap
 
+
+def instrumented_run(args: argparse.Namespace, hook: Callable[..., Any]) -> Any:
+    """Run ``args.scenario`` for ``args.duration`` s (with ``args.follow_m`` as its follow radius
+    if given), every ``cache.get(links, src, dst)`` made ``hook(cache, get, links, src, dst)``
+    (``get``: the cache's own, for the hook to call); returns the run's result."""
     from aquasim_py import run_scenario
-    from aquasim_py.channel import arrival_cache
+    from aquasim_py.channel.arrival_cache import ArrivalCache
 
     overrides: dict[str, float] = {"simulation.duration_s": args.duration}
     if args.follow_m is not None:
         overrides["channel.follow_radius_m"] = args.follow_m
-    radius: list[float] = []
-    counts: Counter[str] = Counter()
-    get = arrival_cache.ArrivalCache.get
+    get = ArrivalCache.get
+    ArrivalCache.get = functools.partialmethod(hook, get)  # type: ignore[assignment, method-assign]
+    try:
+        return run_scenario(args.scenario, overrides=overrides, progress=False)
+    finally:
+        ArrivalCache.get = get  # type: ignore[method-assign]
 
-    def counted(self: arrival_cache.ArrivalCache, links, src, dst):
-        radius[:] = [self.follow_m]
+
+def main() -> None:
+    args = run_parser(__doc__ or "", 60.0).parse_args()
+
+    from aquasim_py.channel import arrival_cache
+
+    counts: Counter[str] = Counter()
+
+    def count(self: arrival_cache.ArrivalCache, get: Callable[..., Any], links, src, dst):
         ids = np.asarray(links, np.int64).ravel()
         s, d = np.asarray(src, float).reshape(-1, 3), np.asarray(dst, float).reshape(-1, 3)
         slots = np.array([self._slot.get(i, -1) for i in ids.tolist()], np.int64)
@@ -64,11 +85,11 @@ def main() -> None:
         counts["requests"] += ids.size
         return out
 
-    arrival_cache.ArrivalCache.get = counted  # type: ignore[method-assign]
     t0 = time.process_time()
-    run_scenario(args.scenario, overrides=overrides, progress=False)
+    result = instrumented_run(args, count)
     cpu = time.process_time() - t0
-    print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {radius[0]:g} m")
+    radius = result.scenario.channel.follow_radius_m
+    print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {radius:g} m")
     print(f"  CPU {cpu:.1f} s (instrumented)")
     print(f"  {'requests':32s} {counts['requests']}")
     for cls in ("first", "near", "far"):

@@ -17,8 +17,8 @@ or one the search at the old ends missed), and where the new search lacks one fo
 ``--watch``: a link counts as followed only where its search's watched intervals also hold at
 the moved ends with the followed eigenrays (:func:`aquasim_py.channel.rangedep.watch`, as the
 cache's following tier checks them: a fold in the making, the intervals whose margin is below
-WATCH_M_PER_M times the move, at least 1 m, as a cache of that radius does), its cost counted
-with following's.
+``rangedep.watch_reach`` of the move, as a cache of that radius does), its cost counted with
+following's.
 
     python tools/follow_radius.py --seeds 4 --nodes 20 [--back] [--watch]
 """
@@ -40,7 +40,6 @@ def main() -> None:
     from bench_arrivals import network, pairs  # tools/, beside this script
 
     from aquasim_py.channel import rangedep
-    from aquasim_py.channel._rangedep_search_jit import WATCH_M_PER_M
     from aquasim_py.channel.arrivals import arrivals, first_detectable, follow, launch_table, watched_arrivals
     from aquasim_py.channel.data import shelfbreak
 
@@ -64,7 +63,7 @@ def main() -> None:
         s, d = pos[si], pos[di]
         watched = {}  # the search's watched intervals per radius, as a cache of that radius keeps them
         for r in radii:
-            wm = WATCH_M_PER_M * max(r, 1.0)
+            wm = float(rangedep.watch_reach(r))
             if wm not in watched:
                 base, w_rows, w_counts = watched_arrivals(env, s, d, max_bounces=2, watch_m=wm)
                 watched[wm] = (w_rows, w_counts)

@@ -9,7 +9,7 @@ one the search lacks (the search is not exhaustive either, docs/channel.md). The
 eigenrays following lacked (a link, a bounce sequence and a launch angle to 0.1 degree), their
 strongest level and the links they are on. ``--follow-m`` sets ``[channel] follow_radius_m``
 for the run, ``--watch-rate`` the fold check's metres of miss per metre of move
-(``WATCH_M_PER_M``; an experiment).
+(``WATCH_M_PER_M``, which :func:`aquasim_py.channel.rangedep.watch_reach` reads; an experiment).
 
     python tools/followed_sets.py --duration 20                    # docs/channel.md
     python tools/followed_sets.py --duration 20 --follow-m 3
@@ -17,35 +17,33 @@ for the run, ``--watch-rate`` the fold check's metres of miss per metre of move
 
 from __future__ import annotations
 
-import argparse
+import sys
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("scenario", nargs="?", default=str(ROOT / "scenarios" / "shelfbreak_network.toml"))
-    ap.add_argument("--duration", type=float, default=20.0, help="simulated seconds (default 20)")
-    ap.add_argument("--follow-m", type=float, default=None, help="[channel] follow_radius_m for this run (m)")
-    ap.add_argument("--watch-rate", type=float, default=None, help="the fold check's m of miss per m of move")
-    args = ap.parse_args()
+    from cache_requests import instrumented_run, run_parser  # tools/, beside this script
 
-    from aquasim_py import run_scenario
-    from aquasim_py.channel import arrival_cache
+    from aquasim_py.channel import _rangedep_search_jit, arrival_cache
     from aquasim_py.channel.arrivals import arrivals
 
-    if args.watch_rate is not None:
-        arrival_cache.WATCH_M_PER_M = args.watch_rate
+    ap = run_parser(__doc__ or "", 20.0)
+    ap.add_argument("--watch-rate", type=float, default=None, help="the fold check's m of miss per m of move")
+    args = ap.parse_args()
+    if args.watch_rate is not None:  # read by rangedep.watch_reach at each search and check
+        _rangedep_search_jit.WATCH_M_PER_M = args.watch_rate
     counts: Counter[str] = Counter()
     lacked: dict[tuple[int, int, float], float] = {}  # (link, bounce code, launch deg) -> level dB
     followed_tiers = np.array([arrival_cache.TIERS.index("follow"), arrival_cache.TIERS.index("reverse")])
-    get = arrival_cache.ArrivalCache.get
 
-    def checked(self: arrival_cache.ArrivalCache, links, src, dst):
+    def checked(self: arrival_cache.ArrivalCache, get: Callable[..., Any], links, src, dst):
         out = get(self, links, src, dst)
         fol = np.flatnonzero(np.isin(self.served_by, followed_tiers))
         if not fol.size:
@@ -71,11 +69,7 @@ def main() -> None:
                         lacked[key] = max(lacked.get(key, -np.inf), float(new.level_db[q]))
         return out
 
-    arrival_cache.ArrivalCache.get = checked  # type: ignore[method-assign]
-    overrides: dict[str, float] = {"simulation.duration_s": args.duration}
-    if args.follow_m is not None:
-        overrides["channel.follow_radius_m"] = args.follow_m
-    run_scenario(args.scenario, overrides=overrides, progress=False)
+    instrumented_run(args, checked)
     print(f"{Path(args.scenario).name}, first {args.duration:g} s")
     for k in ("followed", "lacks one", "carries one more"):
         print(f"  {'requests ' + k:36s} {counts[k]}")

@@ -99,7 +99,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import arrivals as _arrivals
 from . import rangedep
-from ._rangedep_search_jit import NW, WATCH_M_PER_M, WATCH_ROWS
+from ._rangedep_search_jit import NW, WATCH_ROWS
 from .arrivals import Arrivals
 from .environment import Environment
 
@@ -189,7 +189,7 @@ class ArrivalCache:
     tol_s: the Taylor tier's error bound (s); 0 turns it off (every request exact), fixed at
     construction (the Taylor tables are allocated only when it is > 0). follow_m:
     the following tier's radius (m) around the last search; 0 turns it off (a search keeps the
-    watched intervals a move within it may need, ``WATCH_M_PER_M`` per metre). follow_back: where
+    watched intervals a move within it may need, :func:`.rangedep.watch_reach`). follow_back: where
     following a moved source loses an eigenray, follow the link again in two legs
     (:func:`.rangedep.follow_ends`) instead of searching it: far more links followed, but a
     failing one-leg follow often marks a changing arrival set, and without it the modem's stamp
@@ -406,7 +406,7 @@ class ArrivalCache:
         links with ends (s, d): the slots' own links (``flip`` False) or their reverses (True),
         each watch checked in the direction it was searched, those intervals whose margin the
         miss may have crossed with the farther end ``moved`` (m) from where it was searched
-        (``WATCH_M_PER_M`` per metre, at least 1 m)."""
+        (:func:`.rangedep.watch_reach`)."""
         clear = np.ones(wslots.size, bool)
         has = self._nwatch[wslots] > 0
         if not has.any():
@@ -420,7 +420,7 @@ class ArrivalCache:
             rth, rcd = _arrivals.launch_table(_arrivals.reversed_arrivals(_links_of(mine, back)))
             th[back], cd[back] = np.nan, -1
             th[back, : rth.shape[1]], cd[back, : rcd.shape[1]] = rth, rcd
-        reach = WATCH_M_PER_M * np.maximum(moved[has], 1.0)
+        reach = rangedep.watch_reach(moved[has])
         clear[has] = rangedep.watch(
             self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd, reach
         )
@@ -516,7 +516,7 @@ class ArrivalCache:
             max_bounces=self.max_bounces,
             frequency_khz=self.frequency_khz,
             spreading=self.spreading,
-            watch_m=WATCH_M_PER_M * max(self.follow_m, 1.0),
+            watch_m=float(rangedep.watch_reach(self.follow_m)),
         )
         self._store(slots, arr)
         self._watch[slots], self._nwatch[slots], self._wrev[slots] = watch, nwatch, False

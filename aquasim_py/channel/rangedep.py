@@ -66,6 +66,7 @@ __all__ = [
     "trace_rays",
     "track",
     "watch",
+    "watch_reach",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -414,19 +415,30 @@ def _kernel_args(env: Environment, sec: Sections) -> list[Any]:
     ]
 
 
+def watch_reach(move_m: ArrayLike) -> FloatArray:
+    """How far (m) the depth miss at a fixed launch angle is taken to move when the farther end of
+    a link moves by ``move_m`` (m): ``WATCH_M_PER_M`` per metre, at least 1 m of move. A search
+    for a follow radius R keeps the watched intervals whose margin is below ``watch_reach(R)``
+    (:func:`solve`), and a link followed ``move_m`` from its search checks those below
+    ``watch_reach(move_m)`` (:func:`watch`)."""
+    from ._rangedep_search_jit import WATCH_M_PER_M
+
+    return WATCH_M_PER_M * np.maximum(np.asarray(move_m, dtype=float), 1.0)
+
+
 def solve(
     env: Environment, sec: Sections, max_bounces: int, watch_m: float | None = None
 ) -> tuple[FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
     """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the
     sections; their watched intervals (n, WATCH_ROWS, NW) and counts (n,) (where a small move
     may bring a fold's two eigenrays: :func:`watch`): those whose margin is below ``watch_m``
-    (m; default ``WATCH_M_PER_M``, what a follow radius of 1 m needs)."""
+    (m; default ``watch_reach(1.0)``, what a follow radius of 1 m needs)."""
     from . import _rangedep_search_jit as jit
 
     mb = int(max_bounces)
     if mb < 0:
         raise ValueError(f"max_bounces must be >= 0, got {max_bounces!r}")
-    wm = jit.WATCH_M_PER_M if watch_m is None else float(watch_m)
+    wm = float(watch_reach(1.0) if watch_m is None else watch_m)
     n = sec.zs.size
     wmax = np.full(n, 2.0 * (mb + 1) + 1.0) * 1.5
     nfan = np.ceil(2.0 * wmax / _FAN_DW).astype(np.int64)
@@ -455,8 +467,7 @@ def watch(
     given): False where a fold may have brought two (the link is to be searched again) or the
     link had more watched intervals than rows. ``reach`` (m, (n,) or scalar; default every
     interval): only the intervals whose margin is below it are checked (how far the miss may
-    have moved since the search: ``WATCH_M_PER_M`` per metre the farther end moved, at least
-    1 m)."""
+    have moved since the search: :func:`watch_reach` of the farther end's move)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)

@@ -454,23 +454,16 @@ def test_intervals_beyond_the_reach_are_not_walked() -> None:
     # each failing link checked one interval at a time: it fails only with a reach above the
     # margin of an interval that fails on its own
     for i in np.flatnonzero(~every)[:5]:
+        ends = (moved[i : i + 1], d[i : i + 1])
         fails = []
         for k in range(nwatch[i]):
             one = watch[i : i + 1].copy()
             one[0, [0, k]] = one[0, [k, 0]]
-            fails.append(not rangedep.watch(env, moved[i : i + 1], d[i : i + 1], 2, one, np.array([1]))[0])
+            fails.append(not rangedep.watch(env, *ends, 2, one, np.array([1]))[0])
         worst = min(m for m, f in zip(watch[i, : nwatch[i], W_MARGIN], fails) if f)
-        assert rangedep.watch(env, moved[i : i + 1], d[i : i + 1], 2, watch[i : i + 1], nwatch[i : i + 1], reach=worst)[
-            0
-        ]
+        assert rangedep.watch(env, *ends, 2, watch[i : i + 1], nwatch[i : i + 1], reach=worst)[0]
         assert not rangedep.watch(
-            env,
-            moved[i : i + 1],
-            d[i : i + 1],
-            2,
-            watch[i : i + 1],
-            nwatch[i : i + 1],
-            reach=np.nextafter(worst, np.inf),
+            env, *ends, 2, watch[i : i + 1], nwatch[i : i + 1], reach=np.nextafter(worst, np.inf)
         )[0]
 
 
@@ -491,3 +484,11 @@ def test_a_search_watches_the_intervals_below_its_watch_m() -> None:
         rows = wide[i, : n_wide[i]]
         assert (rows[:, W_MARGIN] < 20.0).all()
         np.testing.assert_array_equal(near[i, : n_near[i]], rows[rows[:, W_MARGIN] < 2.0])
+
+
+def test_watch_reach_is_two_metres_per_metre_of_move_at_least_one() -> None:
+    """The rule the search and the check share: 2 m of miss per metre the farther end moved,
+    the move taken as at least 1 m (docs/channel.md)."""
+    from aquasim_py.channel import rangedep
+
+    np.testing.assert_array_equal(rangedep.watch_reach([0.0, 0.3, 1.0, 3.0, 10.0]), [2.0, 2.0, 2.0, 6.0, 20.0])
