@@ -1,8 +1,9 @@
 """Compiled eigenray search of the range-dependent solver (numba): the per-link fan and its
 refinement, the safeguarded Newton iteration inside a family (:func:`search`, :func:`search_links`),
 the following of known eigenrays to moved end points (:func:`follow_links`) and the check of the
-folds a search saw in the making (:func:`watch_links`). The ray walk they
-call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the public API.
+folds and family edges where a search saw eigenrays in the making (:func:`watch_links`). The ray
+walk they call is :func:`._rangedep_jit.trace`; see :mod:`.rangedep` for the model and the public
+API.
 
 The search of one link works on the depth miss f(theta) = z(theta, R) - z_R of the ray launched
 at theta, its exact derivative q = d z / d theta (the walk's tangent-linear map) and its bounce
@@ -66,18 +67,18 @@ _MAX_LEVELS = 60
 _STACK = 160
 _MAXIT = 60
 _ACCEPT_M = 1e-6  # a converged bracket is an eigenray only if it hits the receiver this closely
-# a watched fold (search()'s docstring): an extremum of a family's miss whose lower bound (its
-# margin, m) is below WATCH_M_PER_M times the farther end's move since the search (at least 1 m)
-# is checked again by the following tier; 2 m is about 3x the median change of the miss at a fixed
-# launch angle when both ends move 1 m (0.73 m on 1 500 shelf-break links of the 100-node
-# network; the tail, rays grazing the slope, reaches 90 m and is not covered), and the change is
-# taken as growing in proportion to the move beyond 1 m (first order). A search keeps the
-# intervals whose margin is below its ``watch_m``: WATCH_M_PER_M times the follow radius (at
-# least 1 m)
+# a watched fold or edge (search()'s docstring): an extremum of a family's miss, or its miss at
+# the family's edge, whose lower bound (its margin, m) is below WATCH_M_PER_M times the farther
+# end's move since the search (at least 1 m) is checked again by the following tier; 2 m is
+# about 3x the median change of the miss at a fixed launch angle when both ends move 1 m (0.73 m
+# on 1 500 shelf-break links of the 100-node network; the tail, rays grazing the slope, reaches
+# 90 m and is not covered), and the change is taken as growing in proportion to the move beyond
+# 1 m (first order). A search keeps the intervals whose margin is below its ``watch_m``:
+# WATCH_M_PER_M times the follow radius (at least 1 m)
 WATCH_M_PER_M = 2.0
 WATCH_ROWS = 16  # watched intervals per link (more: the link cannot be watched, it is searched)
-W_A, W_B, W_CODE, W_SIGN, W_MARGIN = range(5)
-NW = 5
+W_A, W_B, W_CODE, W_SIGN, W_MARGIN, W_EDGE = range(6)
+NW = 6
 _WATCH_STEPS = 16  # doubling steps that seek an extremum that left its watched interval
 # a sample: angle, miss, code, d miss / d angle, predicted event offsets above and below, bounces
 # (-1: lost)
@@ -451,8 +452,14 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
     (its margin: the bound of :func:`_out_of_reach` on the interval, or on the last bracket of
     :func:`_extremum` where it sought the extremum, else the extremum's miss): a small move
     of an end may carry that extremum through zero, where two eigenrays are born (a fold), which
-    following the link's known eigenrays cannot see. Its rows (a, b, family, sign of the ends'
-    miss, margin) are what :func:`watch_links` checks again at moved ends."""
+    following the link's known eigenrays cannot see. And a located family edge (the last
+    interval of two families, at most ``_EDGE_RAD`` wide) where the miss of one of them heads
+    for zero beyond the edge (away from the family: else it reaches zero inside, at a known
+    eigenray, which following sees leave) but stays within ``watch_m`` of it there (its margin:
+    |f| less the end's slope times the width): a small move may carry that zero across the
+    edge, where an eigenray enters the family, which following cannot see either. Its rows (a,
+    b, family, sign of the ends' miss, margin, edge: 0 for a fold, 1 where the family is at a,
+    -1 at b) are what :func:`watch_links` checks again at moved ends."""
     dummy = np.empty((1, 3))
     ev = np.empty(2)
     noev = np.empty(0)  # walks that need no event predictions
@@ -564,7 +571,7 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 if turns and one and far:
                     margin = min(abs(fa), abs(fb)) - 2.0 * max(abs(qa), abs(qb)) * w
                     if margin < watch_m:
-                        nw = _watch_row(watch, nw, a, b, ca, fa, margin)
+                        nw = _watch_row(watch, nw, a, b, ca, fa, margin, 0.0)
                 turns = turns and not (one and far)
                 split = event or ((turns or (bent and near)) and w > _FOLD_RAD)
                 # end slopes of one sign that differ from the secant by more than 2x (or a cubic
@@ -586,7 +593,7 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                             noev,
                         )  # fmt: skip
                         if cx == ca and (fx > 0.0) == (fa > 0.0) and margin < watch_m:
-                            nw = _watch_row(watch, nw, a, b, ca, fa, margin)
+                            nw = _watch_row(watch, nw, a, b, ca, fa, margin, 0.0)
                         if cx == ca and (fx > 0.0) != (fa > 0.0) and nbr + 2 <= nbmax:
                             br[nbr, 0], br[nbr, 1], br[nbr, 2], br[nbr, 3] = a, fa, x, fx
                             br[nbr + 1, 0], br[nbr + 1, 1], br[nbr + 1, 2], br[nbr + 1, 3] = x, fx, b, fb
@@ -594,6 +601,17 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                             bc[nbr + 1] = ca
                             nbr += 2
                     continue
+            if ca != cb and not split:
+                # a located edge: a family's miss that may reach zero there with a small move
+                # brings an eigenray in across it, which following the known ones cannot see
+                for E, e_code, right in ((A, ca, False), (B, cb, True)):
+                    if e_code >= 0:
+                        margin = abs(E[S_F]) - abs(E[S_Q]) * w if math.isfinite(E[S_Q]) else 0.0
+                        # the miss heads for zero away from the family (else it reaches it inside,
+                        # at a known eigenray: that one leaving is seen by following)
+                        outward = not math.isfinite(E[S_Q]) or ((E[S_F] > 0.0) == (E[S_Q] > 0.0)) == right
+                        if outward and margin < watch_m:
+                            nw = _watch_row(watch, nw, a, b, e_code, E[S_F], max(margin, 0.0), -1.0 if right else 1.0)
             if not split or lv >= _MAX_LEVELS or top + 3 > _STACK:
                 continue
             # a family's edge that an end predicts: two samples around the prediction (a tenth of
@@ -647,14 +665,16 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
 
 
 @_jit
-def _watch_row(watch, nw, a, b, code, f, margin):
+def _watch_row(watch, nw, a, b, code, f, margin, edge):
     """Write the watched interval [a, b] of family ``code`` (its ends' miss of the sign of ``f``,
-    at least ``margin`` (m) off zero inside) to ``watch`` if it has room; returns the count of
-    watched intervals, this one included."""
+    at least ``margin`` (m) off zero inside; ``edge`` 0 a fold's interval, +-1 an edge's with the
+    family at a or b) to ``watch`` if it has room; returns the count of watched intervals, this
+    one included."""
     if nw < watch.shape[0]:
         watch[nw, W_A], watch[nw, W_B], watch[nw, W_CODE] = a, b, code
         watch[nw, W_SIGN] = 1.0 if f > 0.0 else -1.0
         watch[nw, W_MARGIN] = margin
+        watch[nw, W_EDGE] = edge
     return nw + 1
 
 
@@ -848,7 +868,10 @@ def watch_links(
     NaN / -1 past each link's own) passes: one end of an interval across one of them, or the
     downhill search stopped by one (the miss is monotone from the interval to it, so the
     extremum watched there is gone). Two walks per interval, more where the extremum moved or
-    is sought."""
+    is sought. A watched edge passes while it stays in its interval (its family at that end,
+    another at the other) with the family's miss kept off zero across the interval as the
+    search left it (two walks); an edge that moved out is not sought (that costs about what the
+    search's own edge location does): the link is searched."""
     L = zs.size
     clear = np.ones(L, np.bool_)
     dummy = np.empty((1, 3))
@@ -868,6 +891,24 @@ def watch_links(
             code, positive = int(watch[l, k, W_CODE]), watch[l, k, W_SIGN] > 0.0
             fa, ca, qa = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], a, maxb, bpar, dummy, noev)
             fb, cb, qb = _miss(rr, zz, cc, bb, ff, floor, zs[l], zr[l], R[l], b, maxb, bpar, dummy, noev)
+            if watch[l, k, W_EDGE] != 0.0:
+                # an edge: clear while it stays in its interval (the family at its end, another
+                # at the other) with the miss there kept off zero across the interval, as the
+                # search left it; an edge that moved is not sought but the link searched
+                if watch[l, k, W_EDGE] > 0.0:
+                    fe, ce, qe, co = fa, ca, qa, cb
+                else:
+                    fe, ce, qe, co = fb, cb, qb, ca
+                if not (
+                    ce == code
+                    and co != code
+                    and (fe > 0.0) == positive
+                    and math.isfinite(qe)
+                    and abs(fe) - abs(qe) * (b - a) > 0.0
+                ):
+                    clear[l] = False
+                    break
+                continue
             if ca != code or cb != code:
                 clear[l] = False
                 break

@@ -19,11 +19,13 @@ is served, cheapest first, by
    where following it forwards loses an eigenray, :func:`.rangedep.follow_ends`), unless one
    cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
    followed onto a sibling of its bounce sequence (a fold), or a fold in the making may have
-   brought two new eigenrays: the last search's watched intervals (:func:`.rangedep.watch`:
-   stretches of a family where a lower bound on the depth miss at an extremum, its margin, was
-   below 2 m per metre of ``follow_m``, at least 2 m) whose margin the miss may have crossed
-   since the search (2 m per metre the farther end moved, at least 2 m) are checked again at
-   (s, d) with the followed eigenrays, and a link where one fails is searched;
+   brought two new eigenrays, or one may have entered a family across its edge: the last
+   search's watched intervals (:func:`.rangedep.watch`: stretches of a family where a lower
+   bound on the depth miss at an extremum, its margin, was below 2 m per metre of ``follow_m``,
+   at least 2 m; and family edges where the miss heading for zero beyond the edge was that
+   near it) whose margin the miss may have crossed since the search (2 m per metre the farther
+   end moved, at least 2 m) are checked again at (s, d) with the followed eigenrays, and a
+   link where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
 
 A search is expanded (the stencil below, which costs about as much as following the link 13
@@ -80,9 +82,9 @@ low grazing angles), is never served by Taylor; searched again within 2 h of whe
 expanded again (the stencil would most likely be refused again, and costs twice the search). A
 link without arrivals is served as such within the region. The Taylor tier does not detect a
 path that appears (a new eigenray) inside its region, nor the following tier one that appears
-other than at a watched fold (one that enters a family across its edge, or at an extremum
-farther than 2 m from zero: rays grazing a steep flank, whose miss moves tens of metres for a
-metre's move); how often that changes the modem's stamp is measured by ``python
+other than at a watched fold or edge (at an extremum or an edge whose miss was farther than 2 m
+from zero: rays grazing a steep flank, whose miss moves tens of metres for a metre's move); how
+often that changes the modem's stamp is measured by ``python
 tools/follow_radius.py`` (docs/channel.md).
 
 Levels and angles served by Taylor are the reference's (they vary on scales of metres, not of

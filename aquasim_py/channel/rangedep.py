@@ -431,8 +431,9 @@ def solve(
 ) -> tuple[FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
     """Raw eigenray rows (n, cap, NF) (see _rangedep_search_jit.F_*) and counts (n,) of the
     sections; their watched intervals (n, WATCH_ROWS, NW) and counts (n,) (where a small move
-    may bring a fold's two eigenrays: :func:`watch`): those whose margin is below ``watch_m``
-    (m; default ``watch_reach(1.0)``, what a follow radius of 1 m needs)."""
+    may bring a fold's two eigenrays, or one across a family's edge: :func:`watch`): those whose
+    margin is below ``watch_m`` (m; default ``watch_reach(1.0)``, what a follow radius of 1 m
+    needs)."""
     from . import _rangedep_search_jit as jit
 
     mb = int(max_bounces)
@@ -464,8 +465,8 @@ def watch(
     (n,), as :func:`solve` gave them where the link was searched) still hold no eigenray with
     its ends at ``src`` -> ``dst`` (n, 3) but the link's known ones there (launch angles
     ``theta0`` (n, Q) rad and bounce sequences ``code`` (n, Q), NaN / -1 padded; none if not
-    given): False where a fold may have brought two (the link is to be searched again) or the
-    link had more watched intervals than rows. ``reach`` (m, (n,) or scalar; default every
+    given): False where a fold may have brought two, or one may have entered across a watched
+    edge (the link is to be searched again), or the link had more watched intervals than rows. ``reach`` (m, (n,) or scalar; default every
     interval): only the intervals whose margin is below it are checked (how far the miss may
     have moved since the search: :func:`watch_reach` of the farther end's move)."""
     from . import _rangedep_search_jit as jit

@@ -415,6 +415,45 @@ def test_a_fold_born_within_the_follow_radius_is_searched(reverse: bool) -> None
     np.testing.assert_allclose(np.sort(got.delay), np.sort(new.delay), rtol=0, atol=1e-9)
 
 
+# a moored anchor's link on the shelf-break sample whose receiver moves 0.8 m: a direct eigenray
+# enters its family across the edge with the surface-reflected one (3e-6 rad from it)
+_EDGE_LINK = ([1500.0, 0.0, 138.0], [121.197, 125.009, 62.259], [121.887, 124.611, 62.327])
+
+
+def test_an_eigenray_entering_across_a_watched_edge_is_searched() -> None:
+    """Following cannot see an eigenray that enters its family across the family's edge, and no
+    fold is involved; the search watched that edge (the family's miss there 0.016 m off zero),
+    its check fails at the moved ends where the folds' alone pass, so the link is searched and
+    its arrival set is the new search's, the new direct eigenray included."""
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel._rangedep_search_jit import F_CODE, F_THETA0, W_CODE, W_EDGE
+    from aquasim_py.channel.arrival_cache import TIERS
+    from aquasim_py.channel.data import shelfbreak
+
+    env = shelfbreak()
+    s, d0, d1 = (np.array(p)[None] for p in _EDGE_LINK)
+    old = arrivals(env, s, d0, max_bounces=2)
+    new = arrivals(env, s, d1, max_bounces=2)
+    assert (new.bounce_code == 0).sum() == (old.bounce_code == 0).sum() + 1
+    assert sorted(new.bounce_code[new.bounce_code != 0]) == sorted(old.bounce_code[old.bounce_code != 0])
+    rows, cnt, watch, nwatch = rangedep.solve(env, rangedep.sections(env, s, d0), 2)
+    w = watch[0, : nwatch[0]]
+    assert ((w[:, W_EDGE] != 0) & (w[:, W_CODE] == 0)).any()
+    th, code = rows[:, : cnt[0], F_THETA0], rows[:, : cnt[0], F_CODE].astype(np.int64)
+    followed, ok, _sec = rangedep.follow(env, s, d1, 2, th, code)
+    assert ok.all()  # following alone carries the old set
+    folds = w[w[:, W_EDGE] == 0][None]
+    args = (followed[..., F_THETA0], code, 2.0)
+    assert rangedep.watch(env, s, d1, 2, folds, np.array([folds.shape[1]]), *args)[0]
+    assert not rangedep.watch(env, s, d1, 2, watch, nwatch, *args)[0]
+    cache = ArrivalCache(env, 4, max_bounces=2, tol_s=0.0)
+    cache.get([0], s, d0)
+    got = cache.get([0], s, d1)
+    assert TIERS[cache.served_by[0]] == "search"
+    assert sorted(got.bounce_code) == sorted(new.bounce_code)
+    np.testing.assert_allclose(np.sort(got.delay), np.sort(new.delay), rtol=0, atol=1e-9)
+
+
 def test_watched_intervals_hold_at_the_ends_they_were_searched_at() -> None:
     """Checked at the very ends of their search, the watched intervals of every link are clear
     (the check repeats the search's own test there), but for links with more than the rows hold;
