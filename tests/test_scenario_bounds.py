@@ -194,6 +194,25 @@ def test_warning_is_one_line_on_stderr_and_the_run_proceeds(capsys: pytest.Captu
     assert (out / "summary.json").exists()
 
 
+def test_a_warning_line_is_printed_once_per_command(capsys: pytest.CaptureFixture[str]) -> None:
+    """The CLI prints each warning line once, though the scenario is validated again (a variants
+    run, once per variant) after something changed the warning filters in between (any
+    ``warnings.catch_warnings()``, which makes the "default" filter forget what it showed)."""
+    from aquasim_py.cli import _one_line_warnings
+    from aquasim_py.errors import ScenarioWarning
+
+    with _one_line_warnings():
+        for _variant in range(3):
+            warnings.warn(
+                "s.toml: x: value 2 is outside the plausible range [0, 1] (why)", ScenarioWarning, stacklevel=1
+            )
+            with warnings.catch_warnings():
+                pass
+    assert capsys.readouterr().err.splitlines() == [
+        "warning: s.toml: x: value 2 is outside the plausible range [0, 1] (why)"
+    ]
+
+
 # --------------------------------------------------------------------------- types
 def test_quoted_numbers_are_errors(capsys: pytest.CaptureFixture[str], base: Path) -> None:
     assert cli_error(capsys, base, 'nodes.1.mobility.speed_max="0.5"') == (

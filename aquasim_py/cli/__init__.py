@@ -32,11 +32,18 @@ __all__ = ["EXIT_USAGE", "UsageError", "main"]
 @contextmanager
 def _one_line_warnings() -> Iterator[None]:
     """Scenario deprecations (e.g. an old mobility model name) and implausible values as one
-    ``warning:`` line each."""
+    ``warning:`` line each, each line once in a command (a variants run validates its scenario
+    once per variant, and the "default" filter's registry forgets what it showed whenever
+    something changes the filters in between)."""
     from aquasim_py.errors import ScenarioDeprecationWarning, ScenarioWarning
 
+    shown: set[str] = set()
+
     def show(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
-        print(f"warning: {message}", file=sys.stderr)
+        line = f"warning: {message}"
+        if line not in shown:
+            shown.add(line)
+            print(line, file=sys.stderr)
 
     with warnings.catch_warnings():
         warnings.simplefilter("default", ScenarioDeprecationWarning)
