@@ -466,9 +466,10 @@ def watch(
     its ends at ``src`` -> ``dst`` (n, 3) but the link's known ones there (launch angles
     ``theta0`` (n, Q) rad and bounce sequences ``code`` (n, Q), NaN / -1 padded; none if not
     given): False where a fold may have brought two, or one may have entered across a watched
-    edge (the link is to be searched again), or the link had more watched intervals than rows. ``reach`` (m, (n,) or scalar; default every
-    interval): only the intervals whose margin is below it are checked (how far the miss may
-    have moved since the search: :func:`watch_reach` of the farther end's move)."""
+    edge (the link is to be searched again), or the link had more watched intervals than rows.
+    ``reach`` (m, (n,) or scalar; default every interval): only the intervals whose margin is
+    below it are checked (how far the miss may have moved since the search: :func:`watch_reach`
+    of the farther end's move)."""
     from . import _rangedep_search_jit as jit
 
     sec = sections(env, src, dst)
