@@ -18,9 +18,10 @@ is served, cheapest first, by
    levels and angles; with ``follow_back``, a moved source's move backwards from the receiver
    where following it forwards loses an eigenray, :func:`.rangedep.follow_ends`), unless one
    cannot be followed (its bounce sequence changed: a path about to vanish) or may have been
-   followed onto a sibling of its bounce sequence (a fold), or a fold in the making may have
-   brought two new eigenrays, or one may have entered a family across its edge: the last
-   search's watched intervals (:func:`.rangedep.watch`: stretches of a family where a lower
+   followed onto a sibling of its bounce sequence (a fold: it moved by half the gap to one, or
+   farther than its ray-tube width allows for the move, :func:`.rangedep.turned_within`), or a
+   fold in the making may have brought two new eigenrays, or one may have entered a family
+   across its edge: the last search's watched intervals (:func:`.rangedep.watch`: stretches of a family where a lower
    bound on the depth miss at an extremum, its margin, was below 2 m per metre of ``follow_m``,
    at least 2 m; and family edges where the miss heading for zero beyond the edge was that
    near it) whose margin the miss may have crossed since the search (2 m per metre the farther
@@ -451,6 +452,7 @@ class ArrivalCache:
             frequency_khz=self.frequency_khz,
             spreading=self.spreading,
             src_from=src_from,
+            reach=rangedep.watch_reach(moved),
         )
         if ok.any():
             idx = np.flatnonzero(ok)

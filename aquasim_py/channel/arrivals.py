@@ -195,6 +195,7 @@ def follow(
     frequency_khz: float = 10.0,
     spreading: str | float = "ray",
     src_from: ArrayLike | None = None,
+    reach: ArrayLike | None = None,
 ) -> tuple[Arrivals, NDArray[np.bool_]]:
     """The arrivals ``prev`` (of n links, each solved at nearby end points) followed to the end
     points ``src``, ``dst`` ((n, 3), m): each eigenray from its launch angle by Newton's
@@ -207,7 +208,10 @@ def follow(
     ray-tube width (for the level) is the walk's exact derivative, as a search's.
     ``src_from`` (n, 3): where the sources were when ``prev`` was solved; given, a moved
     source's move is followed backwards from the receiver (:func:`.rangedep.follow_ends`),
-    which keeps far more eigenrays than following it from the source."""
+    which keeps far more eigenrays than following it from the source. ``reach`` (n,) m: how far
+    the depth miss at a fixed launch angle may have moved (:func:`.rangedep.watch_reach`);
+    given, an eigenray whose launch angle moved farther than that allows is not followed
+    (:func:`.rangedep.turned_within`)."""
 
     n = prev.offsets.size - 1
     s = np.asarray(src, dtype=float).reshape(n, 3)
@@ -217,6 +221,11 @@ def follow(
     # without src_from no source counts as moved: one leg
     s0 = s if src_from is None else np.asarray(src_from, dtype=float).reshape(n, 3)
     rows, ok, sec = rangedep.follow_ends(env, s0, s, d, max_bounces, theta, code)
+    if reach is not None:
+        from ._rangedep_search_jit import F_THETA0
+
+        dz = _table(prev, prev.dz_dlaunch, np.nan)
+        ok &= rangedep.turned_within(theta, rows[..., F_THETA0], dz, np.asarray(reach, float).reshape(n, 1))
     # a link is followed where every eigenray is: not one changed its bounce sequence, and none
     # moved by half the gap to a sibling of its sequence or more (a fold)
     whole = np.all(ok | ~used, axis=1)
@@ -224,20 +233,23 @@ def follow(
     return out, whole
 
 
+def _table(arr: Arrivals, values: NDArray[Any], pad: Any) -> NDArray[Any]:
+    """Per-arrival ``values`` as an (n, Q) table of the links, Q the most arrivals of a link (at
+    least 1), padded with ``pad``."""
+    n = arr.offsets.size - 1
+    cnt = np.diff(arr.offsets)
+    rows_of = np.repeat(np.arange(n), cnt)
+    col = np.arange(arr.delay.size) - arr.offsets[:-1][rows_of]
+    out = np.full((n, max(int(cnt.max(initial=0)), 1)), pad, dtype=values.dtype)
+    out[rows_of, col] = values
+    return out
+
+
 def launch_table(arr: Arrivals) -> tuple[FloatArray, NDArray[np.int64]]:
     """Each link's launch angles (rad) and bounce sequences as (n, Q) tables, Q the most
     arrivals of a link (at least 1), padded with NaN and -1: the form :func:`.rangedep.follow`
     and :func:`.rangedep.watch` take."""
-    n = arr.offsets.size - 1
-    cnt = np.diff(arr.offsets)
-    q = max(int(cnt.max(initial=0)), 1)
-    rows_of = np.repeat(np.arange(n), cnt)
-    col = np.arange(arr.delay.size) - arr.offsets[:-1][rows_of]
-    theta = np.full((n, q), np.nan)
-    code = np.full((n, q), -1, np.int64)
-    theta[rows_of, col] = arr.launch_angle
-    code[rows_of, col] = arr.bounce_code
-    return theta, code
+    return _table(arr, arr.launch_angle, np.nan), _table(arr, arr.bounce_code, -1)
 
 
 def reversed_arrivals(arr: Arrivals) -> Arrivals:

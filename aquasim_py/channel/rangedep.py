@@ -55,6 +55,7 @@ from .environment import Environment
 
 __all__ = [
     "MIN_RANGE_M",
+    "TURN_FACTOR",
     "Sections",
     "follow",
     "follow_ends",
@@ -65,6 +66,7 @@ __all__ = [
     "solve",
     "trace_rays",
     "track",
+    "turned_within",
     "watch",
     "watch_reach",
 ]
@@ -573,6 +575,27 @@ def kept_apart(theta_old: FloatArray, theta_new: FloatArray, code: NDArray[np.in
     gap = np.min(np.where(same, np.abs(theta_old[:, :, None] - theta_old[:, None, :]), np.inf), axis=2)
     with np.errstate(invalid="ignore"):
         return used & (np.abs(theta_new - theta_old) < 0.5 * gap)
+
+
+# a followed root may move by this many times the fold check's reach over its old slope (the
+# slope changes along the move; an allowance, not derived)
+TURN_FACTOR = 4.0
+
+
+def turned_within(
+    theta_old: FloatArray, theta_new: FloatArray, dz_dth_old: FloatArray, reach: ArrayLike
+) -> NDArray[np.bool_]:
+    """(n, Q) whether each followed eigenray's launch angle moved (rad) by at most
+    ``TURN_FACTOR`` times ``reach`` (m, broadcast; :func:`watch_reach` of the farther end's move:
+    how far the depth miss at a fixed launch angle may have moved) over its old ray-tube width
+    |dz / d theta| (m/rad): to first order a root moves by the miss's change over its slope.
+    Following lands on another root of its bounce sequence where one was born between (a fold)
+    and the old one is steep: from a ray near a caustic (dz / d theta 8e6 m/rad) 1.2 deg onto
+    the new pair's far root, which :func:`kept_apart` allows there (half the gap to the sibling,
+    1.3 deg). False where not followed (NaN)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out: NDArray[np.bool_] = np.abs(theta_new - theta_old) <= TURN_FACTOR * np.asarray(reach) / np.abs(dz_dth_old)
+    return out
 
 
 def reversed_code(code: NDArray[np.int64], bounces: NDArray[np.int64]) -> NDArray[np.int64]:

@@ -454,6 +454,41 @@ def test_an_eigenray_entering_across_a_watched_edge_is_searched() -> None:
     np.testing.assert_allclose(np.sort(got.delay), np.sort(new.delay), rtol=0, atol=1e-9)
 
 
+# a shelf-break link whose ends move 1.6 m: a fold of its bottom-bottom family brings two
+# eigenrays at 11.37 and 11.57 deg, and following the old one at 12.77 deg (a steep ray, dz /
+# d theta 8e6 m/rad) lands on the one at 11.57
+_TURN_LINK = (
+    ([-738.043, 1166.679, 77.826], [-422.542, -171.32, 45.393]),
+    ([-738.025, 1165.042, 77.826], [-422.032, -169.748, 45.393]),
+)
+
+
+def test_a_followed_eigenray_that_turns_onto_a_new_root_is_searched() -> None:
+    """A followed eigenray whose launch angle moved farther than its ray-tube width allows for the
+    move (rangedep.turned_within) is not followed: the link is searched, and its arrival set is the
+    new search's; followed without that bound, the link would lack two of the family's four."""
+    from aquasim_py.channel import rangedep
+    from aquasim_py.channel.arrival_cache import TIERS
+    from aquasim_py.channel.arrivals import follow
+    from aquasim_py.channel.data import shelfbreak
+
+    env = shelfbreak()
+    (s0, d0), (s1, d1) = (np.array(p)[None] for p in _TURN_LINK[0]), (np.array(p)[None] for p in _TURN_LINK[1])
+    old = arrivals(env, s0, d0, max_bounces=2)
+    new = arrivals(env, s1, d1, max_bounces=2)
+    assert (new.bounce_code == 8).sum() == (old.bounce_code == 8).sum() + 2 == 4
+    moved = max(np.linalg.norm(s1 - s0), np.linalg.norm(d1 - d0))
+    got, ok = follow(env, old, s1, d1, max_bounces=2)
+    assert ok.all() and (got.bounce_code == 8).sum() == 2  # the unbounded follow keeps two
+    _got, ok = follow(env, old, s1, d1, max_bounces=2, reach=rangedep.watch_reach([moved]))
+    assert not ok.any()
+    cache = ArrivalCache(env, 4, max_bounces=2, tol_s=0.0, follow_m=3.0)
+    cache.get([0], s0, d0)
+    served = cache.get([0], s1, d1)
+    assert TIERS[cache.served_by[0]] == "search"
+    assert sorted(served.bounce_code) == sorted(new.bounce_code)
+
+
 def test_watched_intervals_hold_at_the_ends_they_were_searched_at() -> None:
     """Checked at the very ends of their search, the watched intervals of every link are clear
     (the check repeats the search's own test there), but for links with more than the rows hold;
