@@ -606,7 +606,7 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
                 # brings an eigenray in across it, which following the known ones cannot see
                 for E, e_code, right in ((A, ca, False), (B, cb, True)):
                     if e_code >= 0:
-                        margin = abs(E[S_F]) - abs(E[S_Q]) * w if math.isfinite(E[S_Q]) else 0.0
+                        margin = _edge_margin(E[S_F], E[S_Q], w)
                         # the miss heads for zero away from the family (else it reaches it inside,
                         # at a known eigenray: that one leaving is seen by following)
                         outward = not math.isfinite(E[S_Q]) or ((E[S_F] > 0.0) == (E[S_Q] > 0.0)) == right
@@ -662,6 +662,14 @@ def search(rr, zz, cc, bb, ff, floor, zs, zr, R, maxb, bpar, wmax, nfan, H, ztol
             if not dup:
                 n += 1
     return n, nw
+
+
+@_jit
+def _edge_margin(f, q, w):
+    """A lower bound (m) on |miss| across a family's last interval of width ``w`` (rad) before
+    its edge, from its end's miss ``f`` and slope ``q``: |f| - |q| w (0 where q is not finite);
+    the search's watch of the edge and its check at moved ends both use it."""
+    return abs(f) - abs(q) * w if math.isfinite(q) else 0.0
 
 
 @_jit
@@ -899,13 +907,7 @@ def watch_links(
                     fe, ce, qe, co = fa, ca, qa, cb
                 else:
                     fe, ce, qe, co = fb, cb, qb, ca
-                if not (
-                    ce == code
-                    and co != code
-                    and (fe > 0.0) == positive
-                    and math.isfinite(qe)
-                    and abs(fe) - abs(qe) * (b - a) > 0.0
-                ):
+                if not (ce == code and co != code and (fe > 0.0) == positive and _edge_margin(fe, qe, b - a) > 0.0):
                     clear[l] = False
                     break
                 continue

@@ -21,10 +21,10 @@ is served, cheapest first, by
    followed onto a sibling of its bounce sequence (a fold: it moved by half the gap to one, or
    farther than its ray-tube width allows for the move, :func:`.rangedep.turned_within`), or a
    fold in the making may have brought two new eigenrays, or one may have entered a family
-   across its edge: the last search's watched intervals (:func:`.rangedep.watch`: stretches of a family where a lower
-   bound on the depth miss at an extremum, its margin, was below 2 m per metre of ``follow_m``,
-   at least 2 m; and family edges where the miss heading for zero beyond the edge was that
-   near it) whose margin the miss may have crossed since the search (2 m per metre the farther
+   across its edge: the last search's watched intervals (:func:`.rangedep.watch`: stretches of
+   a family where a lower bound on the depth miss at an extremum, its margin, was below 2 m
+   per metre of ``follow_m``, at least 2 m; and family edges where the miss heading for zero
+   beyond the edge was that near it) whose margin the miss may have crossed since the search (2 m per metre the farther
    end moved, at least 2 m) are checked again at (s, d) with the followed eigenrays, and a
    link where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
@@ -402,14 +402,14 @@ class ArrivalCache:
         return self._n[slots] > 0
 
     def _clear(
-        self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool, known: Arrivals, moved: NDArray
+        self, wslots: NDArray[np.int64], s: NDArray, d: NDArray, flip: bool, known: Arrivals, reach: NDArray
     ) -> NDArray[np.bool_]:
         """Whether the watched intervals of ``wslots`` (the last searches' folds in the making)
         still hold no eigenray but the ``known`` ones (one link per slot, followed there) for
         links with ends (s, d): the slots' own links (``flip`` False) or their reverses (True),
-        each watch checked in the direction it was searched, those intervals whose margin the
-        miss may have crossed with the farther end ``moved`` (m) from where it was searched
-        (:func:`.rangedep.watch_reach`)."""
+        each watch checked in the direction it was searched, those intervals whose margin is
+        below ``reach`` (m; how far the miss may have moved since the search,
+        :func:`.rangedep.watch_reach` of the farther end's move)."""
         clear = np.ones(wslots.size, bool)
         has = self._nwatch[wslots] > 0
         if not has.any():
@@ -423,9 +423,8 @@ class ArrivalCache:
             rth, rcd = _arrivals.launch_table(_arrivals.reversed_arrivals(_links_of(mine, back)))
             th[back], cd[back] = np.nan, -1
             th[back, : rth.shape[1]], cd[back, : rcd.shape[1]] = rth, rcd
-        reach = rangedep.watch_reach(moved[has])
         clear[has] = rangedep.watch(
-            self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd, reach
+            self.env, src, dst, self.max_bounces, self._watch[ws], self._nwatch[ws], th, cd, reach[has]
         )
         return clear
 
@@ -443,6 +442,7 @@ class ArrivalCache:
         where every arrival was followed and no watched interval (of the slots, or of the
         reverse links' ``wslots``; ``moved``: the farther end's distance from where they were
         searched, m) may hold new eigenrays (True there)."""
+        reach = rangedep.watch_reach(moved)  # how far the miss at a fixed angle may have moved
         got, ok = _arrivals.follow(
             self.env,
             prev,
@@ -452,13 +452,13 @@ class ArrivalCache:
             frequency_khz=self.frequency_khz,
             spreading=self.spreading,
             src_from=src_from,
-            reach=rangedep.watch_reach(moved),
+            reach=reach,
         )
         if ok.any():
             idx = np.flatnonzero(ok)
             fol = _links_of(got, ok)
             wsub = slots[idx] if wslots is None else wslots[idx]
-            clear = self._clear(wsub, s[idx], d[idx], wslots is not None, fol, moved[idx])
+            clear = self._clear(wsub, s[idx], d[idx], wslots is not None, fol, reach[idx])
             ok[idx[~clear]] = False
             if ok.any():
                 sub = slots[ok]

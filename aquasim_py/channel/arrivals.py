@@ -227,7 +227,8 @@ def follow(
         dz = _table(prev, prev.dz_dlaunch, np.nan)
         ok &= rangedep.turned_within(theta, rows[..., F_THETA0], dz, np.asarray(reach, float).reshape(n, 1))
     # a link is followed where every eigenray is: not one changed its bounce sequence, and none
-    # moved by half the gap to a sibling of its sequence or more (a fold)
+    # moved by half the gap to a sibling of its sequence or more, or (with reach) farther than its
+    # ray-tube width allows (a fold)
     whole = np.all(ok | ~used, axis=1)
     out = _assemble(sec, rows, used & whole[:, None], (n,), frequency_khz, spreading)
     return out, whole
