@@ -6,8 +6,10 @@ Runs a scenario (default ``scenarios/shelfbreak_network.toml``, its first ``--du
 the channel's cache instrumented: each request of a link is classed by the distance of its
 farther end from the link's last search (no search yet: "first"; within the cache's
 ``follow_m``: "near"; beyond: "far", with how many of those lie within 2, 5 and 10 m) and by the
-tier that served it (same, follow, reverse, search). ``--follow-m`` sets the channel's follow
-radius for the run (``[channel] follow_radius_m``; default the scenario's).
+tier that served it (same, follow, reverse, search); and the CPU the run spent in the cache,
+searching and following (two runs of different ``--duration`` give a later stretch's by
+difference). ``--follow-m`` sets the channel's follow radius for the run (``[channel]
+follow_radius_m``; default the scenario's).
 
     python tools/cache_requests.py                       # the figures of docs/performance.md
     python tools/cache_requests.py --duration 120 --follow-m 10
@@ -85,12 +87,38 @@ def main() -> None:
         counts["requests"] += ids.size
         return out
 
+    # CPU (s) inside the cache's tiers: searching (_fill) and following (_follow_from, its
+    # fold and edge checks included), and in every cache.get
+    spent: dict[str, float] = {"cache": 0.0, "searching": 0.0, "following": 0.0}
+
+    def timed(name: str, f: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(f)
+        def g(*a: Any, **k: Any) -> Any:
+            t = time.process_time()
+            try:
+                return f(*a, **k)
+            finally:
+                spent[name] += time.process_time() - t
+
+        return g
+
+    patched = {"_fill": "searching", "_follow_from": "following", "get": "cache"}
+    saved = {name: getattr(arrival_cache.ArrivalCache, name) for name in patched}
+    for name, label in patched.items():
+        setattr(arrival_cache.ArrivalCache, name, timed(label, saved[name]))
     t0 = time.process_time()
-    result = instrumented_run(args, count)
+    try:
+        result = instrumented_run(args, count)
+    finally:
+        for name, f in saved.items():
+            setattr(arrival_cache.ArrivalCache, name, f)
     cpu = time.process_time() - t0
     radius = result.scenario.channel.follow_radius_m
     print(f"{Path(args.scenario).name}, first {args.duration:g} s, follow radius {radius:g} m")
     print(f"  CPU {cpu:.1f} s (instrumented)")
+    print(f"  {'CPU in the arrival cache':32s} {spent['cache']:.1f} s")
+    print(f"  {'  of which searching':32s} {spent['searching']:.1f} s")
+    print(f"  {'  of which following':32s} {spent['following']:.1f} s")
     print(f"  {'requests':32s} {counts['requests']}")
     for cls in ("first", "near", "far"):
         for t in arrival_cache.TIERS:
