@@ -111,33 +111,33 @@ def main() -> None:
             if not live.any():
                 continue
             n = live.sum()
-            moved = live & ((c0 != c1) | (np.sign(f0) != np.sign(f1)))
-            changed.append(moved.sum() / n)
+            diff = live & ((c0 != c1) | (np.sign(f0) != np.sign(f1)))
+            changed.append(diff.sum() / n)
             new_code.append((live & (c0 != c1)).sum() / n)
             by_reach = live & ~(np.abs(f0) > float(rangedep.watch_reach(r)))
             uniform.append(by_reach.sum() / n)
-            uniform_out[0] += int((moved & ~by_reach).sum())
-            uniform_out[1] += int((moved & ~by_reach & (c0 != c1)).sum())
-            total += int(moved.sum())
+            uniform_out[0] += int((diff & ~by_reach).sum())
+            uniform_out[1] += int((diff & ~by_reach & (c0 != c1)).sum())
+            total += int(diff.sum())
             lin = np.abs(fs - f0) * (r / _STEP_M)
             # each edge between two fan angles: located at the ends and after the small move, its
             # shift scaled to r (unknown, the whole fan, where the small move changed either side)
             edges = []
-            for i in np.flatnonzero((c0[:-1] != c0[1:]) & (live[:-1] | live[1:])).tolist():
-                a, b = float(theta[i]), float(theta[i + 1])
-                if cs[i] != c0[i] or cs[i + 1] != c0[i + 1]:
+            for m in np.flatnonzero((c0[:-1] != c0[1:]) & (live[:-1] | live[1:])).tolist():
+                a, b = float(theta[m]), float(theta[m + 1])
+                if cs[m] != c0[m] or cs[m + 1] != c0[m + 1]:
                     edges.append((a, math.inf))
                     continue
-                e0 = edge(w0, a, b, int(c0[i]))
-                edges.append((e0, abs(edge(ws, a, b, int(c0[i])) - e0) * (r / _STEP_M)))
+                e0 = edge(w0, a, b, int(c0[m]))
+                edges.append((e0, abs(edge(ws, a, b, int(c0[m])) - e0) * (r / _STEP_M)))
             for k in _FACTORS:
                 near = np.zeros(theta.size, bool)
                 for e0, shift in edges:  # within k times the edge's shift, and one fan step
                     near |= np.abs(theta - e0) <= k * shift + (theta[1] - theta[0])
                 marked = live & (near | ~(np.abs(f0) > k * lin))
                 share[k].append(marked.sum() / n)
-                outside[k][0] += int((moved & ~marked).sum())
-                outside[k][1] += int((moved & ~marked & (c0 != c1)).sum())
+                outside[k][0] += int((diff & ~marked).sum())
+                outside[k][1] += int((diff & ~marked & (c0 != c1)).sum())
 
         def q(a: list[float]) -> str:
             p50, p90 = np.percentile(a, [50, 90]) * 100.0
