@@ -24,9 +24,9 @@ is served, cheapest first, by
    across its edge: the last search's watched intervals (:func:`.rangedep.watch`: stretches of
    a family where a lower bound on the depth miss at an extremum, its margin, was below 2 m
    per metre of ``follow_m``, at least 2 m; and family edges where the miss heading for zero
-   beyond the edge was that near it) whose margin the miss may have crossed since the search (2 m per metre the farther
-   end moved, at least 2 m) are checked again at (s, d) with the followed eigenrays, and a
-   link where one fails is searched;
+   beyond the edge was that near it) whose margin the miss may have crossed since the search
+   (2 m per metre the farther end moved, at least 2 m) are checked again at (s, d) with the
+   followed eigenrays, and a link where one fails is searched;
 3. **searching** again, which resets the reference positions and the expansion.
 
 A search is expanded (the stencil below, which costs about as much as following the link 13
