@@ -418,11 +418,12 @@ def test_sigterm_to_a_sweep(tmp_path):
     finally:
         p.kill()
     assert p.returncode == 143
-    assert err.splitlines() == [
-        "error: interrupted by SIGTERM (0 of 2 sweep runs had finished; no rows kept, no output written)"
-    ]
+    out = tmp_path / "sw"
+    assert err.splitlines() == [f"error: interrupted by SIGTERM: 0 of 2 runs saved in {out}; finish with --resume"]
     assert _wait_for(lambda: not any(_alive(w) for w in workers), timeout=5.0)
-    assert listing(tmp_path) == ["scen.toml"]
+    # a resumable sweep directory, without a row; nothing else written
+    assert listing(tmp_path) == ["scen.toml", "sw"]
+    assert not (out / "sweep.csv").exists() or len((out / "sweep.csv").read_text().splitlines()) <= 1
 
 
 def test_scratch_dir_removes_only_what_a_killed_run_left(tmp_path, monkeypatch):

@@ -4,4 +4,5 @@ import sys
 
 from aquasim_py.cli import main
 
-sys.exit(main())
+if __name__ == "__main__":  # importing the module (pkgutil, a docs tool) runs nothing
+    sys.exit(main())
