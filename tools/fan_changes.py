@@ -40,6 +40,18 @@ _STEP_M = 0.05  # the small move whose change is scaled (first order)
 _FACTORS = (1.5, 2.0, 4.0)
 
 
+def family_edge(code_at: Callable[[float], int], lo: float, hi: float, code_lo: int) -> float:
+    """The edge of the bounce sequence ``code_lo`` (``code_at(lo)``, the sequence of the ray
+    launched at an angle) towards ``hi``, bisected to 1e-10 rad (also tools/windowed_research.py's)."""
+    while abs(hi - lo) > 1e-10:
+        mid = 0.5 * (lo + hi)
+        if code_at(mid) == code_lo:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
 def main() -> None:
     from bench_arrivals import network  # tools/, beside this script
 
@@ -72,20 +84,14 @@ def main() -> None:
 
         return walk
 
+    def codes(walk: Callable[[float], tuple[float, int]]) -> Callable[[float], int]:
+        """The bounce sequence alone of ``walk``."""
+        return lambda th: walk(th)[1]
+
     def fan(walk: Callable[[float], tuple[float, int]]) -> tuple[np.ndarray, np.ndarray]:
         """(depth miss, bounce sequence) at every angle of the fan."""
         out = [walk(th) for th in theta.tolist()]
         return np.array([m for m, _ in out]), np.array([c for _, c in out], np.int64)
-
-    def edge(walk: Callable[[float], tuple[float, int]], lo: float, hi: float, code_lo: int) -> float:
-        """The edge of the sequence ``code_lo`` (at ``lo``) towards ``hi``, bisected to 1e-10 rad."""
-        while hi - lo > 1e-10:
-            mid = 0.5 * (lo + hi)
-            if walk(mid)[1] == code_lo:
-                lo = mid
-            else:
-                hi = mid
-        return 0.5 * (lo + hi)
 
     rng = np.random.default_rng(args.seed)
     pos = network(env, 100, rng)
@@ -128,8 +134,9 @@ def main() -> None:
                 if cs[m] != c0[m] or cs[m + 1] != c0[m + 1]:
                     edges.append((a, math.inf))
                     continue
-                e0 = edge(w0, a, b, int(c0[m]))
-                edges.append((e0, abs(edge(ws, a, b, int(c0[m])) - e0) * (r / _STEP_M)))
+                e0 = family_edge(codes(w0), a, b, int(c0[m]))
+                es = family_edge(codes(ws), a, b, int(c0[m]))
+                edges.append((e0, abs(es - e0) * (r / _STEP_M)))
             for k in _FACTORS:
                 near = np.zeros(theta.size, bool)
                 for e0, shift in edges:  # within k times the edge's shift, and one fan step

@@ -58,6 +58,7 @@ _VARIANTS = {"all windows": (), "without event windows": ("event",), "edge windo
 
 def main() -> None:
     from bench_arrivals import network  # tools/, beside this script
+    from fan_changes import family_edge
 
     from aquasim_py.channel import _rangedep_jit as kjit
     from aquasim_py.channel import _rangedep_search_jit as sjit
@@ -121,14 +122,8 @@ def main() -> None:
         return walk
 
     def edge(walk: Callable[[float], np.ndarray], lo: float, hi: float, code_lo: int) -> float:
-        """The edge of the sequence ``code_lo`` (at ``lo``) towards ``hi``, bisected to 1e-10 rad."""
-        while abs(hi - lo) > 1e-10:
-            mid = 0.5 * (lo + hi)
-            if int(walk(mid)[sjit.S_CODE]) == code_lo:
-                lo = mid
-            else:
-                hi = mid
-        return 0.5 * (lo + hi)
+        """The edge of the sequence ``code_lo`` (at ``lo``) towards ``hi``, to 1e-10 rad."""
+        return family_edge(lambda th: int(walk(th)[sjit.S_CODE]), lo, hi, code_lo)
 
     def edge_near(walk: Callable[[float], np.ndarray], e0: float, code_lo: int) -> float:
         """The edge of ``code_lo`` (below it) nearest ``e0``: a bracket doubled from 1e-6 rad."""
